@@ -1,0 +1,34 @@
+# madpinn workflow: train value functions and baselines, evaluate every (study, run, N, seed)
+# cell, log every job to MLflow, assemble the paper's tables and figures.
+#
+#   snakemake -j2 all                                            # paper protocol (config.yaml)
+#   snakemake -j2 all --configfile workflow/configs/smoke.yaml   # smoke run
+#   snakemake -j2 table_safety_scaling                           # one output alone
+import sys
+from pathlib import Path
+
+sys.path.insert(0, workflow.basedir)  # the package, also when not pip-installed
+
+from madpinn.config import ConfigError, validate_config
+
+
+configfile: str(Path(workflow.basedir) / "config.yaml")
+
+
+try:
+    validate_config(config)
+except ConfigError as exc:
+    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
+    raise SystemExit(1)
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/tracking.smk"
+include: "workflow/rules/evaluate.smk"
+include: "workflow/rules/tables.smk"
+
+
+rule all:
+    default_target: True
+    input:
+        ALL_TARGETS,

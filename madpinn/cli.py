@@ -1,0 +1,120 @@
+"""Command line: ``python -m madpinn <command>`` (also ``madpinn <command>``).
+
+Workflow rules call these commands; every command validates its config first.
+Commands live next to the code they drive: each module in ``COMMAND_MODULES`` exposes
+``register(subparsers)`` that adds its sub-command with ``func=handler(args) -> int``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from pathlib import Path
+
+from madpinn.config import ConfigError, load_config
+
+COMMAND_MODULES = ["madpinn.cli"]
+
+
+def add_config_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", nargs="+", required=True, help="config file(s), later ones override earlier ones")
+
+
+def _validate(args) -> int:
+    load_config(args.config)
+    print("config OK")
+    return 0
+
+
+def _tracking_init(args) -> int:
+    from madpinn.tracking import init_store
+
+    cfg = load_config(args.config)
+    info = {"enabled": bool(cfg["tracking"]["enabled"])}
+    if info["enabled"]:
+        info.update(init_store(cfg))
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(info, indent=2))
+    print(json.dumps(info))
+    return 0
+
+
+def _evaluate(args) -> int:
+    from madpinn.evaluation.job import evaluate
+
+    cfg = load_config(args.config)
+    summary = evaluate(
+        cfg, args.study, args.run, args.n_agents, args.seed, args.out, backend=args.backend,
+        threads=args.threads, progress=not args.no_progress, track=not args.no_track,
+    )
+    print(json.dumps({k: summary[k] for k in ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "elapsed_s")}))
+    return 0
+
+
+def _table(args) -> int:
+    from madpinn.evaluation.tables import write_table
+    from madpinn.tracking import log_job
+
+    cfg = load_config(args.config)
+    files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir)
+    if not args.no_track:
+        log_job(cfg, job_key=f"table/{args.name}", rule=args.name, wildcards={}, params={"kind": args.kind, "inputs": len(args.inputs)}, artifacts=files)
+    print("\n".join(map(str, files)))
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("validate-config", help="validate config file(s) against the schema")
+    add_config_arg(p)
+    p.set_defaults(func=_validate)
+
+    p = sub.add_parser("tracking-init", help="create the MLflow store and experiment once")
+    add_config_arg(p)
+    p.add_argument("--out", required=True, help="marker JSON written on success")
+    p.set_defaults(func=_tracking_init)
+
+    p = sub.add_parser("evaluate", help="evaluate one (study, run, N, seed) cell")
+    add_config_arg(p)
+    p.add_argument("--study", required=True)
+    p.add_argument("--run", required=True, help="method or method-variant")
+    p.add_argument("--n-agents", type=int, required=True)
+    p.add_argument("--seed", type=int, required=True)
+    p.add_argument("--backend", default=None, help="override sim.backend")
+    p.add_argument("--out", required=True, help="per-scenario Parquet path")
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_evaluate)
+
+    p = sub.add_parser("table", help="assemble a paper table from result files")
+    add_config_arg(p)
+    p.add_argument("--name", required=True)
+    p.add_argument("--kind", required=True, choices=["safety_by_n", "summary"])
+    p.add_argument("--inputs", nargs="+", required=True)
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_table)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="madpinn", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    for name in COMMAND_MODULES:
+        module = sys.modules[__name__] if name == __name__ or name == "madpinn.cli" else importlib.import_module(name)
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ConfigError as exc:
+        print(f"madpinn: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,149 @@
+"""Configuration: loading, overlaying, schema validation with one clear message, hashing.
+
+The schema lives in ``workflow/schemas/config.schema.yaml``; the workflow and the CLI both call
+:func:`validate_config` before any work starts.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import yaml
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SCHEMA_PATH = REPO_ROOT / "workflow" / "schemas" / "config.schema.yaml"
+
+
+class ConfigError(ValueError):
+    """Invalid configuration; the message names the offending key."""
+
+
+def deep_merge(base: Mapping[str, Any], overlay: Mapping[str, Any]) -> dict:
+    """Recursively merge ``overlay`` into a copy of ``base`` (dicts merge, everything else replaces)."""
+    out = copy.deepcopy(dict(base))
+    for key, value in overlay.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def load_yaml(path: str | Path) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"config file not found: {path}")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"config file {path} is not valid YAML: {exc}") from exc
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"config file {path} must hold a mapping at top level")
+    return data
+
+
+def load_config(paths: Iterable[str | Path]) -> dict:
+    """Load and deep-merge config files in order (later files override), then validate."""
+    cfg: dict = {}
+    for path in paths:
+        cfg = deep_merge(cfg, load_yaml(path))
+    validate_config(cfg)
+    return cfg
+
+
+def _schema() -> dict:
+    return yaml.safe_load(SCHEMA_PATH.read_text())
+
+
+def _key_path(error) -> str:
+    parts = [str(p) for p in error.absolute_path]
+    return ".".join(parts) if parts else "<top level>"
+
+
+def validate_config(cfg: Mapping[str, Any]) -> None:
+    """Validate against the JSON schema and cross-field rules; raise :class:`ConfigError`.
+
+    All violations are reported at once, one line each, each naming its key.
+    """
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(_schema())
+    errors = sorted(validator.iter_errors(cfg), key=lambda e: list(map(str, e.absolute_path)))
+    lines = []
+    for err in errors:
+        if err.validator == "additionalProperties":
+            lines.append(f"  - '{_key_path(err)}': {err.message} (unknown key)")
+        else:
+            lines.append(f"  - '{_key_path(err)}': {err.message}")
+    if not lines:
+        lines = _cross_field_errors(cfg)
+    if lines:
+        raise ConfigError("invalid configuration:\n" + "\n".join(lines))
+
+
+def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
+    lines = []
+    arenas = cfg["arenas"]
+    methods = cfg["methods"]
+    for name, study in cfg["studies"].items():
+        if study["arena"] not in arenas:
+            lines.append(f"  - 'studies.{name}.arena': unknown arena '{study['arena']}' (have {sorted(arenas)})")
+        for run in study["runs"]:
+            method, _, variant = run.partition("-")
+            if method not in methods:
+                lines.append(f"  - 'studies.{name}.runs': unknown method '{method}' in run '{run}'")
+            elif variant and variant not in methods[method].get("variants", {}):
+                lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
+    return lines
+
+
+def config_hash(obj: Any, length: int = 12) -> str:
+    """Stable short hash of a JSON-serialisable object (sorted keys)."""
+    blob = json.dumps(obj, sort_keys=True, default=str).encode()
+    return hashlib.sha256(blob).hexdigest()[:length]
+
+
+def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
+    """Split a run name ``method[-variant]`` and return ``(method, merged method config)``."""
+    method, _, variant = run.partition("-")
+    if method not in cfg["methods"]:
+        raise ConfigError(f"unknown method '{method}' (configured: {sorted(cfg['methods'])})")
+    base = {k: v for k, v in cfg["methods"][method].items() if k != "variants"}
+    if not variant:
+        return method, base
+    variants = cfg["methods"][method].get("variants", {})
+    if variant not in variants:
+        raise ConfigError(f"unknown variant '{variant}' of method '{method}' (have {sorted(variants)})")
+    return method, deep_merge(base, variants[variant])
+
+
+def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
+    """The part of the config an evaluation job depends on (hashed to trigger re-runs)."""
+    method, mcfg = method_config(cfg, run)
+    return {
+        "study": cfg["studies"][study],
+        "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
+        "agents": cfg["agents"],
+        "sim": cfg["sim"],
+        "observation": cfg["observation"],
+        "method": method,
+        "method_config": mcfg,
+    }
+
+
+def write_if_changed(path: str | Path, text: str) -> Path:
+    """Write ``text`` only if the file content differs (keeps mtimes stable for Snakemake)."""
+    path = Path(path)
+    if path.is_file() and path.read_text() == text:
+        return path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+    return path

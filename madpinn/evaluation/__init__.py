@@ -1,0 +1,1 @@
+"""Evaluation: metrics (SPEC §3), evaluation jobs, tables."""

@@ -1,0 +1,120 @@
+"""One evaluation job: a (study, run, N, seed) cell -> per-scenario Parquet + JSON summary.
+
+Scenarios are simulated in batches of ``sim.scenario_batch``; all agents of a batch are
+computed together. Files are written first; MLflow logging comes after and cannot lose them.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from madpinn.config import config_hash, job_config, method_config
+from madpinn.device import resolve_device, resolve_dtype, seed_everything
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.evaluation.metrics import scenario_metrics, seed_summary
+from madpinn.observation import ObservationSpec
+from madpinn.policies import PolicyContext, make_policy
+from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.simulation import make_backend, run_episode
+
+
+def episode_steps(cfg: dict, arena: Arena) -> int:
+    return int(round(arena.episode_s / cfg["sim"]["dt"]))
+
+
+def evaluate(
+    cfg: dict,
+    study: str,
+    run: str,
+    n_agents: int,
+    seed: int,
+    out: str | Path,
+    backend: str | None = None,
+    threads: int = 1,
+    progress: bool = True,
+    track: bool = True,
+) -> dict:
+    """Run one evaluation cell and write ``out`` (.parquet), ``out``.json and ``out``_traj.npz."""
+    out = Path(out)
+    if study not in cfg["studies"]:
+        raise ValueError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
+    st = cfg["studies"][study]
+    method, mcfg = method_config(cfg, run)
+    backend = backend or cfg["sim"]["backend"]
+    arena = Arena.from_config(cfg, st["arena"])
+    device, dtype = resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
+    seed_everything(seed, threads)
+    r = float(cfg["agents"]["collision_radius"])
+    n_steps = episode_steps(cfg, arena)
+    period = int(mcfg.get("policy_period_steps", cfg["sim"]["policy_period_steps"]))
+    dynamics = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
+    obs_spec = ObservationSpec.from_config(cfg)
+    models_dir = Path(cfg["paths"]["results"]) / "models"
+
+    frames, traj, timing = [], None, {"wall_s": 0.0, "policy_s": 0.0}
+    total, batch = int(st["scenarios"]), int(cfg["sim"]["scenario_batch"])
+    t0 = time.perf_counter()
+    for b, first in enumerate(range(0, total, batch)):
+        count = min(batch, total - first)
+        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
+        ctx = PolicyContext(
+            cfg=cfg, method_cfg=mcfg, dynamics=dynamics, obs_spec=obs_spec, device=device, dtype=dtype,
+            seed=int(seed) * 1_000_003 + b, sim_dt=cfg["sim"]["dt"], policy_period=period, models_dir=models_dir,
+        )
+        policy = make_policy(method, ctx)
+        sim = make_backend(backend, cfg, device, dtype)
+        result, stats = run_episode(
+            sim, policy, starts, goals, n_steps, r, policy_period=period,
+            record_every=int(cfg["sim"]["record_every"]) if first == 0 else 0,
+            progress=progress, desc=f"{run} N={n_agents} seed={seed} [{first}:{first + count}]",
+        )
+        timing["wall_s"] += stats["wall_s"]
+        timing["policy_s"] += stats["policy_s"]
+        frames.append(scenario_metrics(result, first_index=first))
+        if first == 0:
+            traj = result
+    df = pd.concat(frames, ignore_index=True)
+    meta = {"study": study, "run": run, "method": method, "backend": backend, "arena": arena.name, "seed": int(seed)}
+    for k, v in meta.items():
+        df.insert(0, k, v)
+
+    summary = {
+        **meta,
+        "n_agents": int(n_agents),
+        **seed_summary(df),
+        "n_steps": n_steps,
+        "dt": cfg["sim"]["dt"],
+        "elapsed_s": time.perf_counter() - t0,
+        "sim_wall_s": timing["wall_s"],
+        "policy_s": timing["policy_s"],
+        "policy_us_per_agent_step": 1e6 * timing["policy_s"] / max(1, total * n_agents * (n_steps // period)),
+        "job_config_hash": config_hash(job_config(cfg, study, run)),
+        "device": str(device),
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    df.to_parquet(out, index=False)
+    json_path = out.with_suffix(".json")
+    json_path.write_text(json.dumps(summary, indent=2))
+    traj_path = out.with_name(out.stem + "_traj.npz")
+    np.savez_compressed(
+        traj_path, times=traj.times, positions=traj.positions[:, 0], goals=traj.goals[0],
+        collided=traj.collided[0], first_collision_step=traj.first_collision_step[0], dt=traj.dt,
+        collision_radius=r, half_width=arena.half_width,
+    )
+    if track:
+        from madpinn.tracking import log_job
+
+        log_job(
+            cfg, job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
+            wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
+            params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][arena.name],
+                    "scenarios": total, "sim": cfg["sim"], "observation": cfg["observation"]},
+            metrics={k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")},
+            artifacts=[out, json_path, traj_path],
+        )
+    return summary

@@ -1,0 +1,64 @@
+"""Metrics of SPEC §3.
+
+Per scenario: safety rate (fraction of agents that never collide), whether the scenario is safe
+(no agent collides), mean cumulative cost over collision-free agents. Per seed: mean over
+scenarios (safe scenarios = fraction of safe scenarios). Tables: mean ± std across seeds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from madpinn.simulation.recorder import EpisodeResult
+
+SEED_METRICS = ("safety_rate", "safe_scenarios", "cost")
+
+
+def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFrame:
+    """One row per scenario of a batched episode."""
+    collided = result.collided
+    S, N = collided.shape
+    safe_agents = ~collided
+    n_safe = safe_agents.sum(axis=1)
+    cost_safe = np.where(safe_agents, result.cost, 0.0).sum(axis=1) / np.maximum(n_safe, 1)
+    cost_safe = np.where(n_safe > 0, cost_safe, np.nan)
+    return pd.DataFrame(
+        {
+            "scenario": np.arange(first_index, first_index + S),
+            "n_agents": N,
+            "n_collided": collided.sum(axis=1).astype(int),
+            "safety_rate": n_safe / N,
+            "safe": ~collided.any(axis=1),
+            "cost_safe_mean": cost_safe,
+            "cost_all_mean": result.cost.mean(axis=1),
+            "final_distance_mean": result.final_distance.mean(axis=1),
+            "min_separation": result.min_separation.min(axis=1),
+        }
+    )
+
+
+def seed_summary(df: pd.DataFrame) -> dict:
+    """Aggregate one seed's scenario rows into the reported figures."""
+    cost = df["cost_safe_mean"].to_numpy(dtype=float)
+    return {
+        "safety_rate": float(df["safety_rate"].mean()),
+        "safe_scenarios": float(df["safe"].mean()),
+        "cost": float(np.nanmean(cost)) if np.isfinite(cost).any() else float("nan"),
+        "n_scenarios": int(len(df)),
+    }
+
+
+def across_seeds(per_seed: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """Mean and std (ddof=1 with ≥ 2 seeds, else 0) of the seed figures, grouped by ``keys``."""
+    rows = []
+    for group, g in per_seed.groupby(keys, sort=False):
+        group = group if isinstance(group, tuple) else (group,)
+        row = dict(zip(keys, group))
+        row["n_seeds"] = int(len(g))
+        for m in SEED_METRICS:
+            vals = g[m].to_numpy(dtype=float)
+            row[f"{m}_mean"] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+            row[f"{m}_std"] = float(np.nanstd(vals, ddof=1)) if np.isfinite(vals).sum() > 1 else 0.0
+        rows.append(row)
+    return pd.DataFrame(rows)

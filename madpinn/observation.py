@@ -1,0 +1,171 @@
+"""Ego-centric decentralized observation, its costs and constraint (SPEC §3, §4, §6).
+
+One implementation shared by value-function training, policies and metrics.
+
+Observation layout for ``n`` neighbours, ``D = 4 + 6n`` (all offsets relative to the ego
+position, so the observation is translation invariant; units m and m/s)::
+
+    [ v_ego (2), g_ego - p_ego (2),
+      for each neighbour j:  p_j - p_ego (2), v_j (2), g_j - p_ego (2) ]
+
+Deployment maps a global state into this layout with :func:`build_observation`: goal offsets
+beyond the trained range are shortened along their direction (a carrot), neighbour offsets are
+shrunk along their direction into the trained range, and missing neighbours are padded with a
+motionless phantom at its goal at offset ``(offset_range, offset_range)`` — outside the
+sensing radius of any real neighbour, so it never conflicts with one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+EGO_DIM = 4
+NEIGHBOUR_DIM = 6
+PHANTOM = -1
+
+
+@dataclass(frozen=True)
+class ObservationSpec:
+    """Sizes and trained ranges of the decentralized observation.
+
+    n_neighbours: neighbours per agent (paper: 2).
+    goal_range: per-coordinate bound (m) of goal offsets seen in training.
+    offset_range: per-coordinate bound (m) of neighbour position offsets seen in training.
+    sensing_radius: observation radius (m) used by radius-limited neighbour choices.
+    collision_radius: r (m).
+    """
+
+    n_neighbours: int = 2
+    goal_range: float = 2.0
+    offset_range: float = 2.0
+    sensing_radius: float = 1.0
+    collision_radius: float = 0.1
+
+    @property
+    def dim(self) -> int:
+        return EGO_DIM + NEIGHBOUR_DIM * self.n_neighbours
+
+    @property
+    def n_agents(self) -> int:
+        return self.n_neighbours + 1
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "ObservationSpec":
+        o = cfg["observation"]
+        return cls(
+            n_neighbours=int(o["n_neighbours"]),
+            goal_range=float(o["goal_range"]),
+            offset_range=float(o["offset_range"]),
+            sensing_radius=float(o["sensing_radius"]),
+            collision_radius=float(cfg["agents"]["collision_radius"]),
+        )
+
+
+def shrink_to_box(vec: torch.Tensor, bound: float) -> torch.Tensor:
+    """Scale 2-vectors ``[..., 2]`` along their direction so that max |coordinate| ≤ bound."""
+    max_abs = vec.abs().amax(dim=-1, keepdim=True)
+    scale = torch.where(max_abs > bound, bound / max_abs.clamp_min(1e-12), torch.ones_like(max_abs))
+    return vec * scale
+
+
+def _gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
+    """x ``[S, N, F]``, idx ``[S, N, n]`` (values in 0..N-1) -> ``[S, N, n, F]``."""
+    S, N, F = x.shape
+    n = idx.shape[-1]
+    flat = idx.reshape(S, N * n, 1).expand(S, N * n, F)
+    return torch.gather(x, 1, flat).reshape(S, N, n, F)
+
+
+def build_observation(
+    state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSpec
+) -> torch.Tensor:
+    """Global state ``[S, N, 4]``, goals ``[S, N, 2]``, neighbour indices ``[S, N, n]`` (−1 =
+    phantom) -> observations ``[S, N, 4 + 6n]``."""
+    if state.dim() != 3 or state.shape[-1] != 4:
+        raise ValueError(f"state must be [S, N, 4], got {tuple(state.shape)}")
+    if goals.shape != state.shape[:-1] + (2,):
+        raise ValueError(f"goals must be [S, N, 2] matching state, got {tuple(goals.shape)}")
+    if neighbours.shape != state.shape[:-1] + (spec.n_neighbours,):
+        raise ValueError(f"neighbours must be [S, N, {spec.n_neighbours}], got {tuple(neighbours.shape)}")
+    p, v = state[..., 0:2], state[..., 2:4]
+    phantom = neighbours < 0
+    idx = neighbours.clamp_min(0)
+    p_j = _gather_agents(p, idx) - p.unsqueeze(2)
+    v_j = _gather_agents(v, idx)
+    g_j = _gather_agents(goals, idx) - p.unsqueeze(2)
+    p_j = shrink_to_box(p_j, spec.offset_range)
+    g_j = shrink_to_box(g_j, spec.goal_range)
+    corner = torch.full_like(p_j, spec.offset_range)
+    mask = phantom.unsqueeze(-1)
+    p_j = torch.where(mask, corner, p_j)
+    g_j = torch.where(mask, corner, g_j)
+    v_j = torch.where(mask, torch.zeros_like(v_j), v_j)
+    ego_goal = shrink_to_box(goals - p, spec.goal_range)
+    nbr = torch.cat([p_j, v_j, g_j], dim=-1).flatten(-2)
+    return torch.cat([v, ego_goal, nbr], dim=-1)
+
+
+def split_observation(obs: torch.Tensor, n_neighbours: int):
+    """Observation ``[..., D]`` -> ``(positions, velocities, goals)`` each ``[..., n+1, 2]``,
+    relative to the ego position (ego first, at the origin)."""
+    if obs.shape[-1] != EGO_DIM + NEIGHBOUR_DIM * n_neighbours:
+        raise ValueError(f"observation has {obs.shape[-1]} features, expected {EGO_DIM + NEIGHBOUR_DIM * n_neighbours}")
+    lead = obs.shape[:-1]
+    nbr = obs[..., EGO_DIM:].reshape(*lead, n_neighbours, NEIGHBOUR_DIM)
+    ego_p = torch.zeros(*lead, 1, 2, dtype=obs.dtype, device=obs.device)
+    positions = torch.cat([ego_p, nbr[..., 0:2]], dim=-2)
+    velocities = torch.cat([obs[..., None, 0:2], nbr[..., 2:4]], dim=-2)
+    goals = torch.cat([obs[..., None, 2:4], nbr[..., 4:6]], dim=-2)
+    return positions, velocities, goals
+
+
+def running_cost(obs: torch.Tensor, n_neighbours: int) -> torch.Tensor:
+    """l_d: sum over observed agents of the distance to their goal, ``[...]`` (m)."""
+    positions, _, goals = split_observation(obs, n_neighbours)
+    return torch.linalg.vector_norm(positions - goals, dim=-1).sum(-1)
+
+
+def terminal_cost(obs: torch.Tensor, n_neighbours: int) -> torch.Tensor:
+    """φ_d: same as the running cost, evaluated at the final time."""
+    return running_cost(obs, n_neighbours)
+
+
+def pair_indices(n_agents: int) -> tuple[list[int], list[int]]:
+    rows, cols = torch.triu_indices(n_agents, n_agents, offset=1).tolist()
+    return rows, cols
+
+
+def constraint(obs: torch.Tensor, n_neighbours: int, collision_radius: float) -> torch.Tensor:
+    """g_d = max over pairs in the observation of (r − d_jk); > 0 is failure. ``[...]`` (m)."""
+    positions, _, _ = split_observation(obs, n_neighbours)
+    i, j = pair_indices(n_neighbours + 1)
+    d = torch.linalg.vector_norm(positions[..., i, :] - positions[..., j, :], dim=-1)
+    return (collision_radius - d).amax(dim=-1)
+
+
+def pairwise_distances(positions: torch.Tensor) -> torch.Tensor:
+    """positions ``[S, N, 2]`` -> distances ``[S, N, N]`` with +inf on the diagonal."""
+    d = torch.cdist(positions, positions)
+    eye = torch.eye(positions.shape[1], dtype=torch.bool, device=positions.device)
+    return d.masked_fill(eye, float("inf"))
+
+
+def nearest_neighbours(state: torch.Tensor, n: int, radius: float | None = None) -> torch.Tensor:
+    """Indices ``[S, N, n]`` of the n nearest other agents (−1 where fewer exist or all
+    remaining are beyond ``radius``)."""
+    S, N, _ = state.shape
+    d = pairwise_distances(state[..., 0:2])
+    if radius is not None:
+        d = d.masked_fill(d > radius, float("inf"))
+    k = min(n, N - 1)
+    if k > 0:
+        vals, idx = torch.topk(d, k, dim=-1, largest=False)
+        idx = torch.where(torch.isinf(vals), torch.full_like(idx, PHANTOM), idx)
+    else:
+        idx = torch.empty(S, N, 0, dtype=torch.long, device=state.device)
+    if k < n:
+        pad = torch.full((S, N, n - k), PHANTOM, dtype=torch.long, device=state.device)
+        idx = torch.cat([idx, pad], dim=-1)
+    return idx

@@ -1,0 +1,72 @@
+"""Policy protocol and registry.
+
+A policy is built once per evaluation job by a factory registered under the method name, and
+then driven by the simulator:
+
+- ``reset(state [S, N, 4], goals [S, N, 2])`` at t = 0,
+- ``act(state, goals, t) -> accel [S, N, 2]`` (m/s², inside the control box).
+
+The simulator runs under ``torch.no_grad()``; a policy that needs gradients enables them locally.
+Decentralization is respected by construction: each agent's control may only depend on its own
+observation (ego + selected neighbours), even though all agents are computed in one batch.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Protocol
+
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.observation import ObservationSpec
+
+
+class Policy(Protocol):
+    def reset(self, state: torch.Tensor, goals: torch.Tensor) -> None: ...
+
+    def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor: ...
+
+
+@dataclass
+class PolicyContext:
+    """Everything a policy factory may need."""
+
+    cfg: dict
+    method_cfg: dict
+    dynamics: DoubleIntegrator
+    obs_spec: ObservationSpec
+    device: torch.device
+    dtype: torch.dtype
+    seed: int
+    sim_dt: float
+    policy_period: int
+    models_dir: Path = field(default_factory=lambda: Path("results/models"))
+
+
+PolicyFactory = Callable[[PolicyContext], Policy]
+_REGISTRY: dict[str, PolicyFactory] = {}
+
+# Methods implemented in their own modules; imported lazily so that a method's heavy
+# dependencies load only when it is used.
+_MODULES = {
+    "nominal": "madpinn.policies.nominal",
+}
+
+
+def register_policy(name: str):
+    def deco(factory: PolicyFactory) -> PolicyFactory:
+        _REGISTRY[name] = factory
+        return factory
+
+    return deco
+
+
+def make_policy(name: str, ctx: PolicyContext) -> Policy:
+    if name not in _REGISTRY and name in _MODULES:
+        importlib.import_module(_MODULES[name])
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown method '{name}' (available: {sorted(set(_REGISTRY) | set(_MODULES))})")
+    return _REGISTRY[name](ctx)

@@ -1,0 +1,29 @@
+"""Nominal goal-reaching controller: bounded PD, no safety. A reference row, not a method."""
+
+from __future__ import annotations
+
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.policies.base import PolicyContext, register_policy
+
+
+class NominalPD:
+    """u = clip(kp·(g − p) − kd·v, ±u_max) per axis (kp in 1/s², kd in 1/s)."""
+
+    def __init__(self, dynamics: DoubleIntegrator, kp: float, kd: float):
+        self.dynamics = dynamics
+        self.kp = float(kp)
+        self.kd = float(kd)
+
+    def reset(self, state: torch.Tensor, goals: torch.Tensor) -> None:
+        pass
+
+    def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
+        u = self.kp * (goals - state[..., 0:2]) - self.kd * state[..., 2:4]
+        return self.dynamics.clip_control(u)
+
+
+@register_policy("nominal")
+def make_nominal(ctx: PolicyContext) -> NominalPD:
+    return NominalPD(ctx.dynamics, kp=ctx.method_cfg["kp"], kd=ctx.method_cfg["kd"])

@@ -1,0 +1,92 @@
+"""Simulation backends. Every backend steps all scenarios × agents at once and exposes the
+planar state ``[S, N, 4] = [x, y, vx, vy]`` (m, m/s) after each simulation step of ``dt`` s.
+
+Protocol (see :class:`SimBackend`): ``reset(starts, velocities)`` -> state; ``command(accel,
+duration)`` sets the policy acceleration ``[S, N, 2]`` (m/s²) held for ``duration`` s (one policy
+step); ``step()`` advances ``dt`` and returns the new planar state.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+
+
+class SimBackend(Protocol):
+    dt: float
+
+    def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor: ...
+
+    def command(self, accel: torch.Tensor, duration: float) -> None: ...
+
+    def step(self) -> torch.Tensor: ...
+
+
+class DoubleIntegratorBackend:
+    """Exact batched double-integrator dynamics (SPEC §7 ``double_integrator``)."""
+
+    def __init__(self, dynamics: DoubleIntegrator, dt: float):
+        self.dynamics = dynamics
+        self.dt = float(dt)
+        self.state: torch.Tensor | None = None
+        self._accel: torch.Tensor | None = None
+
+    def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
+        self.state = torch.cat([positions, velocities], dim=-1)
+        self._accel = torch.zeros_like(positions)
+        return self.state
+
+    def command(self, accel: torch.Tensor, duration: float) -> None:
+        if self.state is None:
+            raise RuntimeError("reset() before command()")
+        if accel.shape != self.state.shape[:-1] + (2,):
+            raise ValueError(f"accel must be {tuple(self.state.shape[:-1]) + (2,)}, got {tuple(accel.shape)}")
+        if not torch.isfinite(accel).all():
+            raise ValueError("non-finite acceleration command")
+        self._accel = self.dynamics.clip_control(accel)
+
+    def step(self) -> torch.Tensor:
+        self.state = self.dynamics.step(self.state, self._accel, self.dt)
+        return self.state
+
+
+_BACKENDS = {}
+
+
+def register_backend(name: str):
+    """Decorator: register a backend factory ``factory(cfg, device, dtype) -> SimBackend``."""
+
+    def deco(factory):
+        _BACKENDS[name] = factory
+        return factory
+
+    return deco
+
+
+@register_backend("double_integrator")
+def _make_double_integrator(cfg: dict, device, dtype):
+    dyn = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
+    return DoubleIntegratorBackend(dyn, dt=cfg["sim"]["dt"])
+
+
+def make_backend(name: str, cfg: dict, device, dtype) -> SimBackend:
+    if name not in _BACKENDS:
+        _load_optional_backends()
+    if name not in _BACKENDS:
+        raise ValueError(f"unknown simulation backend '{name}' (available: {sorted(_BACKENDS)})")
+    return _BACKENDS[name](cfg, device, dtype)
+
+
+def _load_optional_backends() -> None:
+    """Import backends that live in their own modules (they register themselves)."""
+    import importlib
+
+    for module in ("madpinn.simulation.mujoco",):
+        try:
+            importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            if exc.name != module:
+                raise

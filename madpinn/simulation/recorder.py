@@ -1,0 +1,105 @@
+"""Per-step episode bookkeeping: cumulative cost, collisions, separations, decimated trajectory.
+
+Shared by the simulator and by tests that feed hand-built trajectories.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from madpinn.observation import pairwise_distances
+
+
+@dataclass
+class EpisodeResult:
+    """Outcome of one batched episode (S scenarios × N agents).
+
+    cost: ``[S, N]`` cumulative cost ∫‖p−g‖dt + ‖p(T)−g‖ (m·s + m), trapezoidal in time.
+    collided: ``[S, N]`` bool, agent ever within ``r`` of another agent.
+    first_collision_step: ``[S, N]`` int, −1 if never.
+    min_separation: ``[S, N]`` smallest distance to any other agent over the episode (m).
+    final_distance: ``[S, N]`` distance to goal at the final time (m).
+    times: ``[T']`` (s) and positions ``[T', S, N, 2]`` (m) of the decimated trajectory.
+    """
+
+    cost: np.ndarray
+    collided: np.ndarray
+    first_collision_step: np.ndarray
+    min_separation: np.ndarray
+    final_distance: np.ndarray
+    times: np.ndarray
+    positions: np.ndarray
+    goals: np.ndarray
+    n_steps: int
+    dt: float
+
+
+class EpisodeRecorder:
+    """Feed the planar positions ``[S, N, 2]`` at steps 0..K with :meth:`update`, then :meth:`finish`."""
+
+    def __init__(self, goals: torch.Tensor, dt: float, collision_radius: float, record_every: int = 0):
+        self.goals = goals
+        self.dt = float(dt)
+        self.r = float(collision_radius)
+        self.record_every = int(record_every)
+        S, N, _ = goals.shape
+        dev = goals.device
+        self.integral = torch.zeros(S, N, dtype=torch.float64, device=dev)
+        self.collided = torch.zeros(S, N, dtype=torch.bool, device=dev)
+        self.first_collision = torch.full((S, N), -1, dtype=torch.long, device=dev)
+        self.min_sep = torch.full((S, N), float("inf"), dtype=goals.dtype, device=dev)
+        self._last_dist: torch.Tensor | None = None
+        self._step = -1
+        self._times: list[float] = []
+        self._positions: list[np.ndarray] = []
+
+    def update(self, positions: torch.Tensor) -> None:
+        self._step += 1
+        k = self._step
+        dist = torch.linalg.vector_norm(positions - self.goals, dim=-1).to(torch.float64)
+        if self._last_dist is not None:
+            self.integral += 0.5 * self.dt * (self._last_dist + dist)
+        self._last_dist = dist
+        if positions.shape[1] > 1:
+            sep = pairwise_distances(positions).amin(dim=-1)
+            self.min_sep = torch.minimum(self.min_sep, sep)
+            hit = sep <= self.r
+            new = hit & ~self.collided
+            self.first_collision = torch.where(new, torch.full_like(self.first_collision, k), self.first_collision)
+            self.collided |= hit
+        if self.record_every and k % self.record_every == 0:
+            self._times.append(k * self.dt)
+            self._positions.append(positions.detach().cpu().numpy().copy())
+
+    def finish(self, final_positions: torch.Tensor | None = None) -> EpisodeResult:
+        if self._last_dist is None:
+            raise RuntimeError("no step recorded")
+        if self.record_every and (self._step % self.record_every) != 0 and final_positions is not None:
+            self._times.append(self._step * self.dt)
+            self._positions.append(final_positions.detach().cpu().numpy().copy())
+        cost = self.integral + self._last_dist
+        S, N, _ = self.goals.shape
+        positions = np.stack(self._positions) if self._positions else np.zeros((0, S, N, 2))
+        return EpisodeResult(
+            cost=cost.cpu().numpy(),
+            collided=self.collided.cpu().numpy(),
+            first_collision_step=self.first_collision.cpu().numpy(),
+            min_separation=self.min_sep.to(torch.float64).cpu().numpy(),
+            final_distance=self._last_dist.cpu().numpy(),
+            times=np.asarray(self._times),
+            positions=positions,
+            goals=self.goals.detach().cpu().numpy(),
+            n_steps=self._step,
+            dt=self.dt,
+        )
+
+
+def record_trajectory(positions: torch.Tensor, goals: torch.Tensor, dt: float, collision_radius: float) -> EpisodeResult:
+    """Evaluate a full trajectory ``[K+1, S, N, 2]`` (hand-built or logged)."""
+    rec = EpisodeRecorder(goals, dt, collision_radius)
+    for p in positions:
+        rec.update(p)
+    return rec.finish()
