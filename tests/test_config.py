@@ -62,3 +62,9 @@ def test_cli_reports_invalid_config_and_exits_2(tmp_path):
     )
     assert proc.returncode == 2
     assert "'agents.collision_radius'" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_trajectory_figure_cell_must_exist(paper_cfg):
+    cfg = deep_merge(paper_cfg, {"figures": {"trajectories": {"study": "main", "n_agents": 5, "seed": 0}}})
+    with pytest.raises(ConfigError, match="'figures.trajectories.n_agents'"):
+        validate_config(cfg)

@@ -32,13 +32,16 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
     for name in ("table_safety_scaling", "table_ours_scaling"):
         for ext in ("csv", "md", "tex"):
             assert (figs / f"{name}.{ext}").stat().st_size > 0
+    for name in ("fig_cost_safety", "fig_trajectories"):
+        for ext in ("pdf", "png"):
+            assert (figs / f"{name}.{ext}").stat().st_size > 1000
     table = pd.read_csv(figs / "table_safety_scaling.csv")
     assert set(table["n_agents"]) == {3, 16}
     assert (table["n_seeds"] == 2).all()
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
     assert len(evals) == 5 and set(counts.values()) == {1}
-    assert "table/table_safety_scaling" in counts
+    assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
 
 
 def test_rerun_replaces_runs_without_duplicates(smoke_run):
