@@ -1,0 +1,26 @@
+"""MuJoCo Crazyflie 2.x backend (SPEC §7, issue 5): select it with ``sim.backend: mujoco``.
+
+Modules: ``model`` (MJCF of the drone and of many-drone worlds), ``controller`` (cascaded
+position → attitude controller), ``forces`` (rotor thrusts → MuJoCo forces), ``settings``
+(``sim.mujoco`` config), ``backend`` (the :class:`MujocoBackend`), ``render`` (optional clip).
+"""
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.simulation.backend import register_backend
+from madpinn.simulation.mujoco.backend import MujocoBackend, PhysicsDivergedError
+from madpinn.simulation.mujoco.controller import CascadedController, ControllerGains
+from madpinn.simulation.mujoco.model import CrazyflieSpec, compile_world, mixer_matrix, world_xml
+from madpinn.simulation.mujoco.settings import MujocoSettings
+
+
+@register_backend("mujoco")
+def make_mujoco_backend(cfg: dict, device, dtype) -> MujocoBackend:
+    dyn = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
+    settings = MujocoSettings.from_config(cfg["sim"].get("mujoco"))
+    return MujocoBackend(dyn, dt=cfg["sim"]["dt"], settings=settings, device=device, dtype=dtype)
+
+
+__all__ = [
+    "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerGains", "CrazyflieSpec",
+    "MujocoSettings", "compile_world", "mixer_matrix", "world_xml", "make_mujoco_backend",
+]
