@@ -83,8 +83,7 @@ class MujocoBackend:
 
     def command(self, accel: torch.Tensor, duration: float) -> None:
         """Hold policy acceleration ``accel`` ``[S, N, 2]`` (m/s², clipped to the control box) for
-        the next ``duration`` s; with ``setpoint: measured`` the reference restarts at the
-        measured planar state."""
+        the next ``duration`` s: the setpoint integrates it, and it is the feed-forward."""
         if self._shape is None:
             raise RuntimeError("reset() before command()")
         if tuple(accel.shape) != self._shape + (2,):
@@ -95,8 +94,6 @@ class MujocoBackend:
         if not torch.isfinite(a).all():
             raise ValueError("non-finite acceleration command (NaN/inf setpoint)")
         self.accel = self.dynamics.clip_control(a).numpy()
-        if self.settings.setpoint == "measured":
-            self.reference = np.concatenate([self.qpos[:, 0:2], self.qvel[:, 0:2]], axis=1)
 
     def step(self) -> torch.Tensor:
         """Advance ``dt`` s (``substeps`` physics steps); returns the planar state ``[S, N, 4]``."""

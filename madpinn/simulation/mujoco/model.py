@@ -75,16 +75,16 @@ def _drone_xml(index: int, spec: CrazyflieSpec, actuated: bool) -> tuple[str, st
     ``actuated``, its four site actuators. Returns ``(body_xml, actuator_xml)``."""
     ix, iy, iz = spec.inertia
     rotors, arms, acts = [], [], []
-    for k, ((x, y), s) in enumerate(zip(spec.rotor_positions, spec.rotor_spin)):
+    for k, ((x, y), s) in enumerate(zip(spec.rotor_positions.tolist(), spec.rotor_spin.tolist())):
         rotors.append(
-            f'<site name="d{index}r{k}" pos="{x:.6f} {y:.6f} 0.008" size="0.004"/>'
-            f'<geom class="visual" type="cylinder" size="0.023 0.002" pos="{x:.6f} {y:.6f} 0.01" rgba="0.2 0.2 0.2 0.35"/>'
+            f'<site name="d{index}r{k}" pos="{x!r} {y!r} 0.008" size="0.004"/>'
+            f'<geom class="visual" type="cylinder" size="0.023 0.002" pos="{x!r} {y!r} 0.01" rgba="0.2 0.2 0.2 0.35"/>'
         )
-        arms.append(f'<geom class="visual" type="capsule" size="0.003" fromto="0 0 0 {x:.6f} {y:.6f} 0"/>')
+        arms.append(f'<geom class="visual" type="capsule" size="0.003" fromto="0 0 0 {x!r} {y!r} 0"/>')
         if actuated:
             acts.append(
-                f'<general site="d{index}r{k}" gear="0 0 1 0 0 {s * spec.km_over_kf:.6f}" '
-                f'ctrllimited="true" ctrlrange="0 {spec.max_rotor_thrust:.9f}"/>'
+                f'<general site="d{index}r{k}" gear="0 0 1 0 0 {s * spec.km_over_kf!r}" '
+                f'ctrllimited="true" ctrlrange="0 {spec.max_rotor_thrust!r}"/>'
             )
     body = (
         f'<body name="d{index}" pos="0 0 1"><freejoint/>'

@@ -9,23 +9,18 @@ from madpinn.simulation.mujoco.controller import ControllerGains
 from madpinn.simulation.mujoco.forces import FORCE_MODES
 from madpinn.simulation.mujoco.model import MAX_DRONES_PER_WORLD, CrazyflieSpec
 
-SETPOINT_MODES = ("reference", "measured")
-
 
 @dataclass(frozen=True)
 class MujocoSettings:
     """substeps: physics (and controller) steps per ``sim.dt``; force_application: see
     :mod:`~madpinn.simulation.mujoco.forces`; drones_per_world: largest world compiled (bigger
-    batches use several worlds); altitude (m); setpoint: ``reference`` integrates the policy
-    accelerations into a continuous double-integrator reference (p_d, v_d), ``measured`` restarts
-    that integration from the measured planar state at every policy step; thrust_to_weight sets
-    the rotor limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend."""
+    batches use several worlds); altitude (m) of the setpoint; thrust_to_weight sets the rotor
+    limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend."""
 
     substeps: int = 2
     force_application: str = "qfrc"
     drones_per_world: int = 1024
     altitude: float = 1.0
-    setpoint: str = "reference"
     thrust_to_weight: float = 2.25
     max_drones: int = 65536
     gains: ControllerGains = field(default_factory=ControllerGains)
@@ -39,8 +34,6 @@ class MujocoSettings:
             raise ValueError(f"sim.mujoco.substeps must be ≥ 1, got {self.substeps}")
         if self.force_application not in FORCE_MODES:
             raise ValueError(f"sim.mujoco.force_application must be one of {FORCE_MODES}, got '{self.force_application}'")
-        if self.setpoint not in SETPOINT_MODES:
-            raise ValueError(f"sim.mujoco.setpoint must be one of {SETPOINT_MODES}, got '{self.setpoint}'")
         if not 1 <= int(self.drones_per_world) <= MAX_DRONES_PER_WORLD:
             raise ValueError(f"sim.mujoco.drones_per_world must be in 1..{MAX_DRONES_PER_WORLD}, got {self.drones_per_world}")
         if not (math.isfinite(self.altitude) and self.altitude > 0):
