@@ -2,8 +2,18 @@
 
 Modules: ``model`` (MJCF of the drone and of many-drone worlds), ``controller`` (cascaded
 position → attitude controller), ``forces`` (rotor thrusts → MuJoCo forces), ``settings``
-(``sim.mujoco`` config), ``backend`` (the :class:`MujocoBackend`), ``render`` (optional clip).
+(``sim.mujoco`` config), ``backend`` (the :class:`MujocoBackend`), ``render`` (optional clip),
+``commands`` (CLI ``render-clip``).
+
+Importing this package selects MuJoCo's headless EGL context for offscreen rendering when
+``MUJOCO_GL`` is unset (MuJoCo reads it once, at its first import); rendering is optional.
 """
+
+import os
+import sys
+
+if "mujoco" not in sys.modules:
+    os.environ.setdefault("MUJOCO_GL", "egl")
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.simulation.backend import register_backend

@@ -15,7 +15,8 @@ class MujocoSettings:
     """substeps: physics (and controller) steps per ``sim.dt``; force_application: see
     :mod:`~madpinn.simulation.mujoco.forces`; drones_per_world: largest world compiled (bigger
     batches use several worlds); altitude (m) of the setpoint; thrust_to_weight sets the rotor
-    limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend."""
+    limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend;
+    render_clips: the workflow renders one GIF per (study, run) where offscreen GL exists."""
 
     substeps: int = 2
     force_application: str = "qfrc"
@@ -23,6 +24,7 @@ class MujocoSettings:
     altitude: float = 1.0
     thrust_to_weight: float = 2.25
     max_drones: int = 65536
+    render_clips: bool = False
     gains: ControllerGains = field(default_factory=ControllerGains)
 
     @property
