@@ -5,8 +5,10 @@
 
 For N ∈ {16, 256, 1024, 5120} drones in one backend (one job's S × N), times ``command`` +
 ``step`` (one ``sim.dt`` with ``sim.mujoco.substeps`` physics + controller substeps) under
-bang-bang policy accelerations; prints best-of-``repeats`` µs per drone-step, then MuJoCo's bare
-free-body step for reference. The last line is ``us_per_drone_step_at_5120: X``.
+bang-bang policy accelerations; prints best-of-``repeats`` µs per drone-step as process CPU time
+(single-threaded, so equal to wall time on an idle machine, and much less disturbed by other
+jobs sharing the cores) and as wall time, with MuJoCo's bare free-body step for reference. The
+last line is ``us_per_drone_step_at_5120: X`` (CPU time).
 """
 
 from __future__ import annotations
@@ -25,26 +27,39 @@ from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, compile_wor
 COUNTS = (16, 256, 1024, 5120)
 
 
-def time_backend(cfg: dict, count: int, steps: int, repeats: int, overrides: dict | None = None) -> float:
-    """Best-of-``repeats`` µs per drone-step (command + step) for ``count`` drones."""
+def _best(fn, repeats: int, per: int, setup=lambda: None) -> tuple[float, float]:
+    """Best-of-``repeats`` (CPU, wall) µs per unit of ``fn()``, which does ``per`` units;
+    ``setup()`` runs untimed before each repeat."""
+    cpu = wall = float("inf")
+    for _ in range(repeats):
+        setup()
+        c0, w0 = time.process_time(), time.perf_counter()
+        fn()
+        cpu = min(cpu, time.process_time() - c0)
+        wall = min(wall, time.perf_counter() - w0)
+    return 1e6 * cpu / per, 1e6 * wall / per
+
+
+def time_backend(cfg: dict, count: int, steps: int, repeats: int, overrides: dict | None = None) -> tuple[float, float]:
+    """Best-of-``repeats`` (CPU, wall) µs per drone-step (command + step) for ``count`` drones."""
     settings = MujocoSettings.from_config(deep_merge(cfg["sim"].get("mujoco") or {}, overrides or {}))
     dyn = DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"])
     backend = MujocoBackend(dyn, cfg["sim"]["dt"], settings)
     gen = torch.Generator().manual_seed(0)
     starts = torch.rand(1, count, 2, generator=gen) * 2 - 1
     accel = (torch.randint(0, 2, (steps, 1, count, 2), generator=gen) * 2 - 1) * cfg["agents"]["u_max"]
-    best = float("inf")
-    for _ in range(repeats + 1):  # first round: warm-up (model compile, caches)
-        backend.reset(starts, torch.zeros_like(starts))
-        t0 = time.perf_counter()
+    backend.reset(starts, torch.zeros_like(starts))  # warm-up: model compile, caches
+    accel = accel.float()
+
+    def episode():
         for k in range(steps):
-            backend.command(accel[k].float(), backend.dt)
+            backend.command(accel[k], backend.dt)
             backend.step()
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / (steps * count)
+
+    return _best(episode, repeats, steps * count, setup=lambda: backend.reset(starts, torch.zeros_like(starts)))
 
 
-def time_bare_mujoco(cfg: dict, count: int, steps: int, repeats: int) -> float:
+def time_bare_mujoco(cfg: dict, count: int, steps: int, repeats: int) -> tuple[float, float]:
     """Best-of µs per drone per ``sim.dt`` of MuJoCo alone (same worlds and substeps, constant
     hover forces, no controller)."""
     settings = MujocoSettings.from_config(cfg["sim"].get("mujoco"))
@@ -55,14 +70,12 @@ def time_bare_mujoco(cfg: dict, count: int, steps: int, repeats: int) -> float:
         data = mujoco.MjData(model)
         data.qfrc_applied.reshape(-1, 6)[:, 2] = settings.spec.mass * 9.81
         worlds.append((model, data))
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
+    def run():
         for _ in range(steps * settings.substeps):
             for model, data in worlds:
                 mujoco.mj_step(model, data)
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / (steps * count)
+
+    return _best(run, repeats, steps * count)
 
 
 def main() -> None:
@@ -83,15 +96,17 @@ def main() -> None:
             for mode in ("qfrc", "xfrc", "site"):
                 if mode == "site" and count > 1024:
                     continue
-                us = time_backend(cfg, count, max(20, args.steps // 4), args.repeats,
-                                  {"force_application": mode, "drones_per_world": count})
-                row.append(f"{mode} {us:.3f}")
-            print(f"forces N={count:5d} (one world): " + ", ".join(row) + "  us/drone-step")
+                cpu, _ = time_backend(cfg, count, max(20, args.steps // 4), args.repeats,
+                                      {"force_application": mode, "drones_per_world": count})
+                row.append(f"{mode} {cpu:.3f}")
+            print(f"forces N={count:5d} (one world): " + ", ".join(row) + "  us/drone-step (CPU)", flush=True)
     result = {}
     for count in COUNTS:
-        result[count] = time_backend(cfg, count, args.steps, args.repeats)
-        bare = time_bare_mujoco(cfg, count, args.steps, args.repeats)
-        print(f"N={count:5d}: backend {result[count]:.3f} us/drone-step (MuJoCo alone {bare:.3f})", flush=True)
+        cpu, wall = time_backend(cfg, count, args.steps, args.repeats)
+        bare_cpu, bare_wall = time_bare_mujoco(cfg, count, args.steps, args.repeats)
+        result[count] = cpu
+        print(f"N={count:5d}: backend {cpu:.3f} us/drone-step CPU ({wall:.3f} wall); "
+              f"MuJoCo alone {bare_cpu:.3f} CPU ({bare_wall:.3f} wall)", flush=True)
     print(f"us_per_drone_step_at_5120: {result[5120]:.3f}")
 
 

@@ -47,6 +47,7 @@ class MujocoBackend:
         self.device, self.dtype = torch.device(device), dtype
         self._shape: tuple[int, int] | None = None
         self._worlds: list[tuple[mujoco.MjModel, mujoco.MjData, slice]] = []
+        self._setpoint_buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ protocol
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
@@ -133,13 +134,14 @@ class MujocoBackend:
             self._worlds.append((model, mujoco.MjData(model), slice(start, stop)))
 
     def _setpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        count = self.reference.shape[0]
-        p_d = np.empty((count, 3))
+        """(p_d, v_d, a_ff) ``[M, 3]`` from the planar reference; altitude hold, no vertical motion."""
+        if self._setpoint_buffers is None or self._setpoint_buffers[0].shape[0] != self.reference.shape[0]:
+            p_d, v_d, a_ff = (np.zeros((self.reference.shape[0], 3)) for _ in range(3))
+            p_d[:, 2] = self.settings.altitude
+            self._setpoint_buffers = (p_d, v_d, a_ff)
+        p_d, v_d, a_ff = self._setpoint_buffers
         p_d[:, 0:2] = self.reference[:, 0:2]
-        p_d[:, 2] = self.settings.altitude
-        v_d = np.zeros((count, 3))
         v_d[:, 0:2] = self.reference[:, 2:4]
-        a_ff = np.zeros((count, 3))
         a_ff[:, 0:2] = self.accel
         return p_d, v_d, a_ff
 
