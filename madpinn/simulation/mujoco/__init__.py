@@ -6,14 +6,16 @@ position → attitude controller), ``forces`` (rotor thrusts → MuJoCo forces),
 ``commands`` (CLI ``render-clip``).
 
 Importing this package selects MuJoCo's headless EGL context for offscreen rendering when
-``MUJOCO_GL`` is unset (MuJoCo reads it once, at its first import); rendering is optional.
+``MUJOCO_GL`` is unset and an EGL library exists (MuJoCo reads ``MUJOCO_GL`` once, at its first
+import); rendering is optional and nothing else depends on it.
 """
 
+import ctypes.util
 import os
 import sys
 
-if "mujoco" not in sys.modules:
-    os.environ.setdefault("MUJOCO_GL", "egl")
+if "mujoco" not in sys.modules and "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
+    os.environ["MUJOCO_GL"] = "egl"
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.simulation.backend import register_backend

@@ -7,7 +7,7 @@ of agents that collide tinted red from their first collision on. Written as an a
 (Pillow, already a dependency of matplotlib).
 
 Offscreen GL is selected by MuJoCo from ``MUJOCO_GL`` when ``mujoco`` is first imported;
-``madpinn.simulation.mujoco`` defaults it to ``egl`` when unset.
+``madpinn.simulation.mujoco`` defaults it to ``egl`` when unset and libEGL exists.
 """
 
 from __future__ import annotations
