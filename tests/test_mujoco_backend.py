@@ -7,7 +7,7 @@ import torch
 
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.simulation import make_backend as make_registered_backend
-from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings
+from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, PhysicsDivergedError
 from mujoco_helpers import DT, bang_bang, make_backend
 
 
@@ -93,3 +93,16 @@ def test_bad_inputs_give_clear_errors():
         backend.hold(torch.full((1, 2, 2), math.inf))
     with pytest.raises(ValueError, match="sim.dt"):
         MujocoBackend(backend.dynamics, 0.0)
+
+
+def test_unstable_physics_fails_with_a_clear_error():
+    # a rate loop far too fast for a 50 ms physics step diverges: the backend must stop, not
+    # return MuJoCo's silently reset state
+    settings = MujocoSettings.from_config({"substeps": 1, "gains": {"rate_rp": 400.0, "att_rp": 100.0}})
+    unstable = MujocoBackend(make_backend().dynamics, 0.05, settings, dtype=torch.float64)
+    starts = torch.zeros(1, 2, 2, dtype=torch.float64)
+    unstable.reset(starts, starts)
+    with pytest.raises(PhysicsDivergedError, match="unstable|non-finite"):
+        for _ in range(400):
+            unstable.command(torch.full((1, 2, 2), 4.0, dtype=torch.float64), 0.05)
+            unstable.step()
