@@ -95,9 +95,10 @@ def test_bad_inputs_give_clear_errors():
         MujocoBackend(backend.dynamics, 0.0)
 
 
-def test_unstable_physics_fails_with_a_clear_error():
+def test_unstable_physics_fails_with_a_clear_error(tmp_path, monkeypatch):
     # a rate loop far too fast for a 50 ms physics step diverges: the backend must stop, not
     # return MuJoCo's silently reset state
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to ./MUJOCO_LOG.TXT
     settings = MujocoSettings.from_config({"substeps": 1, "gains": {"rate_rp": 400.0, "att_rp": 100.0}})
     unstable = MujocoBackend(make_backend().dynamics, 0.05, settings, dtype=torch.float64)
     starts = torch.zeros(1, 2, 2, dtype=torch.float64)
