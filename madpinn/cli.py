@@ -16,6 +16,7 @@ from pathlib import Path
 from madpinn.config import ConfigError, load_config
 
 COMMAND_MODULES = ["madpinn.cli"]
+COMMAND_MODULES.append("madpinn.simulation.mujoco.commands")  # render-clip (issue 5)
 
 
 def add_config_arg(p: argparse.ArgumentParser) -> None:
