@@ -51,9 +51,13 @@ def main() -> None:
     dyn = DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"])
     dt, r = cfg["sim"]["dt"], cfg["agents"]["collision_radius"]
     steps = int(round(args.seconds / dt))
+    # Bystanders parked at their goals far away fill the observation instead of phantoms: with
+    # fewer than n real neighbours build_observation puts every phantom at the same corner, so
+    # phantom pairs "collide" (g_d = r > 0) and V̂ > 0 for every z (see docs/value_functions.md).
+    far = [[-3.0, 3.0], [3.0, -3.0]]
     cases = {
-        "single_agent": (torch.tensor([[[-0.6, -0.4]]]), torch.tensor([[[0.7, 0.5]]])),
-        "head_on_pair": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02]]]), torch.tensor([[[0.6, 0.0], [-0.6, 0.02]]])),
+        "single_agent": (torch.tensor([[[-0.6, -0.4], *far]]), torch.tensor([[[0.7, 0.5], *far]])),
+        "head_on_pair": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02], far[0]]]), torch.tensor([[[0.6, 0.0], [-0.6, 0.02], far[0]]])),
         "three_agents": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02], [0.0, -0.6]]]),
                          torch.tensor([[[0.6, 0.0], [-0.6, 0.02], [0.0, 0.6]]])),
     }
@@ -62,7 +66,7 @@ def main() -> None:
         backend = DoubleIntegratorBackend(dyn, dt)
         res, _ = run_episode(backend, GreedyVHatPolicy(vhat, dyn.u_max), starts, goals, steps, r, record_every=0,
                              progress=False)
-        out[name] = {k: getattr(res, k)[0].round(3).tolist() for k in ("collided", "min_separation", "final_distance", "cost")}
+        out[name] = {k: getattr(res, k)[0].astype(float).round(3).tolist() for k in ("collided", "min_separation", "final_distance", "cost")}
     print(json.dumps(out, indent=1))
 
 
