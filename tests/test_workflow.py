@@ -27,7 +27,11 @@ def smoke_run(tmp_path_factory):
     return workdir
 
 
-def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
+def _expected_evaluations(cfg) -> int:
+    return sum(len(st["runs"]) * len(st["agent_counts"]) * len(st["seeds"]) for st in cfg["studies"].values())
+
+
+def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
     figs = smoke_run / "results" / "smoke" / "paper_figures"
     for name in ("table_safety_scaling", "table_ours_scaling"):
         for ext in ("csv", "md", "tex"):
@@ -40,7 +44,7 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
     assert (table["n_seeds"] == 2).all()
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
-    assert len(evals) == 5 and set(counts.values()) == {1}
+    assert len(evals) == _expected_evaluations(smoke_cfg) and set(counts.values()) == {1}
     assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
 
 
@@ -68,11 +72,15 @@ def test_single_table_target_rebuilds_alone(smoke_run):
     assert "rule evaluate" not in proc.stdout + proc.stderr
 
 
-def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path):
+def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path, paper_cfg):
     proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=())
     out = proc.stdout + proc.stderr
     m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
-    assert m and int(m.group(1)) == 4 * 5 + 3 * 1
+    assert m and int(m.group(1)) == _expected_evaluations(paper_cfg)
+    counts = paper_cfg["studies"]["main"]["agent_counts"] + paper_cfg["studies"]["scaling"]["agent_counts"]
+    assert counts == [3, 8, 12, 16, 64, 128, 256]
+    for n in counts:
+        assert f"n{n}_seed0.parquet" in out
     assert not (tmp_path / "mlflow").exists()
 
 
