@@ -130,9 +130,11 @@ def test_warm_start_shifts_plan_by_knots(cfg):
 
 
 def test_segment_distance_catches_crossings_between_knots():
+    # first: crossing the origin between the knots; second: closest at the start point
     a = torch.tensor([[-1.0, 0.05], [0.3, 0.4]])
     b = torch.tensor([[1.0, 0.05], [0.6, 0.8]])
-    torch.testing.assert_close(segment_distance(a, b), torch.tensor([0.05, 0.5]))
+    d = segment_distance(a[:, 0], a[:, 1], b[:, 0], b[:, 1])
+    torch.testing.assert_close(d, torch.tensor([0.05, 0.5]))
 
 
 def test_bad_parameters_fail_early(cfg):
