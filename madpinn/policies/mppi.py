@@ -19,7 +19,8 @@ horizon knots):
    terms of ``l_d`` do not depend on the ego's controls and are dropped.
 5. Update: ``U ← Σ_k w_k·clip(U + ε_k)`` with ``w = softmax(−(J − min J)/temperature)`` — a convex
    combination of in-box sequences, so the plan stays in the control box. The first knot is applied.
-6. Optional dual ascent on a per-agent λ: ``λ ← clip(λ + η·E_w[violation], λ₀, λ_max)``.
+6. Dual ascent on a per-agent λ (configured; ``dual_ascent.lr: 0`` = fixed λ):
+   ``λ ← clip(λ + η·E_w[violation], λ₀, λ_max)``.
 """
 
 from __future__ import annotations
