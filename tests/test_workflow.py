@@ -1,7 +1,7 @@
 """The whole smoke DAG through real snakemake into a real MLflow store."""
 
-import json
 import re
+import shutil
 from collections import Counter
 from pathlib import Path
 
@@ -50,14 +50,21 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
 
 def test_rerun_replaces_runs_without_duplicates(smoke_run):
     before = _job_counts(smoke_run)
-    run_snakemake(smoke_run, "-j2", "all", "--forceall")
+    run_snakemake(smoke_run, "-j2", "all", "--forcerun", "evaluate")
     after = _job_counts(smoke_run)
     assert after == before and set(after.values()) == {1}
 
 
 def test_results_are_deterministic_across_reruns(smoke_run, tmp_path):
-    """A fresh run with 4 parallel writers into a new store gives identical numbers."""
-    run_snakemake(tmp_path, "-j4", "all")
+    """A fresh run with 4 parallel writers into a new store gives identical numbers.
+
+    The trained models are copied over (training is covered by the first run) so that this run
+    is all evaluation jobs writing to MLflow concurrently.
+    """
+    models = smoke_run / "results" / "smoke" / "models"
+    if models.is_dir():
+        shutil.copytree(models, tmp_path / "results" / "smoke" / "models")
+    run_snakemake(tmp_path, "-j4", "table_safety_scaling", "table_ours_scaling")
     for f in sorted((smoke_run / "results" / "smoke" / "eval").rglob("*.parquet")):
         other = tmp_path / f.relative_to(smoke_run)
         pd.testing.assert_frame_equal(pd.read_parquet(f), pd.read_parquet(other))
