@@ -65,9 +65,11 @@ def test_results_are_deterministic_across_reruns(smoke_run, tmp_path):
     if models.is_dir():
         shutil.copytree(models, tmp_path / "results" / "smoke" / "models")
     run_snakemake(tmp_path, "-j4", "table_safety_scaling", "table_ours_scaling")
-    for f in sorted((smoke_run / "results" / "smoke" / "eval").rglob("*.parquet")):
-        other = tmp_path / f.relative_to(smoke_run)
-        pd.testing.assert_frame_equal(pd.read_parquet(f), pd.read_parquet(other))
+    fresh = sorted((tmp_path / "results" / "smoke" / "eval").rglob("*.parquet"))
+    studies = {f.relative_to(tmp_path / "results" / "smoke" / "eval").parts[1] for f in fresh}
+    assert {"main", "scaling"} <= studies
+    for f in fresh:
+        pd.testing.assert_frame_equal(pd.read_parquet(f), pd.read_parquet(smoke_run / f.relative_to(tmp_path)))
     assert set(_job_counts(tmp_path).values()) == {1}
 
 
