@@ -65,6 +65,28 @@ def _table(args) -> int:
     return 0
 
 
+def _figure(args) -> int:
+    from madpinn.tracking import log_job
+
+    cfg = load_config(args.config)
+    if args.name == "fig_cost_safety":
+        from madpinn.figures.cost_safety import plot_cost_safety
+
+        files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name)
+    elif args.name == "fig_trajectories":
+        from madpinn.evaluation.tables import label_of
+        from madpinn.figures.trajectories import plot_trajectories
+
+        labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
+        files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
+    else:
+        raise ValueError(f"unknown figure '{args.name}'")
+    if not args.no_track:
+        log_job(cfg, job_key=f"figure/{args.name}", rule=args.name, wildcards={}, params={"inputs": len(args.inputs)}, artifacts=files)
+    print("\n".join(map(str, files)))
+    return 0
+
+
 def register(sub) -> None:
     p = sub.add_parser("validate-config", help="validate config file(s) against the schema")
     add_config_arg(p)
@@ -96,6 +118,14 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table)
+
+    p = sub.add_parser("figure", help="draw a paper figure from result files")
+    add_config_arg(p)
+    p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories"])
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_figure)
 
 
 def build_parser() -> argparse.ArgumentParser:

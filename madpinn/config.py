@@ -100,6 +100,15 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
                 lines.append(f"  - 'studies.{name}.runs': unknown method '{method}' in run '{run}'")
             elif variant and variant not in methods[method].get("variants", {}):
                 lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
+    traj = cfg["figures"]["trajectories"]
+    study = cfg["studies"].get(traj["study"])
+    if study is None:
+        lines.append(f"  - 'figures.trajectories.study': unknown study '{traj['study']}'")
+    else:
+        if traj["n_agents"] not in study["agent_counts"]:
+            lines.append(f"  - 'figures.trajectories.n_agents': {traj['n_agents']} is not among studies.{traj['study']}.agent_counts")
+        if traj["seed"] not in study["seeds"]:
+            lines.append(f"  - 'figures.trajectories.seed': {traj['seed']} is not among studies.{traj['study']}.seeds")
     return lines
 
 

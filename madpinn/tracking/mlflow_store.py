@@ -27,7 +27,7 @@ DEFAULT_DIR = "mlflow"
 
 # Fail fast against an unreachable server instead of MLflow's minutes of exponential backoff.
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "2")
-os.environ.setdefault("MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR", "1")
+os.environ.setdefault("MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR", "0.5")
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", "15")
 
 
@@ -161,12 +161,18 @@ def log_job(
     metrics: Mapping[str, float] | None = None,
     artifacts: Sequence[str | Path] = (),
     step_metrics: Mapping[str, Sequence[float]] | None = None,
-    attempts: int = 4,
+    attempts: int | None = None,
 ) -> str | None:
-    """Log one job as one run (replacing earlier runs of the same job). Never raises."""
+    """Log one job as one run (replacing earlier runs of the same job). Never raises.
+
+    Retries cover SQLite lock contention between parallel jobs; an HTTP store is tried once
+    (MLflow's client already retries HTTP requests).
+    """
     if not (cfg.get("tracking") or {}).get("enabled", True):
         return None
     uri = tracking_uri(cfg)
+    if attempts is None:
+        attempts = 1 if uri.startswith(("http://", "https://")) else 4
     tags = {
         "madpinn.rule": rule,
         "madpinn.config_hash": config_hash(cfg),
@@ -180,7 +186,8 @@ def log_job(
             return _log_once(cfg, uri, job_key, tags, params or {}, metrics or {}, artifacts, step_metrics)
         except Exception as exc:  # noqa: BLE001
             last = exc
-            time.sleep(0.5 * 2**attempt)
+            if attempt + 1 < attempts:
+                time.sleep(0.5 * 2**attempt)
     print(
         f"WARNING: MLflow logging of job '{job_key}' to {uri} failed after {attempts} attempts: {last}. "
         f"The job's result files are complete; re-run the job to log it.",

@@ -1,0 +1,1 @@
+"""Paper figures, drawn from result files (never from MLflow)."""

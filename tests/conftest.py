@@ -1,0 +1,45 @@
+"""Shared fixtures: repository paths, configs, and a real-snakemake runner."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from madpinn.config import load_config
+
+REPO = Path(__file__).resolve().parents[1]
+SMOKE = REPO / "workflow" / "configs" / "smoke.yaml"
+
+
+@pytest.fixture(scope="session")
+def paper_cfg() -> dict:
+    return load_config([REPO / "config.yaml"])
+
+
+@pytest.fixture(scope="session")
+def smoke_cfg() -> dict:
+    return load_config([REPO / "config.yaml", SMOKE])
+
+
+def subprocess_env(extra: dict | None = None) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    env.pop("MLFLOW_TRACKING_URI", None)
+    env.update(extra or {})
+    return env
+
+
+def run_snakemake(workdir: Path, *args: str, configfiles=(SMOKE,), env: dict | None = None, check=True):
+    """Run the real workflow in ``workdir`` with the smoke overlay; returns CompletedProcess."""
+    cmd = [
+        sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir),
+        "--configfile", str(REPO / "config.yaml"), *map(str, configfiles), *args,
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=subprocess_env(env), timeout=900)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-4000:]}\n{proc.stderr[-6000:]}")
+    return proc

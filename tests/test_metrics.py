@@ -1,0 +1,68 @@
+import numpy as np
+import pytest
+import torch
+
+from madpinn.evaluation.metrics import across_seeds, scenario_metrics, seed_summary
+from madpinn.simulation.recorder import record_trajectory
+
+
+def _straight_line_world():
+    """2 scenarios x 3 agents, 11 samples (dt = 0.1 s); agent 0 moves at 1 m/s toward its goal."""
+    K, dt = 10, 0.1
+    t = torch.arange(K + 1, dtype=torch.float64) * dt
+    pos = torch.zeros(K + 1, 2, 3, 2, dtype=torch.float64)
+    pos[:, :, 0, 0] = t[:, None]  # agent 0 from x=0 to x=1
+    pos[:, :, 1, 0] = 5.0  # agent 1 parked at x=5
+    pos[:, :, 2, 0] = -5.0  # agent 2 parked at x=-5
+    goals = torch.zeros(2, 3, 2, dtype=torch.float64)
+    goals[:, 0, 0] = 1.0
+    goals[:, 1, 0] = 5.0
+    goals[:, 2, 0] = -5.0
+    return pos, goals, dt
+
+
+def test_cost_is_integral_plus_terminal():
+    pos, goals, dt = _straight_line_world()
+    res = record_trajectory(pos, goals, dt, collision_radius=0.1)
+    # ∫0^1 (1 - t) dt = 0.5 (trapezoid is exact for linear), terminal distance 0
+    np.testing.assert_allclose(res.cost[:, 0], 0.5, atol=1e-12)
+    np.testing.assert_allclose(res.cost[:, 1:], 0.0, atol=1e-12)
+    assert not res.collided.any()
+
+
+def test_single_step_collision_counts_and_cost_over_safe_agents_only():
+    pos, goals, dt = _straight_line_world()
+    pos[4, 1, 1] = pos[4, 1, 0] + torch.tensor([0.1, 0.0], dtype=torch.float64)  # one step at d = r in scenario 1
+    res = record_trajectory(pos, goals, dt, collision_radius=0.1)
+    assert res.collided[1].tolist() == [True, True, False]
+    assert res.first_collision_step[1].tolist() == [4, 4, -1]
+    assert not res.collided[0].any()
+    df = scenario_metrics(res)
+    assert df["safety_rate"].tolist() == pytest.approx([1.0, 1 / 3])
+    assert df["safe"].tolist() == [True, False]
+    # scenario 1: only agent 2 is collision-free, and its cost is 0
+    assert df["cost_safe_mean"].tolist() == pytest.approx([0.5 / 3, 0.0])
+    s = seed_summary(df)
+    assert s["safety_rate"] == pytest.approx((1 + 1 / 3) / 2)
+    assert s["safe_scenarios"] == 0.5
+
+
+def test_all_collided_scenario_has_no_cost_and_is_skipped_in_the_mean():
+    pos, goals, dt = _straight_line_world()
+    pos[:, 1, :, :] = 0.0  # everyone on top of each other in scenario 1
+    df = scenario_metrics(record_trajectory(pos, goals, dt, 0.1))
+    assert np.isnan(df["cost_safe_mean"][1])
+    assert seed_summary(df)["cost"] == pytest.approx(0.5 / 3)
+
+
+def test_mean_and_std_across_seeds():
+    import pandas as pd
+
+    per_seed = pd.DataFrame(
+        {"run": ["a"] * 3, "n_agents": [3] * 3, "safety_rate": [1.0, 0.9, 0.8], "safe_scenarios": [1.0, 1.0, 0.7], "cost": [1.0, 2.0, 3.0]}
+    )
+    agg = across_seeds(per_seed, ["run", "n_agents"]).iloc[0]
+    assert agg["safety_rate_mean"] == pytest.approx(0.9)
+    assert agg["safety_rate_std"] == pytest.approx(0.1)
+    assert agg["cost_std"] == pytest.approx(1.0)
+    assert agg["n_seeds"] == 3

@@ -1,0 +1,116 @@
+import math
+
+import pytest
+import torch
+
+from madpinn.observation import (
+    ObservationSpec,
+    build_observation,
+    constraint,
+    nearest_neighbours,
+    running_cost,
+    shrink_to_box,
+    split_observation,
+)
+
+SPEC = ObservationSpec(n_neighbours=2, goal_range=2.0, offset_range=2.0, sensing_radius=1.0, collision_radius=0.1)
+
+
+def _random_world(S=3, N=6, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    pos = torch.rand(S, N, 2, generator=g) * 2 - 1
+    vel = torch.rand(S, N, 2, generator=g) * 2 - 1
+    goals = torch.rand(S, N, 2, generator=g) * 2 - 1
+    return torch.cat([pos, vel], -1), goals
+
+
+def test_layout_and_translation_invariance():
+    state, goals = _random_world()
+    nbrs = nearest_neighbours(state, 2)
+    obs = build_observation(state, goals, nbrs, SPEC)
+    assert obs.shape == (3, 6, SPEC.dim) == (3, 6, 16)
+    shift = torch.tensor([0.37, -0.21])
+    state2 = state.clone()
+    state2[..., :2] += shift
+    obs2 = build_observation(state2, goals + shift, nearest_neighbours(state2, 2), SPEC)
+    assert torch.allclose(obs, obs2, atol=1e-5)
+    # ego block: velocity and goal offset
+    assert torch.allclose(obs[0, 0, :2], state[0, 0, 2:])
+    assert torch.allclose(obs[0, 0, 2:4], goals[0, 0] - state[0, 0, :2])
+    j = nbrs[0, 0, 0]
+    assert torch.allclose(obs[0, 0, 4:6], state[0, j, :2] - state[0, 0, :2])
+    assert torch.allclose(obs[0, 0, 6:8], state[0, j, 2:])
+    assert torch.allclose(obs[0, 0, 8:10], goals[0, j] - state[0, 0, :2])
+
+
+def test_phantom_padding_when_too_few_neighbours():
+    state = torch.zeros(1, 2, 4)
+    state[0, 1, 0] = 0.5
+    goals = torch.zeros(1, 2, 2)
+    nbrs = nearest_neighbours(state, 2)
+    assert nbrs[0, 0].tolist() == [1, -1]
+    obs = build_observation(state, goals, nbrs, SPEC)
+    phantom = obs[0, 0, 10:16]
+    assert phantom.tolist() == [2.0, 2.0, 0.0, 0.0, 2.0, 2.0]
+    # the phantom sits at its goal (no cost) and far from everyone (no constraint)
+    assert running_cost(obs[0, 0], 2).item() == pytest.approx(0.5)  # ego at goal, neighbour 0.5 m off
+    assert constraint(obs[0, 0], 2, 0.1).item() == pytest.approx(0.1 - 0.5)
+
+
+def test_radius_limited_neighbours_pad_with_phantoms():
+    state = torch.zeros(1, 4, 4)
+    state[0, :, 0] = torch.tensor([0.0, 0.5, 3.0, -3.0])
+    nbrs = nearest_neighbours(state, 2, radius=1.0)
+    assert nbrs[0, 0].tolist() == [1, -1]
+    assert nbrs[0, 2].tolist() == [-1, -1]
+
+
+def test_carrot_and_offset_clipping_keep_direction():
+    v = torch.tensor([[6.0, 3.0], [1.0, -0.5], [-8.0, 8.0]])
+    out = shrink_to_box(v, 2.0)
+    assert out.abs().amax().item() <= 2.0 + 1e-6
+    assert torch.allclose(out[1], v[1])
+    for a, b in zip(out, v):
+        assert math.isclose(float(a[0] * b[1] - a[1] * b[0]), 0.0, abs_tol=1e-5)  # parallel
+        assert float((a * b).sum()) > 0
+    state = torch.zeros(1, 3, 4)
+    state[0, 1, :2] = torch.tensor([5.0, 0.0])
+    state[0, 2, :2] = torch.tensor([0.0, -0.3])
+    goals = torch.tensor([[[6.0, 0.0], [5.0, 1.0], [0.0, 0.0]]])
+    obs = build_observation(state, goals, torch.tensor([[[1, 2], [0, 2], [0, 1]]]), SPEC)
+    assert obs[0, 0, 2:4].tolist() == [2.0, 0.0]  # ego goal 6 m away -> carrot at 2 m
+    assert obs[0, 0, 4:6].tolist() == [2.0, 0.0]  # neighbour 5 m away -> shrunk to 2 m
+
+
+def test_costs_and_constraint_on_hand_built_observation():
+    obs = torch.zeros(16)
+    obs[2:4] = torch.tensor([3.0, 4.0])  # ego goal 5 m away
+    obs[4:6] = torch.tensor([0.05, 0.0])  # neighbour 1 at 5 cm: collision
+    obs[8:10] = torch.tensor([0.05, 1.0])  # its goal 1 m from it
+    obs[10:12] = torch.tensor([1.0, 1.0])  # neighbour 2
+    obs[14:16] = torch.tensor([1.0, 1.0])  # at its goal
+    assert running_cost(obs, 2).item() == pytest.approx(6.0)
+    assert constraint(obs, 2, 0.1).item() == pytest.approx(0.05)
+    positions, velocities, goals = split_observation(obs.expand(5, 16), 2)
+    assert positions.shape == velocities.shape == goals.shape == (5, 3, 2)
+
+
+def test_bad_shapes_are_rejected():
+    state, goals = _random_world()
+    with pytest.raises(ValueError, match="neighbours must be"):
+        build_observation(state, goals, torch.zeros(3, 6, 3, dtype=torch.long), SPEC)
+    with pytest.raises(ValueError, match="state must be"):
+        build_observation(state[0], goals, torch.zeros(3, 6, 2, dtype=torch.long), SPEC)
+    with pytest.raises(ValueError, match="features"):
+        running_cost(torch.zeros(4, 15), 2)
+
+
+def test_pairwise_distances_are_exact_at_arena_scale():
+    from madpinn.observation import pairwise_distances
+
+    g = torch.Generator().manual_seed(1)
+    p = torch.rand(2, 300, 2, generator=g) * 8 - 4
+    d = pairwise_distances(p)
+    ref = torch.linalg.vector_norm(p.double()[:, :, None] - p.double()[:, None], dim=-1)
+    ref.diagonal(dim1=1, dim2=2).fill_(float("inf"))
+    assert torch.allclose(d.double(), ref, atol=1e-5, rtol=0)
