@@ -12,7 +12,7 @@ def _safemarl_train_hash():
 
 
 if "safemarl" in config["methods"]:
-    METHOD_INPUTS["safemarl"] = [SAFEMARL_NOMINAL, globals().get("VS_MODEL", f"{RESULTS}/models/vs.pt")]
+    METHOD_INPUTS["safemarl"] = [SAFEMARL_NOMINAL, VS_MODEL]  # VS_MODEL: workflow/rules/train.smk
 
     rule train_safemarl_nominal:
         input:
@@ -30,5 +30,5 @@ if "safemarl" in config["methods"]:
             "{PY} -m madpinn train-safemarl-nominal --config {RESOLVED} --out {output.model}"
             " --threads {threads} 2>&1 | tee {log}"
 
-    # `all` trains the nominal policy even before the V_s-dependent evaluations are enabled.
+    # `all` trains the nominal policy even when no study runs SafeMARL.
     EXTRA_TARGETS.append(SAFEMARL_NOMINAL)
