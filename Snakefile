@@ -27,6 +27,7 @@ include: "workflow/rules/tracking.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/train.smk"
 include: "workflow/rules/mujoco.smk"
+include: "workflow/rules/safemarl.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/tables.smk"
 

@@ -19,6 +19,7 @@ COMMAND_MODULES = [
     "madpinn.cli",
     "madpinn.value_functions.cli",  # train-value, validate-* (issue 3)
     "madpinn.simulation.mujoco.commands",  # render-clip (issue 5)
+    "madpinn.marl.cli",  # train-safemarl-nominal (issue 7)
 ]
 
 

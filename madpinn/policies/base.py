@@ -54,6 +54,7 @@ _REGISTRY: dict[str, PolicyFactory] = {}
 _MODULES = {
     "nominal": "madpinn.policies.nominal",
     "mppi": "madpinn.policies.mppi",
+    "safemarl": "madpinn.policies.safemarl",
 }
 
 

@@ -1,0 +1,76 @@
+"""Workflow job: train the SafeMARL nominal policy (goal-reaching PPO in the small arena).
+
+Config: ``methods.safemarl.nominal`` (arena, agent counts, seed, env, network, reward, ppo).
+Files first — checkpoint, learning curve CSV, JSON summary — then one MLflow run with the
+learning curves as step metrics.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from madpinn.device import resolve_device, resolve_dtype, seed_everything
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.marl.checkpoint import save_checkpoint
+from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
+from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.trainer import PPOTrainer
+from madpinn.observation import ObservationSpec
+from madpinn.scenarios import Arena
+
+CURVES = ("episode_return", "final_distance", "reached_rate", "collision_rate", "loss_policy", "loss_value",
+          "entropy", "approx_kl", "clip_frac")
+
+
+def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dtype=None) -> PPOTrainer:
+    """A trainer from the global config and a training block (``methods.<m>.nominal`` layout)."""
+    device = device or resolve_device(cfg["device"])
+    dtype = dtype or resolve_dtype(cfg["dtype"])
+    dynamics = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
+    env = GoalReachingEnv(
+        dynamics, Arena.from_config(cfg, tcfg["arena"]), ObservationSpec.from_config(cfg),
+        EnvConfig.from_dict(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
+    )
+    return trainer_cls(
+        env, PPOConfig.from_dict(tcfg["ppo"]), RewardConfig.from_dict(tcfg["reward"]),
+        tcfg["agent_counts"], hidden=int(tcfg["network"]["hidden"]), seed=int(tcfg["seed"]),
+    )
+
+
+def train_safemarl_nominal(cfg: dict, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True) -> dict:
+    out = Path(out)
+    if "safemarl" not in cfg["methods"]:
+        raise ValueError("methods.safemarl is not configured (its 'nominal' block holds the PPO training settings)")
+    tcfg = cfg["methods"]["safemarl"]["nominal"]
+    seed_everything(int(tcfg["seed"]), threads)
+    t0 = time.perf_counter()
+    trainer = build_trainer(cfg, tcfg)
+    history = trainer.train(progress=progress, desc="SafeMARL nominal PPO")
+    wall = time.perf_counter() - t0
+    save_checkpoint(out, trainer, meta={"method": "safemarl-nominal", "wall_s": wall, "arena": tcfg["arena"]})
+    curve_path = out.with_name(out.stem + "_history.csv")
+    pd.DataFrame(history).to_csv(curve_path, index=False)
+    tail = history[-min(10, len(history)):]
+    summary = {
+        "iterations": len(history),
+        "wall_s": wall,
+        "samples": int(sum(h["samples"] for h in history)),
+        **{f"first_{k}": history[0][k] for k in ("episode_return", "final_distance", "collision_rate")},
+        **{f"last10_{k}": sum(h[k] for h in tail) / len(tail) for k in ("episode_return", "final_distance", "reached_rate", "collision_rate")},
+    }
+    json_path = out.with_suffix(".json")
+    json_path.write_text(json.dumps(summary, indent=2))
+    if track:
+        from madpinn.tracking import log_job
+
+        log_job(
+            cfg, job_key="train/safemarl_nominal", rule="train_safemarl_nominal", wildcards={},
+            params={"nominal": tcfg, "agents": cfg["agents"], "observation": cfg["observation"]},
+            metrics=summary, artifacts=[out, curve_path, json_path],
+            step_metrics={k: [h[k] for h in history] for k in CURVES},
+        )
+    return summary

@@ -1,0 +1,176 @@
+"""The shared multi-agent PPO loop: collect one episode per environment → advantages → update.
+
+All agents of all environments act with one shared actor on their own local observation
+(decentralised execution); the critic is shared too and sees the same local observation
+(independent-learner PPO with parameter sharing, the IPPO/MAPPO setting).
+
+Extension points for methods built on this trainer (DEF-MARL) — override in a subclass:
+
+- ``extra_features`` / :meth:`augment`: extra per-agent actor/critic inputs (e.g. z), appended
+  to the ego features before observation normalisation.
+- ``critic_heads``: number of critic outputs (e.g. cost and constraint critics).
+- :meth:`on_reset`, :meth:`reward`, :meth:`record`: per-episode state, the raw per-agent reward
+  of a period, and per-step bookkeeping (e.g. z dynamics).
+- :meth:`advantages`: advantages ``[T, E, N]`` and critic targets ``[T, E, N, H]`` from the
+  rollout buffer (default: GAE on the normalised reward).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Sequence
+
+import torch
+from tqdm.auto import tqdm
+
+from madpinn.marl.buffer import RolloutBuffer
+from madpinn.marl.env import GoalReachingEnv, RewardConfig, StepInfo, goal_reward
+from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
+from madpinn.marl.gae import gae
+from madpinn.marl.networks import GaussianActor, ValueCritic
+from madpinn.marl.normalize import ObsNormalizer, ReturnNormalizer
+from madpinn.marl.ppo import PPOBatch, PPOConfig, ppo_update
+
+REACHED_M = 0.05  # goal "reached" in the learning-curve statistics (m)
+
+
+class PPOTrainer:
+    extra_features = 0
+    critic_heads = 1
+
+    def __init__(
+        self,
+        env: GoalReachingEnv,
+        ppo: PPOConfig,
+        reward: RewardConfig,
+        agent_counts: Sequence[int],
+        hidden: int,
+        seed: int,
+    ):
+        if not agent_counts or min(agent_counts) < 1:
+            raise ValueError(f"agent_counts must be non-empty positive integers, got {agent_counts}")
+        self.env = env
+        self.ppo = ppo
+        self.reward_cfg = reward
+        self.agent_counts = [int(n) for n in agent_counts]
+        self.hidden = int(hidden)
+        self.seed = int(seed)
+        self.device = env.device
+        self.u_max = env.dynamics.u_max
+        self.generator = torch.Generator().manual_seed(self.seed)
+        torch.manual_seed(self.seed)  # network initialisation
+        ego = EGO_FEATURES + self.extra_features
+        self.actor = GaussianActor(ego, NEIGHBOUR_FEATURES, self.hidden, init_log_std=ppo.init_log_std).to(self.device, env.dtype)
+        self.critic = ValueCritic(ego, NEIGHBOUR_FEATURES, self.hidden, heads=self.critic_heads).to(self.device, env.dtype)
+        self.obs_norm = ObsNormalizer(ego, NEIGHBOUR_FEATURES)
+        self.ret_norm = ReturnNormalizer(ppo.discount)
+        self.optimizer = torch.optim.Adam(list(self.actor.parameters()) + list(self.critic.parameters()), lr=ppo.lr, eps=1e-5)
+        self.iteration = 0
+        self.history: list[dict] = []
+
+    # ---- extension points -------------------------------------------------------------------
+    def augment(self, obs: LocalObs) -> LocalObs:
+        return obs
+
+    def on_reset(self, n_envs: int, n_agents: int) -> None:
+        pass
+
+    def reward(self, info: StepInfo) -> torch.Tensor:
+        return goal_reward(info, self.reward_cfg, self.env.cfg.train_dt, self.u_max)
+
+    def record(self, info: StepInfo) -> None:
+        pass
+
+    def advantages(self, buf: RolloutBuffer, last_values: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        adv, ret = gae(buf.get("reward"), buf.get("value")[..., 0], last_values[..., 0], self.ppo.discount, self.ppo.gae_lambda)
+        return adv, ret.unsqueeze(-1)
+
+    # ---- loop ---------------------------------------------------------------------------------
+    def _sample(self, obs: LocalObs) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        dist = self.actor.distribution(obs)
+        noise = torch.randn(dist.mean.shape, generator=self.generator, dtype=dist.mean.dtype).to(self.device)
+        action = dist.mean + dist.stddev * noise
+        return action, dist.log_prob(action).sum(-1), self.critic(obs)
+
+    def collect(self, n_agents: int) -> tuple[RolloutBuffer, torch.Tensor, dict]:
+        """One episode in ``agents_per_batch // n_agents`` environments; returns the buffer, the
+        bootstrap values ``[E, N, H]`` of the final observation and episode statistics."""
+        n_envs = max(1, self.ppo.agents_per_batch // n_agents)
+        obs = self.env.reset(n_envs, n_agents)
+        self.on_reset(n_envs, n_agents)
+        self.ret_norm.reset((n_envs, n_agents), self.device)
+        buf = RolloutBuffer()
+        ep_return = torch.zeros(n_envs, n_agents, dtype=torch.float64, device=self.device)
+        collided = torch.zeros(n_envs, n_agents, dtype=torch.bool, device=self.device)
+        H = self.critic_heads
+        with torch.no_grad():
+            while not self.env.done:
+                x = self.augment(obs)
+                self.obs_norm.update(x)
+                xn = self.obs_norm(x)
+                action, logp, value = self._sample(xn.flatten())
+                obs, info = self.env.step(action.clamp(-1.0, 1.0).view(n_envs, n_agents, 2) * self.u_max)
+                r = self.reward(info)
+                ep_return += r
+                collided |= info.collided
+                buf.add(xn, action=action.view(n_envs, n_agents, -1), logp=logp.view(n_envs, n_agents),
+                        value=value.view(n_envs, n_agents, H), reward=self.ret_norm(r), raw_reward=r)
+                self.record(info)
+            last = self.critic(self.obs_norm(self.augment(obs)).flatten()).view(n_envs, n_agents, H)
+        final = self.env.goal_distance()
+        stats = {
+            "n_agents": n_agents,
+            "episode_return": ep_return.mean().item(),
+            "final_distance": final.mean().item(),
+            "reached_rate": (final < REACHED_M).float().mean().item(),
+            "collision_rate": collided.float().mean().item(),
+        }
+        return buf, last, stats
+
+    @torch.no_grad()
+    def evaluate(self, n_envs: int, n_agents: int, scenario_seed: int = 2 * 10**6) -> dict:
+        """Deterministic (mean-action) episodes on a fixed scenario set: mean raw return, final
+        goal distance (m) and fraction of agents that collided."""
+        obs = self.env.reset(n_envs, n_agents, fixed_seed=scenario_seed)
+        self.on_reset(n_envs, n_agents)
+        ret = torch.zeros(n_envs, n_agents, dtype=torch.float64, device=self.device)
+        collided = torch.zeros(n_envs, n_agents, dtype=torch.bool, device=self.device)
+        while not self.env.done:
+            mean = self.actor(self.obs_norm(self.augment(obs)).flatten())
+            obs, info = self.env.step(mean.clamp(-1.0, 1.0).view(n_envs, n_agents, 2) * self.u_max)
+            ret += self.reward(info)
+            collided |= info.collided
+            self.record(info)
+        return {"return": ret.mean().item(), "final_distance": self.env.goal_distance().mean().item(),
+                "collision_rate": collided.float().mean().item()}
+
+    def step(self) -> dict:
+        """One training iteration (rollout + PPO update); agent counts cycle over iterations."""
+        t0 = time.perf_counter()
+        n_agents = self.agent_counts[self.iteration % len(self.agent_counts)]
+        buf, last, stats = self.collect(n_agents)
+        adv, ret = self.advantages(buf, last)
+        H = ret.shape[-1]
+        batch = PPOBatch(
+            obs=buf.flat_obs(), actions=buf.get("action").reshape(-1, 2), logp_old=buf.get("logp").reshape(-1),
+            advantages=adv.reshape(-1), returns=ret.reshape(-1, H),
+        )
+        stats.update(ppo_update(self.actor, self.critic, self.optimizer, batch, self.ppo, self.generator))
+        stats["iteration"] = self.iteration
+        stats["samples"] = len(batch)
+        stats["wall_s"] = time.perf_counter() - t0
+        self.iteration += 1
+        self.history.append(stats)
+        return stats
+
+    def train(self, iterations: int | None = None, progress: bool = True, desc: str = "PPO") -> list[dict]:
+        iterations = self.ppo.iterations if iterations is None else int(iterations)
+        bar = tqdm(range(iterations), desc=desc, disable=not progress, mininterval=2.0)
+        for _ in bar:
+            s = self.step()
+            if not math.isfinite(s["episode_return"]):
+                raise FloatingPointError(f"non-finite episode return at iteration {s['iteration']}")
+            bar.set_postfix(N=s["n_agents"], ret=f"{s['episode_return']:.3f}", dist=f"{s['final_distance']:.3f}",
+                            coll=f"{s['collision_rate']:.3f}")
+        return self.history

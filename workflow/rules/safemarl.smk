@@ -1,0 +1,34 @@
+# SafeMARL (issue 7): train the nominal goal-reaching PPO policy once; evaluation jobs of the
+# `safemarl` method (and its `safemarl-unfiltered` variant) depend on it and on the learned V_s.
+from madpinn.config import config_hash
+
+SAFEMARL_NOMINAL = f"{RESULTS}/models/safemarl_nominal.pt"
+
+
+def _safemarl_train_hash():
+    m = config["methods"]["safemarl"]
+    return config_hash({"nominal": m["nominal"], "agents": config["agents"], "observation": config["observation"],
+                        "arena": config["arenas"][m["nominal"]["arena"]], "dtype": config["dtype"]})
+
+
+if "safemarl" in config["methods"]:
+    METHOD_INPUTS["safemarl"] = [SAFEMARL_NOMINAL, VS_MODEL]  # VS_MODEL: workflow/rules/train.smk
+
+    rule train_safemarl_nominal:
+        input:
+            tracking=TRACKING,
+        output:
+            model=SAFEMARL_NOMINAL,
+            history=f"{RESULTS}/models/safemarl_nominal_history.csv",
+            summary=f"{RESULTS}/models/safemarl_nominal.json",
+        params:
+            train_hash=_safemarl_train_hash(),
+        threads: 1
+        log:
+            f"{LOGS}/train_safemarl_nominal.log",
+        shell:
+            "{PY} -m madpinn train-safemarl-nominal --config {RESOLVED} --out {output.model}"
+            " --threads {threads} 2>&1 | tee {log}"
+
+    # `all` trains the nominal policy even when no study runs SafeMARL.
+    EXTRA_TARGETS.append(SAFEMARL_NOMINAL)
