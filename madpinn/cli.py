@@ -15,7 +15,7 @@ from pathlib import Path
 
 from madpinn.config import ConfigError, load_config
 
-COMMAND_MODULES = ["madpinn.cli", "madpinn.marl.cli"]
+COMMAND_MODULES = ["madpinn.cli", "madpinn.marl.cli", "madpinn.marl.defmarl.cli"]
 
 
 def add_config_arg(p: argparse.ArgumentParser) -> None:

@@ -54,6 +54,7 @@ _REGISTRY: dict[str, PolicyFactory] = {}
 _MODULES = {
     "nominal": "madpinn.policies.nominal",
     "safemarl": "madpinn.policies.safemarl",
+    "defmarl": "madpinn.policies.defmarl",
 }
 
 
