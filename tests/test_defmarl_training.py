@@ -121,6 +121,12 @@ def test_checkpoint_and_root_finding_deployment(tmp_path):
     assert torch.allclose(u, (tr.actor(x).clamp(-1, 1) * 4.0).view(3, 4, 2), atol=1e-5)
     res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(4.0, 4.0), 0.0025), pol, starts, goals, 40, spec.collision_radius)
     assert res.cost.shape == (3, 4) and pol.stats.steps == 41 * 12  # + the act() above
+    # budgets re-solved every root_period policy steps, held in between
+    held = load_defmarl(path, spec, 4.0, spec.collision_radius, root_period=4)
+    held.reset(state, goals)
+    for k in range(8):
+        held.act(state + 0.01 * k, goals, 0.0)
+    assert held.stats.steps == 2 * 12
     # a SafeMARL-style PPO checkpoint or a corrupted file is refused with a clear error
     plain = save_checkpoint(tmp_path / "plain.pt", tr, meta={"method": "safemarl-nominal"})
     with pytest.raises(CheckpointError, match="not a DEF-MARL checkpoint"):

@@ -18,5 +18,5 @@ def make_defmarl(ctx: PolicyContext) -> DefMarlPolicy:
         raise ValueError("DEF-MARL runs name a trained model: use a variant (defmarl-n3, defmarl-n8) whose config sets 'model'")
     return load_defmarl(
         ctx.models_dir / m["model"], ctx.obs_spec, ctx.dynamics.u_max, ctx.obs_spec.collision_radius, ctx.device, ctx.dtype,
-        iterations=int(m["root_iterations"]), level=float(m["safe_level"]),
+        iterations=int(m["root_iterations"]), level=float(m["safe_level"]), root_period=int(m["root_period_steps"]),
     )
