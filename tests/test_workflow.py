@@ -40,7 +40,7 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
     assert (table["n_seeds"] == 2).all()
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
-    assert len(evals) == 5 and set(counts.values()) == {1}
+    assert len(evals) == 2 * 2 * 3 + 1 and set(counts.values()) == {1}  # main: N × seeds × runs; scaling: 1
     assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
 
 
@@ -72,7 +72,7 @@ def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path):
     proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=())
     out = proc.stdout + proc.stderr
     m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
-    assert m and int(m.group(1)) == 4 * 5 + 3 * 1
+    assert m and int(m.group(1)) == 4 * 5 * 3 + 3 * 1  # main: N × seeds × runs (nominal, defmarl-n3, defmarl-n8)
     assert not (tmp_path / "mlflow").exists()
 
 
