@@ -10,6 +10,7 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from conftest import REPO, SMOKE, run_snakemake
+from madpinn.config import load_config
 
 
 def _job_counts(workdir: Path) -> Counter:
@@ -27,6 +28,12 @@ def smoke_run(tmp_path_factory):
     return workdir
 
 
+def _cells(*overlays) -> int:
+    """Evaluation cells of a configuration: runs × agent counts × seeds, summed over studies."""
+    cfg = load_config([REPO / "config.yaml", *overlays])
+    return sum(len(st["runs"]) * len(st["agent_counts"]) * len(st["seeds"]) for st in cfg["studies"].values())
+
+
 def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
     figs = smoke_run / "results" / "smoke" / "paper_figures"
     for name in ("table_safety_scaling", "table_ours_scaling"):
@@ -40,7 +47,7 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
     assert (table["n_seeds"] == 2).all()
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
-    assert len(evals) == 2 * 2 * 3 + 1 and set(counts.values()) == {1}  # main: N × seeds × runs; scaling: 1
+    assert len(evals) == _cells(SMOKE) and set(counts.values()) == {1}
     assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
 
 
@@ -72,7 +79,7 @@ def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path):
     proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=())
     out = proc.stdout + proc.stderr
     m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
-    assert m and int(m.group(1)) == 4 * 5 * 3 + 3 * 1  # main: N × seeds × runs (nominal, defmarl-n3, defmarl-n8)
+    assert m and int(m.group(1)) == _cells()
     assert not (tmp_path / "mlflow").exists()
 
 

@@ -8,7 +8,7 @@ SAFEMARL_NOMINAL = f"{RESULTS}/models/safemarl_nominal.pt"
 def _safemarl_train_hash():
     m = config["methods"]["safemarl"]
     return config_hash({"nominal": m["nominal"], "agents": config["agents"], "observation": config["observation"],
-                        "arenas": config["arenas"], "dtype": config["dtype"]})
+                        "arena": config["arenas"][m["nominal"]["arena"]], "dtype": config["dtype"]})
 
 
 if "safemarl" in config["methods"]:
