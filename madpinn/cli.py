@@ -15,10 +15,13 @@ from pathlib import Path
 
 from madpinn.config import ConfigError, load_config
 
-COMMAND_MODULES = ["madpinn.cli"]
-COMMAND_MODULES.append("madpinn.simulation.mujoco.commands")  # render-clip (issue 5)
-COMMAND_MODULES.append("madpinn.marl.cli")  # train-safemarl-nominal (issue 7)
-COMMAND_MODULES.append("madpinn.marl.defmarl.cli")  # train-defmarl (issue 8)
+COMMAND_MODULES = [
+    "madpinn.cli",
+    "madpinn.value_functions.cli",  # train-value, validate-* (issue 3)
+    "madpinn.simulation.mujoco.commands",  # render-clip (issue 5)
+    "madpinn.marl.cli",  # train-safemarl-nominal (issue 7)
+    "madpinn.marl.defmarl.cli",  # train-defmarl (issue 8)
+]
 
 
 def add_config_arg(p: argparse.ArgumentParser) -> None:
