@@ -28,6 +28,7 @@ include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/train.smk"
 include: "workflow/rules/mujoco.smk"
 include: "workflow/rules/safemarl.smk"
+include: "workflow/rules/defmarl.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/tables.smk"
 

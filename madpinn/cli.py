@@ -20,6 +20,7 @@ COMMAND_MODULES = [
     "madpinn.value_functions.cli",  # train-value, validate-* (issue 3)
     "madpinn.simulation.mujoco.commands",  # render-clip (issue 5)
     "madpinn.marl.cli",  # train-safemarl-nominal (issue 7)
+    "madpinn.marl.defmarl.cli",  # train-defmarl (issue 8)
 ]
 
 

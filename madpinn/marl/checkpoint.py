@@ -26,7 +26,10 @@ def save_checkpoint(path: str | Path, trainer, meta: dict | None = None) -> Path
     payload = {
         "format": FORMAT,
         "version": VERSION,
-        "modules": {"actor": trainer.actor.state_dict(), "critic": trainer.critic.state_dict()},
+        "modules": {
+            "actor": trainer.actor.state_dict(), "critic": trainer.critic.state_dict(),
+            **{k: m.state_dict() for k, m in trainer.extra_modules().items()},
+        },
         "normalizers": {"obs": trainer.obs_norm.state_dict(), "return": trainer.ret_norm.state_dict()},
         "meta": {
             "ego_features": trainer.obs_norm.ego.mean.numel(),

@@ -13,6 +13,8 @@ Extension points for methods built on this trainer (DEF-MARL) — override in a 
   of a period, and per-step bookkeeping (e.g. z dynamics).
 - :meth:`advantages`: advantages ``[T, E, N]`` and critic targets ``[T, E, N, H]`` from the
   rollout buffer (default: GAE on the normalised reward).
+- :meth:`extra_modules`: further networks of the method (e.g. a team cost critic), saved in
+  the checkpoint next to the actor and critic.
 """
 
 from __future__ import annotations
@@ -81,6 +83,9 @@ class PPOTrainer:
 
     def record(self, info: StepInfo) -> None:
         pass
+
+    def extra_modules(self) -> dict[str, torch.nn.Module]:
+        return {}
 
     def advantages(self, buf: RolloutBuffer, last_values: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         adv, ret = gae(buf.get("reward"), buf.get("value")[..., 0], last_values[..., 0], self.ppo.discount, self.ppo.gae_lambda)

@@ -55,6 +55,7 @@ _MODULES = {
     "nominal": "madpinn.policies.nominal",
     "mppi": "madpinn.policies.mppi",
     "safemarl": "madpinn.policies.safemarl",
+    "defmarl": "madpinn.policies.defmarl",
 }
 
 

@@ -42,7 +42,8 @@ def study_results(study):
 
 
 def method_inputs(wildcards):
-    return METHOD_INPUTS.get(wildcards.run.split("-")[0], [])
+    """Files a run's policy loads: registered by full run name first, then by method."""
+    return METHOD_INPUTS.get(wildcards.run, METHOD_INPUTS.get(wildcards.run.split("-")[0], []))
 
 
 def job_hash(wildcards):
