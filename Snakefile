@@ -26,6 +26,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/tracking.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/train.smk"
 include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/tables.smk"
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from madpinn.config import ConfigError, load_config
 
-COMMAND_MODULES = ["madpinn.cli"]
+COMMAND_MODULES = ["madpinn.cli", "madpinn.value_functions.cli"]
 
 
 def add_config_arg(p: argparse.ArgumentParser) -> None:

@@ -1,0 +1,165 @@
+"""Decentralized (n+1)-agent epigraph system over the ego-centric observation plus z (SPEC §4).
+
+Augmented state ``ô = [o, z]`` with ``o`` in the :mod:`madpinn.observation` layout
+(``D = 4 + 6n``, offsets relative to the ego position) and the cost budget ``z`` (cost units, m·s
+for the running part plus m for the terminal part). Every agent is a planar double integrator
+with ``u_a ∈ [-u_max, u_max]²``. In observation coordinates (ego at the origin)::
+
+    d/dt v_ego            = u_0
+    d/dt (g_ego − p_ego)  = −v_ego
+    d/dt (p_j − p_ego)    = v_j − v_ego
+    d/dt v_j              = u_j
+    d/dt (g_j − p_ego)    = −v_ego
+    d/dt z                = −l_d(o)
+
+so ``f̂(ô, u) = w(ô) + B u`` with a control-free transport field ``w`` and controls entering only
+the velocity coordinates. The Hamiltonian of the paper's HJB (``min_u ⟨∇V, f̂⟩``) is therefore
+closed form: ``H = ⟨∇_o V, w_o⟩ − ∂_z V · l_d − u_max · Σ_a ‖∂V/∂v_a‖₁`` with the optimal
+(bang-bang) control ``u_a* = −u_max · sign(∂V/∂v_a)``.
+
+Sampling domain (per coordinate, uniform; matches :class:`~madpinn.observation.ObservationSpec`):
+velocities ``±v_max``, goal offsets ``±goal_range``, neighbour position offsets
+``±offset_range``, ``z ∈ [0, z_max]``, ``t ∈ [0, T]``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from madpinn.observation import (
+    EGO_DIM,
+    NEIGHBOUR_DIM,
+    ObservationSpec,
+    constraint,
+    running_cost,
+    split_observation,
+    terminal_cost,
+)
+
+
+@dataclass(frozen=True)
+class EpigraphSystem:
+    """The augmented (n+1)-agent system of SPEC §4 and its box-control Hamiltonian.
+
+    spec: observation layout and trained ranges; u_max, v_max: per-axis control (m/s²) and
+    velocity (m/s) bounds; horizon: T (s); z_max: upper end of the sampled budget (cost units).
+    """
+
+    spec: ObservationSpec
+    u_max: float = 4.0
+    v_max: float = 4.0
+    horizon: float = 0.2
+    z_max: float = 20.0
+
+    # ---- layout -------------------------------------------------------------------------
+    @property
+    def obs_dim(self) -> int:
+        return self.spec.dim
+
+    @property
+    def state_dim(self) -> int:
+        """Dimension of ô = [o, z]."""
+        return self.spec.dim + 1
+
+    def velocity_index(self) -> torch.Tensor:
+        """Indices ``[n+1, 2]`` of each agent's velocity inside the observation."""
+        idx = [[0, 1]] + [[EGO_DIM + NEIGHBOUR_DIM * j + 2, EGO_DIM + NEIGHBOUR_DIM * j + 3] for j in range(self.spec.n_neighbours)]
+        return torch.tensor(idx, dtype=torch.long)
+
+    def half_widths(self) -> torch.Tensor:
+        """Per-coordinate half width ``[D]`` of the symmetric observation domain (m, m/s)."""
+        s = self.spec
+        nbr = [s.offset_range] * 2 + [self.v_max] * 2 + [s.goal_range] * 2
+        return torch.tensor([self.v_max] * 2 + [s.goal_range] * 2 + nbr * s.n_neighbours, dtype=torch.float64)
+
+    @staticmethod
+    def default_z_max(spec: ObservationSpec, v_max: float, u_max: float, horizon: float) -> float:
+        """Upper bound of the cost over the horizon on the sampled domain (cost units).
+
+        Each agent's distance to its goal is at most its largest initial distance (ego:
+        ``√2·goal_range``; neighbour: ``√2·(goal_range + offset_range)``) plus its largest
+        displacement ``√2·(v_max·T + u_max·T²/2)``; the cost is ``(T + 1)`` times the sum.
+        """
+        move = math.sqrt(2.0) * (v_max * horizon + 0.5 * u_max * horizon**2)
+        ego = math.sqrt(2.0) * spec.goal_range + move
+        nbr = math.sqrt(2.0) * (spec.goal_range + spec.offset_range) + move
+        return (horizon + 1.0) * (ego + spec.n_neighbours * nbr)
+
+    # ---- sampling -----------------------------------------------------------------------
+    def sample(self, batch: int, generator: torch.Generator, dtype=torch.float32, device="cpu"):
+        """Uniform samples ``(obs [B, D], z [B])`` over the training domain."""
+        hw = self.half_widths().to(dtype)
+        u = torch.rand(batch, self.obs_dim + 1, generator=generator, dtype=dtype)
+        obs = (2.0 * u[:, :-1] - 1.0) * hw
+        z = u[:, -1] * self.z_max
+        return obs.to(device), z.to(device)
+
+    # ---- costs, constraint, terminal condition ------------------------------------------
+    def running_cost(self, obs: torch.Tensor) -> torch.Tensor:
+        return running_cost(obs, self.spec.n_neighbours)
+
+    def constraint(self, obs: torch.Tensor) -> torch.Tensor:
+        return constraint(obs, self.spec.n_neighbours, self.spec.collision_radius)
+
+    def terminal_value(self, obs: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        """``max(φ_d(o) − z, g_d(o))`` ``[B]``: the exact terminal condition of V̂."""
+        return torch.maximum(terminal_cost(obs, self.spec.n_neighbours) - z, self.constraint(obs))
+
+    def terminal_value_and_grad(self, obs: torch.Tensor, z: torch.Tensor):
+        """Terminal value ``[B]`` and its gradients ``(∂/∂o [B, D], ∂/∂z [B])`` (exact, a.e.)."""
+        with torch.enable_grad():
+            o = obs.detach().requires_grad_(True)
+            zz = z.detach().requires_grad_(True)
+            val = self.terminal_value(o, zz)
+            go, gz = torch.autograd.grad(val.sum(), [o, zz])
+        return val.detach(), go, gz
+
+    # ---- dynamics and Hamiltonian -------------------------------------------------------
+    def transport(self, obs: torch.Tensor) -> torch.Tensor:
+        """Control-free part ``w_o(o)`` ``[B, D]`` of the observation dynamics."""
+        p, v, _ = split_observation(obs, self.spec.n_neighbours)
+        v_ego = v[..., 0:1, :]
+        lead = obs.shape[:-1]
+        n = self.spec.n_neighbours
+        ego = torch.cat([torch.zeros_like(v_ego[..., 0, :]), -v_ego[..., 0, :]], dim=-1)
+        nbr = torch.cat([v[..., 1:, :] - v_ego, torch.zeros_like(v[..., 1:, :]), (-v_ego).expand(*lead, n, 2)], dim=-1)
+        return torch.cat([ego, nbr.flatten(-2)], dim=-1)
+
+    def f(self, obs: torch.Tensor, z: torch.Tensor, u: torch.Tensor):
+        """Augmented vector field for agent controls ``u [B, n+1, 2]`` (clipped to the box):
+        returns ``(d obs/dt [B, D], dz/dt [B])``."""
+        u = u.clamp(-self.u_max, self.u_max)
+        do = self.transport(obs).clone()
+        idx = self.velocity_index().to(obs.device)
+        do[..., idx.flatten()] = do[..., idx.flatten()] + u.flatten(-2)
+        return do, -self.running_cost(obs)
+
+    def velocity_grad(self, dv_dobs: torch.Tensor) -> torch.Tensor:
+        """``∂V/∂v_a`` ``[B, n+1, 2]`` from the observation gradient ``[B, D]``."""
+        idx = self.velocity_index().to(dv_dobs.device)
+        return dv_dobs[..., idx]
+
+    def hamiltonian(self, obs: torch.Tensor, dv_dobs: torch.Tensor, dv_dz: torch.Tensor) -> torch.Tensor:
+        """``min_u ⟨∇V, f̂(ô, u)⟩`` ``[B]`` in closed form for box controls."""
+        drift = (dv_dobs * self.transport(obs)).sum(-1) - dv_dz * self.running_cost(obs)
+        return drift - self.u_max * self.velocity_grad(dv_dobs).abs().sum((-1, -2))
+
+    def optimal_control(self, dv_dobs: torch.Tensor) -> torch.Tensor:
+        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, 2]``."""
+        return -self.u_max * torch.sign(self.velocity_grad(dv_dobs))
+
+    def hjb_residual(self, obs, z, value, dv_dt, dv_dobs, dv_dz) -> torch.Tensor:
+        """Paper eq. (loss): ``min(−∂_t V − H, V − g_d(o))`` ``[B]``."""
+        return torch.minimum(-dv_dt - self.hamiltonian(obs, dv_dobs, dv_dz), value - self.constraint(obs))
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "EpigraphSystem":
+        spec = ObservationSpec.from_config(cfg)
+        vcfg = cfg["value_functions"]["vhat"]
+        u_max, v_max, T = float(cfg["agents"]["u_max"]), float(cfg["agents"]["v_max"]), float(vcfg["horizon"])
+        z_max = vcfg.get("z_max", "auto")
+        z_max = cls.default_z_max(spec, v_max, u_max, T) if z_max in (None, "auto") else float(z_max)
+        return cls(spec=spec, u_max=u_max, v_max=v_max, horizon=T, z_max=z_max)

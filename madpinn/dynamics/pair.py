@@ -1,0 +1,84 @@
+"""Relative pair system for the pairwise safety value V_s (SPEC §5).
+
+State ``x = [p_i − p_j, v_i − v_j]`` ``[..., 4]`` (m, m/s); the pair cooperates through the
+relative control ``u = u_i − u_j ∈ [−2u_max, 2u_max]²``: ``ṗ = v``, ``v̇ = u``.
+Target ``ψ(x) = ‖p‖ − r`` (m, ≤ 0 is collision). ``V_s(x, t) = sup_u min_{τ∈[t,T]} ψ(ξ(τ))``
+solves the HJB-VI ``min{∂_t V + H_s, ψ − V} = 0``, ``V(x, T) = ψ(x)``, with the closed-form
+Hamiltonian ``H_s = max_u ⟨∇V, f⟩ = ⟨∂_p V, v⟩ + 2u_max·‖∂_v V‖₁`` and the optimal relative
+control ``2u_max·sign(∂_v V)`` (agent i applies ``u_max·sign``, agent j the opposite).
+Training domain: ``|p| ≤ p_range``, ``|v| ≤ v_range`` per axis, ``t ∈ [0, T]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+STATE_DIM = 4
+
+
+@dataclass(frozen=True)
+class PairSystem:
+    u_max: float = 4.0
+    collision_radius: float = 0.1
+    horizon: float = 1.0
+    p_range: float = 2.0
+    v_range: float = 8.0
+
+    @property
+    def state_dim(self) -> int:
+        return STATE_DIM
+
+    @property
+    def u_rel_max(self) -> float:
+        """Bound of the relative control per axis (m/s²)."""
+        return 2.0 * self.u_max
+
+    def half_widths(self) -> torch.Tensor:
+        return torch.tensor([self.p_range] * 2 + [self.v_range] * 2, dtype=torch.float64)
+
+    def sample(self, batch: int, generator: torch.Generator, dtype=torch.float32, device="cpu") -> torch.Tensor:
+        u = torch.rand(batch, STATE_DIM, generator=generator, dtype=dtype)
+        return ((2.0 * u - 1.0) * self.half_widths().to(dtype)).to(device)
+
+    def target(self, x: torch.Tensor) -> torch.Tensor:
+        """ψ(x) = ‖p‖ − r ``[...]`` (m)."""
+        return torch.linalg.vector_norm(x[..., 0:2], dim=-1) - self.collision_radius
+
+    def target_and_grad(self, x: torch.Tensor):
+        """ψ ``[B]`` and ∂ψ/∂x ``[B, 4]`` (exact away from p = 0)."""
+        p = x[..., 0:2]
+        norm = torch.linalg.vector_norm(p, dim=-1, keepdim=True)
+        grad_p = p / norm.clamp_min(1e-12)
+        return norm[..., 0] - self.collision_radius, torch.cat([grad_p, torch.zeros_like(p)], dim=-1)
+
+    def f(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Vector field ``[..., 4]`` for the relative control ``u [..., 2]`` (clipped to ±2u_max)."""
+        return torch.cat([x[..., 2:4], u.clamp(-self.u_rel_max, self.u_rel_max)], dim=-1)
+
+    def hamiltonian(self, x: torch.Tensor, dv_dx: torch.Tensor) -> torch.Tensor:
+        """``max_u ⟨∇V, f(x, u)⟩`` ``[B]``."""
+        return (dv_dx[..., 0:2] * x[..., 2:4]).sum(-1) + self.u_rel_max * dv_dx[..., 2:4].abs().sum(-1)
+
+    def optimal_control(self, dv_dx: torch.Tensor) -> torch.Tensor:
+        """Maximising (safest) relative control ``2u_max·sign(∂V/∂v)`` ``[B, 2]``."""
+        return self.u_rel_max * torch.sign(dv_dx[..., 2:4])
+
+    def hjb_residual(self, x, value, dv_dt, dv_dx) -> torch.Tensor:
+        """Paper eq. (HJI-VI): ``min{∂_t V + H_s, ψ − V}`` ``[B]``."""
+        return torch.minimum(dv_dt + self.hamiltonian(x, dv_dx), self.target(x) - value)
+
+    def step(self, x: torch.Tensor, u: torch.Tensor, dt: float) -> torch.Tensor:
+        """Exact zero-order-hold step of the relative double integrator."""
+        u = u.clamp(-self.u_rel_max, self.u_rel_max)
+        p, v = x[..., 0:2], x[..., 2:4]
+        return torch.cat([p + v * dt + 0.5 * u * dt * dt, v + u * dt], dim=-1)
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "PairSystem":
+        v = cfg["value_functions"]["vs"]
+        return cls(
+            u_max=float(cfg["agents"]["u_max"]), collision_radius=float(cfg["agents"]["collision_radius"]),
+            horizon=float(v["horizon"]), p_range=float(v["p_range"]), v_range=float(v["v_range"]),
+        )

@@ -1,0 +1,206 @@
+"""CLI commands of the value functions (listed in ``madpinn.cli.COMMAND_MODULES``):
+
+- ``train-value --kind vhat|vs``: train (resumable), write the model, loss CSV/figure, MLflow run;
+- ``validate-vs``: rollout verification JSON + V_s slices figure;
+- ``validate-vhat``: held-out HJB residual statistics JSON;
+- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from madpinn.config import config_hash, load_config
+
+KINDS = ("vhat", "vs")
+
+
+def problem_from_config(cfg: dict, kind: str):
+    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.value_functions.problems import EpigraphProblem, PairProblem
+
+    if kind == "vhat":
+        return EpigraphProblem(EpigraphSystem.from_config(cfg))
+    return PairProblem(PairSystem.from_config(cfg))
+
+
+def training_hash(cfg: dict, kind: str) -> str:
+    """Hash of everything the trained weights depend on (not validation settings)."""
+    vcfg = {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
+    return config_hash({"kind": kind, "agents": cfg["agents"], "observation": cfg["observation"], "vf": vcfg,
+                        "seed": cfg["value_functions"]["seed"], "dtype": cfg["dtype"]})
+
+
+def _setup(cfg: dict, threads: int | None):
+    from madpinn.device import resolve_device, resolve_dtype, seed_everything
+
+    seed_everything(int(cfg["value_functions"]["seed"]), threads or int(cfg["value_functions"]["threads"]))
+    return resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
+
+
+def decimate(history, points: int = 2000) -> list[float]:
+    """Window means of the per-iteration loss (≤ ``points`` values) for MLflow step metrics."""
+    h = np.asarray(history, dtype=float)
+    w = max(1, int(np.ceil(h.size / points)))
+    n = h.size // w
+    out = h[: n * w].reshape(n, w).mean(1).tolist()
+    if h.size > n * w:
+        out.append(float(h[n * w:].mean()))
+    return out
+
+
+def validation_figure(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
+    from madpinn.value_functions import figures, validation
+
+    if kind == "vhat":
+        axis, z_star, feasible, _ = validation.heatmap_values(model, cfg["arenas"]["small"]["half_width"])
+        return figures.value_heatmap(axis, z_star, feasible, stem)
+    vels = cfg["value_functions"]["vs"]["validation"]["slice_velocities"]
+    axis, values = validation.vs_slices(model, vels)
+    return figures.vs_slices_figure(axis, values, vels, model.collision_radius, stem)
+
+
+def _train(args) -> int:
+    from madpinn.tracking import log_job
+    from madpinn.tracking.mlflow_store import git_commit
+    from madpinn.value_functions import figures
+    from madpinn.value_functions.model import model_from_payload, model_payload, save_atomic
+    from madpinn.value_functions.train import TrainSettings, residual_stats, train
+
+    cfg = load_config(args.config)
+    kind = args.kind
+    device, dtype = _setup(cfg, args.threads)
+    problem = problem_from_config(cfg, kind)
+    vcfg = cfg["value_functions"][kind]
+    settings = TrainSettings.from_config(vcfg, cfg["value_functions"]["seed"])
+    out = Path(args.out)
+    ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{kind}.ckpt.pt"
+    chash = training_hash(cfg, kind)
+    net, info = train(problem, settings, ckpt, chash, device=device, dtype=dtype, progress=not args.no_progress,
+                      stop_after=args.stop_after)
+    if not info["completed"]:
+        print(f"{kind}: stopped after {info['iterations']} of {settings.iterations} iterations; checkpoint {ckpt}")
+        return 0
+    history = info["history"]
+    meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
+            "final_loss": float(np.mean(history[-100:])), "settings": {**vcfg, "seed": settings.seed}}
+    model = model_from_payload(model_payload(problem, net, settings.output_scale, meta), device=device, dtype=dtype)
+    val = vcfg.get("validation", {})
+    samples = int(val.get("samples", val.get("rollout_samples", 65536)))
+    meta["residual"] = residual_stats(problem, model, samples, settings.seed)
+    save_atomic(model_payload(problem, net, settings.output_scale, meta), out)
+    stem = out.with_suffix("")
+    loss_csv = stem.with_name(stem.name + "_loss.csv")
+    np.savetxt(loss_csv, np.asarray(history), header="loss", comments="", fmt="%.8g")
+    artifacts = [out, loss_csv, figures.loss_curve(history, f"{kind} training", stem.with_name(stem.name + "_loss.png"))]
+    artifacts += validation_figure(model, cfg, kind, stem.with_name(stem.name + "_figure"))
+    summary = {"kind": kind, "iterations": info["iterations"], "wall_s": info["wall_s"], "final_loss": meta["final_loss"],
+               **meta["residual"]}
+    Path(stem.with_name(stem.name + "_train.json")).write_text(json.dumps(summary, indent=2))
+    if not args.no_track:
+        log_job(cfg, job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
+                params={"settings": meta["settings"], "config_hash": chash},
+                metrics={k: v for k, v in summary.items() if isinstance(v, (int, float))},
+                artifacts=artifacts, step_metrics={"loss": decimate(history)})
+    print(json.dumps(summary))
+    return 0
+
+
+def _validate_vs(args) -> int:
+    from madpinn.tracking import log_job
+    from madpinn.value_functions import load_vs
+    from madpinn.value_functions.validation import vs_rollouts
+
+    cfg = load_config(args.config)
+    device, dtype = _setup(cfg, args.threads)
+    vs = load_vs(args.model, device=device, dtype=dtype)
+    val = cfg["value_functions"]["vs"]["validation"]
+    stats = vs_rollouts(vs, int(val["rollout_samples"]), float(val["rollout_dt"]), seed=int(cfg["value_functions"]["seed"]))
+    stats["target_false_safe_rate"] = 0.01
+    stats["model_iterations"] = vs.meta.get("iterations")
+    stats["residual"] = vs.meta.get("residual")
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(stats, indent=2))
+    figs = validation_figure(vs, cfg, "vs", Path(args.fig_stem))
+    if not args.no_track:
+        log_job(cfg, job_key="validate/vs", rule="validate_vs", wildcards={},
+                metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))}, artifacts=[out, *figs])
+    print(json.dumps({k: stats[k] for k in ("false_safe_rate", "mean_abs_error", "predicted_safe_fraction")}))
+    return 0
+
+
+def _validate_vhat(args) -> int:
+    from madpinn.tracking import log_job
+    from madpinn.value_functions import load_vhat
+    from madpinn.value_functions.train import residual_stats
+
+    cfg = load_config(args.config)
+    device, dtype = _setup(cfg, args.threads)
+    vhat = load_vhat(args.model, device=device, dtype=dtype)
+    samples = int(cfg["value_functions"]["vhat"]["validation"]["samples"])
+    stats = residual_stats(vhat.problem, vhat, samples, seed=int(cfg["value_functions"]["seed"]) + 1)
+    stats.update({"model_iterations": vhat.meta.get("iterations"), "z_max": vhat.z_max, "horizon": vhat.horizon})
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(stats, indent=2))
+    if not args.no_track:
+        log_job(cfg, job_key="validate/vhat", rule="validate_vhat", wildcards={},
+                metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))}, artifacts=[out])
+    print(json.dumps(stats))
+    return 0
+
+
+def _heatmap(args) -> int:
+    from madpinn.tracking import log_job
+    from madpinn.value_functions import load_vhat
+
+    cfg = load_config(args.config)
+    device, dtype = _setup(cfg, args.threads)
+    vhat = load_vhat(args.model, device=device, dtype=dtype)
+    files = validation_figure(vhat, cfg, "vhat", Path(args.out_stem))
+    if not args.no_track:
+        log_job(cfg, job_key="figure/fig_value_heatmap", rule="fig_value_heatmap", wildcards={}, artifacts=files)
+    print("\n".join(map(str, files)))
+    return 0
+
+
+def register(sub) -> None:
+    from madpinn.cli import add_config_arg
+
+    def common(p, model=True):
+        add_config_arg(p)
+        if model:
+            p.add_argument("--model", required=True, help="trained model file")
+        p.add_argument("--threads", type=int, default=None, help="torch threads (default value_functions.threads)")
+        p.add_argument("--no-track", action="store_true")
+
+    p = sub.add_parser("train-value", help="train V̂ or V_s (resumes from its checkpoint)")
+    common(p, model=False)
+    p.add_argument("--kind", required=True, choices=KINDS)
+    p.add_argument("--out", required=True, help="final model file (.pt)")
+    p.add_argument("--checkpoint", default=None, help="resume checkpoint (default <out dir>/checkpoints/<kind>.ckpt.pt)")
+    p.add_argument("--stop-after", type=int, default=None, help="stop after this many iterations (testing resume)")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_train)
+
+    p = sub.add_parser("validate-vs", help="V_s rollout verification (false-safe rate) and slices figure")
+    common(p)
+    p.add_argument("--out", required=True, help="JSON report")
+    p.add_argument("--fig-stem", required=True, help="figure path without extension (.pdf and .png written)")
+    p.set_defaults(func=_validate_vs)
+
+    p = sub.add_parser("validate-vhat", help="V̂ held-out HJB residual statistics")
+    common(p)
+    p.add_argument("--out", required=True, help="JSON report")
+    p.set_defaults(func=_validate_vhat)
+
+    p = sub.add_parser("fig-value-heatmap", help="paper figure: learned value over the ego position")
+    common(p)
+    p.add_argument("--out-stem", required=True, help="figure path without extension (.pdf and .png written)")
+    p.set_defaults(func=_heatmap)

@@ -1,0 +1,83 @@
+"""Figures of the value functions: training loss, the paper's V̂ heatmap, V_s slices."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from madpinn.value_functions.validation import HEATMAP  # noqa: E402
+
+
+def _save(fig, stem: Path) -> list[Path]:
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    out = []
+    for ext in (".pdf", ".png"):
+        path = stem.with_suffix(ext)
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+        out.append(path)
+    plt.close(fig)
+    return out
+
+
+def loss_curve(history, title: str, path: Path) -> Path:
+    h = np.asarray(history, dtype=float)
+    fig, ax = plt.subplots(figsize=(5, 3))
+    ax.semilogy(np.arange(1, h.size + 1), h, lw=0.4, alpha=0.4, label="iteration")
+    w = max(1, h.size // 100)
+    if h.size >= w:
+        smooth = np.convolve(h, np.ones(w) / w, mode="valid")
+        ax.semilogy(np.arange(w, h.size + 1), smooth, lw=1.2, label=f"mean of {w}")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("HJB residual loss")
+    ax.set_title(title)
+    ax.legend()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def value_heatmap(axis, z_star, feasible, stem: Path) -> list[Path]:
+    """Paper figure: V_d = z* over the ego position; infeasible (V̂(0, o, z_max) > 0) hatched."""
+    ax_np = axis.numpy()
+    z = np.where(feasible.numpy(), z_star.numpy(), np.nan)
+    fig, ax = plt.subplots(figsize=(4.6, 4))
+    im = ax.pcolormesh(ax_np, ax_np, z, cmap="coolwarm", shading="auto")
+    ax.contourf(ax_np, ax_np, (~feasible.numpy()).astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"])
+    ax.contour(ax_np, ax_np, feasible.numpy().astype(float), levels=[0.5], colors="k", linewidths=0.8)
+    fig.colorbar(im, ax=ax, label=r"$V_d = z^*$ (cost)")
+    for (x, y), (gx, gy) in zip(HEATMAP["neighbours"], HEATMAP["neighbour_goals"]):
+        ax.plot(x, y, "ko", ms=5)
+        ax.annotate("", xy=(x + 0.25 * HEATMAP["neighbour_velocity"][0], y), xytext=(x, y),
+                    arrowprops={"arrowstyle": "->", "color": "k"})
+    ax.plot(*HEATMAP["ego_goal"], "g*", ms=12, label="ego goal")
+    ax.set_xlabel("ego x (m)")
+    ax.set_ylabel("ego y (m)")
+    ax.set_aspect("equal")
+    ax.set_title(r"learned value, ego $v=[1,0]$; hatched: $\hat V(0,o,z_{max})>0$", fontsize=8)
+    ax.legend(loc="lower right", fontsize=7)
+    return _save(fig, stem)
+
+
+def vs_slices_figure(axis, values, velocities, collision_radius: float, stem: Path) -> list[Path]:
+    k = len(velocities)
+    fig, axes = plt.subplots(1, k, figsize=(3.2 * k, 3.0), squeeze=False)
+    ax_np = axis.numpy()
+    vmax = float(np.nanmax(np.abs(values.numpy())))
+    for a, vel, val in zip(axes[0], velocities, values.numpy()):
+        im = a.pcolormesh(ax_np, ax_np, val, cmap="RdBu", vmin=-vmax, vmax=vmax, shading="auto")
+        a.contour(ax_np, ax_np, val, levels=[0.0], colors="k", linewidths=1.0)
+        a.add_patch(plt.Circle((0, 0), collision_radius, fill=False, color="m", lw=0.8))
+        a.set_title(f"v_rel = [{vel[0]:g}, {vel[1]:g}] m/s", fontsize=9)
+        a.set_xlabel("p_x rel (m)")
+        a.set_aspect("equal")
+    axes[0][0].set_ylabel("p_y rel (m)")
+    fig.colorbar(im, ax=axes[0].tolist(), label=r"$V_s(x, 0)$ (m); black: $V_s = 0$")
+    return _save(fig, stem)

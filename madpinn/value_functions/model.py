@@ -1,0 +1,199 @@
+"""Trained value functions (public API) and their checkpoint files.
+
+    vhat = load_vhat(path)            # V̂(t, o, z): vhat.value(obs, z, t), vhat.value_and_grad(obs, z, t)
+    vs = load_vs(path)                # V_s(x, t): vs.value(x_rel, t), vs.value_and_grad(x_rel, t)
+
+Checkpoints are plain dicts of tensors and primitives, written atomically and read with
+``torch.load(..., weights_only=True)``. A missing, truncated or mismatched file raises
+:class:`CheckpointError` naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+
+from madpinn.value_functions.problems import PROBLEMS, PINNProblem, as_time, assemble
+from madpinn.value_functions.siren import Siren
+
+FORMAT = "madpinn-value-function"
+VERSION = 1
+
+
+class CheckpointError(RuntimeError):
+    """A value-function checkpoint is missing, unreadable or of the wrong kind."""
+
+
+class PINNValueFunction:
+    """``V(s, t) = B(s) + (T − t)·σ·N(x̃)`` for one problem; inference without autograd."""
+
+    def __init__(self, problem: PINNProblem, net: Siren, output_scale: float, meta: dict | None = None):
+        self.problem = problem
+        self.net = net
+        self.output_scale = float(output_scale)
+        self.meta = dict(meta or {})
+
+    @property
+    def horizon(self) -> float:
+        return self.problem.horizon
+
+    def _param(self):
+        return next(self.net.parameters())
+
+    def _prepare(self, s: torch.Tensor, t):
+        p = self._param()
+        s = s.to(device=p.device, dtype=p.dtype)
+        if s.dim() != 2 or s.shape[-1] != self.problem.state_dim:
+            raise ValueError(f"{self.problem.kind}: expected state [B, {self.problem.state_dim}], got {tuple(s.shape)}")
+        return s, as_time(t, s.shape[0], s).to(dtype=p.dtype)
+
+    def state_value(self, s: torch.Tensor, t=0.0) -> torch.Tensor:
+        s, t = self._prepare(s, t)
+        with torch.no_grad():
+            n = self.net(self.problem.normalise(s, t))
+            return self._boundary(s) + (self.horizon - t) * self.output_scale * n
+
+    def _boundary(self, s):
+        if self.problem.kind == "vhat":
+            return self.problem.system.terminal_value(s[:, :-1], s[:, -1])
+        return self.problem.system.target(s)
+
+    def state_value_and_grads(self, s: torch.Tensor, t=0.0):
+        """``(V [B], ∂_t V [B], ∇_s V [B, S])``; works under ``torch.no_grad()``."""
+        s, t = self._prepare(s, t)
+        n, gn = self.net.value_and_input_grad(self.problem.normalise(s, t))
+        b, gb = self.problem.boundary_and_grad(s)
+        return assemble(self.problem, s, t, n, gn, b, gb, self.output_scale)
+
+
+class VHat(PINNValueFunction):
+    """Auxiliary epigraph value V̂(t, o, z) (SPEC §4)."""
+
+    @property
+    def z_max(self) -> float:
+        return self.problem.system.z_max
+
+    @property
+    def obs_spec(self):
+        return self.problem.system.spec
+
+    @property
+    def system(self):
+        return self.problem.system
+
+    def _state(self, obs, z):
+        if obs.shape[:-1] != z.shape:
+            raise ValueError(f"obs [B, D] and z [B] disagree: {tuple(obs.shape)} vs {tuple(z.shape)}")
+        return torch.cat([obs, z[..., None].to(obs.dtype)], dim=-1)
+
+    def value(self, obs: torch.Tensor, z: torch.Tensor, t=0.0) -> torch.Tensor:
+        """V̂ ``[B]`` for obs ``[B, D]`` (observation layout), z ``[B]``, t float or ``[B]`` (s)."""
+        return self.state_value(self._state(obs, z), t)
+
+    def value_and_grad(self, obs: torch.Tensor, z: torch.Tensor, t=0.0):
+        """``(V̂ [B], ∂V̂/∂obs [B, D], ∂V̂/∂z [B])``."""
+        v, _, g = self.state_value_and_grads(self._state(obs, z), t)
+        return v, g[:, :-1], g[:, -1]
+
+
+class PairValue(PINNValueFunction):
+    """Pairwise safety value V_s(x, t) (SPEC §5), m; ≤ 0 means collision unavoidable."""
+
+    @property
+    def collision_radius(self) -> float:
+        return self.problem.system.collision_radius
+
+    @property
+    def system(self):
+        return self.problem.system
+
+    def value(self, x_rel: torch.Tensor, t=0.0) -> torch.Tensor:
+        return self.state_value(x_rel, t)
+
+    def value_and_grad(self, x_rel: torch.Tensor, t=0.0):
+        """``(V_s [B], ∂V_s/∂x [B, 4])``."""
+        v, _, g = self.state_value_and_grads(x_rel, t)
+        return v, g
+
+
+CLASSES = {"vhat": VHat, "vs": PairValue}
+
+
+def network_config(net: Siren) -> dict:
+    return {"hidden": net.hidden, "layers": net.n_layers, "first_omega": net.omegas[0],
+            "hidden_omega": net.omegas[-1] if net.n_layers > 1 else 30.0}
+
+
+def build_network(problem: PINNProblem, ncfg: dict) -> Siren:
+    return Siren(problem.in_features, hidden=int(ncfg["hidden"]), layers=int(ncfg["layers"]),
+                 first_omega=float(ncfg["first_omega"]), hidden_omega=float(ncfg["hidden_omega"]))
+
+
+def model_payload(problem: PINNProblem, net: Siren, output_scale: float, meta: dict) -> dict:
+    return {
+        "format": FORMAT, "version": VERSION, "kind": problem.kind,
+        "problem": problem.describe(), "network": network_config(net), "output_scale": float(output_scale),
+        "state_dict": {k: v.detach().cpu().clone() for k, v in net.state_dict().items()},
+        "meta": meta,
+    }
+
+
+def save_atomic(payload: dict, path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+    torch.save(payload, tmp)
+    tmp.replace(path)
+    return path
+
+
+def read_checkpoint(path: str | Path, kind: str | None = None) -> dict:
+    """Load and check a checkpoint dict (weights_only); clear :class:`CheckpointError` otherwise."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"value-function checkpoint not found: {path} (train it: snakemake -j2 {path})")
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - truncated zip, garbage, pickled objects, ...
+        raise CheckpointError(f"value-function checkpoint {path} is corrupted or truncated ({type(exc).__name__}: {exc}); "
+                              f"delete it and re-run its training rule") from exc
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise CheckpointError(f"{path} is not a madpinn value-function checkpoint")
+    if data.get("version") != VERSION:
+        raise CheckpointError(f"{path} has checkpoint version {data.get('version')}, expected {VERSION}")
+    if kind is not None and data.get("kind") != kind:
+        raise CheckpointError(f"{path} holds a '{data.get('kind')}' value function, expected '{kind}'")
+    for key in ("problem", "network", "output_scale", "state_dict", "meta"):
+        if key not in data:
+            raise CheckpointError(f"{path} lacks '{key}'")
+    return data
+
+
+def model_from_payload(data: dict, device="cpu", dtype=torch.float32, path="<memory>") -> PINNValueFunction:
+    kind = data["kind"]
+    problem = PROBLEMS[kind].from_description(data["problem"])
+    net = build_network(problem, data["network"])
+    try:
+        net.load_state_dict(data["state_dict"])
+    except RuntimeError as exc:
+        raise CheckpointError(f"{path}: weights do not match the stored network shape: {exc}") from exc
+    net = net.to(device=torch.device(device), dtype=dtype).eval()
+    for p in net.parameters():
+        p.requires_grad_(False)
+    return CLASSES[kind](problem, net, data["output_scale"], data["meta"])
+
+
+def load_value_function(path, kind: str, device="cpu", dtype=torch.float32) -> PINNValueFunction:
+    return model_from_payload(read_checkpoint(path, kind), device=device, dtype=dtype, path=path)
+
+
+def load_vhat(path, device="cpu", dtype=torch.float32) -> VHat:
+    """Load a trained V̂ (``results/models/vhat.pt``)."""
+    return load_value_function(path, "vhat", device, dtype)
+
+
+def load_vs(path, device="cpu", dtype=torch.float32) -> PairValue:
+    """Load a trained V_s (``results/models/vs.pt``)."""
+    return load_value_function(path, "vs", device, dtype)

@@ -1,0 +1,149 @@
+"""The two PINN problems (V̂ and V_s): input normalisation, exact terminal-condition
+parameterisation and HJB residual, on top of the systems in :mod:`madpinn.dynamics`.
+
+A problem works on a flat state ``s [B, S]`` and time ``t [B]`` (s). The value is
+
+    V(s, t) = B(s) + (T − t) · σ · N(x̃),    x̃ = normalise(s, t) ∈ [−1, 1]^(S+1),
+
+with ``B`` the exact terminal value (V̂: ``max(φ_d − z, g_d)``; V_s: ``ψ``), ``N`` the SIREN and
+``σ`` a fixed output scale, so ``V(s, T) = B(s)`` for any network. :func:`assemble` turns
+``(N, ∇_x̃ N)`` into ``(V, ∂_t V, ∇_s V)``; it is used both for inference and inside the training
+loss (where autograd differentiates only this cheap per-sample head).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import torch
+
+from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.dynamics.pair import PairSystem
+from madpinn.observation import ObservationSpec
+
+
+class PINNProblem:
+    """Common part: normalisation with per-coordinate centre/half-width, time to [−1, 1]."""
+
+    kind: str
+    horizon: float
+
+    def __init__(self, centre: torch.Tensor, half: torch.Tensor):
+        self._centre = centre.to(torch.float64)
+        self._half = half.to(torch.float64)
+
+    @property
+    def state_dim(self) -> int:
+        return self._centre.numel()
+
+    @property
+    def in_features(self) -> int:
+        return self.state_dim + 1
+
+    def input_scale(self, like: torch.Tensor) -> torch.Tensor:
+        """``dx̃/d(s, t)`` ``[S + 1]`` (diagonal)."""
+        scale = torch.cat([1.0 / self._half, torch.tensor([2.0 / self.horizon], dtype=torch.float64)])
+        return scale.to(dtype=like.dtype, device=like.device)
+
+    def normalise(self, s: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        c = self._centre.to(dtype=s.dtype, device=s.device)
+        h = self._half.to(dtype=s.dtype, device=s.device)
+        return torch.cat([(s - c) / h, (2.0 * t / self.horizon - 1.0)[:, None]], dim=-1)
+
+    def sample_times(self, batch: int, alpha: float, generator: torch.Generator, dtype) -> torch.Tensor:
+        """Curriculum times uniform on ``[T − α·T, T]`` ``[B]``."""
+        return self.horizon - alpha * self.horizon * torch.rand(batch, generator=generator, dtype=dtype)
+
+    def sample_states(self, batch: int, generator: torch.Generator, dtype) -> torch.Tensor:
+        raise NotImplementedError
+
+    def boundary_and_grad(self, s: torch.Tensor):
+        raise NotImplementedError
+
+    def residual(self, s, t, value, dv_dt, dv_ds) -> torch.Tensor:
+        raise NotImplementedError
+
+    def describe(self) -> dict:
+        raise NotImplementedError
+
+
+class EpigraphProblem(PINNProblem):
+    """V̂ on ``s = [o (D), z]``; ``t ∈ [0, T]``."""
+
+    kind = "vhat"
+
+    def __init__(self, system: EpigraphSystem):
+        self.system = system
+        self.horizon = system.horizon
+        hw = system.half_widths()
+        centre = torch.cat([torch.zeros_like(hw), torch.tensor([system.z_max / 2.0], dtype=torch.float64)])
+        half = torch.cat([hw, torch.tensor([system.z_max / 2.0], dtype=torch.float64)])
+        super().__init__(centre, half)
+
+    def sample_states(self, batch, generator, dtype):
+        obs, z = self.system.sample(batch, generator, dtype)
+        return torch.cat([obs, z[:, None]], dim=-1)
+
+    def boundary_and_grad(self, s):
+        val, go, gz = self.system.terminal_value_and_grad(s[:, :-1], s[:, -1])
+        return val, torch.cat([go, gz[:, None]], dim=-1)
+
+    def residual(self, s, t, value, dv_dt, dv_ds):
+        return self.system.hjb_residual(s[:, :-1], s[:, -1], value, dv_dt, dv_ds[:, :-1], dv_ds[:, -1])
+
+    def describe(self) -> dict:
+        sy = self.system
+        return {"spec": asdict(sy.spec), "u_max": sy.u_max, "v_max": sy.v_max, "horizon": sy.horizon, "z_max": sy.z_max}
+
+    @classmethod
+    def from_description(cls, d: dict) -> "EpigraphProblem":
+        return cls(EpigraphSystem(spec=ObservationSpec(**d["spec"]), u_max=d["u_max"], v_max=d["v_max"],
+                                  horizon=d["horizon"], z_max=d["z_max"]))
+
+
+class PairProblem(PINNProblem):
+    """V_s on the relative pair state ``s = x [4]``; ``t ∈ [0, T]``."""
+
+    kind = "vs"
+
+    def __init__(self, system: PairSystem):
+        self.system = system
+        self.horizon = system.horizon
+        hw = system.half_widths()
+        super().__init__(torch.zeros_like(hw), hw)
+
+    def sample_states(self, batch, generator, dtype):
+        return self.system.sample(batch, generator, dtype)
+
+    def boundary_and_grad(self, s):
+        return self.system.target_and_grad(s)
+
+    def residual(self, s, t, value, dv_dt, dv_ds):
+        return self.system.hjb_residual(s, value, dv_dt, dv_ds)
+
+    def describe(self) -> dict:
+        return asdict(self.system)
+
+    @classmethod
+    def from_description(cls, d: dict) -> "PairProblem":
+        return cls(PairSystem(**d))
+
+
+PROBLEMS = {"vhat": EpigraphProblem, "vs": PairProblem}
+
+
+def as_time(t, batch: int, like: torch.Tensor) -> torch.Tensor:
+    """Float or ``[B]`` time -> ``[B]`` tensor."""
+    t = torch.as_tensor(t, dtype=like.dtype, device=like.device)
+    return t.expand(batch) if t.dim() == 0 else t
+
+
+def assemble(problem: PINNProblem, s, t, n, grad_n, boundary, grad_boundary, output_scale: float):
+    """``(V [B], ∂_t V [B], ∇_s V [B, S])`` from the network value ``n [B]`` and its input
+    gradient ``grad_n [B, S+1]`` (w.r.t. normalised inputs)."""
+    scale = problem.input_scale(grad_n)
+    tau = (problem.horizon - t) * output_scale
+    value = boundary + tau * n
+    dv_ds = grad_boundary + tau[:, None] * grad_n[:, :-1] * scale[:-1]
+    dv_dt = -output_scale * n + tau * grad_n[:, -1] * scale[-1]
+    return value, dv_dt, dv_ds

@@ -1,0 +1,139 @@
+"""SIREN MLP with exact, hand-derived input gradients and a hand-derived training backward.
+
+``N(x) = w_o · h_L + b_o`` with ``h_l = sin(a_l)``, ``a_l = ω_l (W_l h_{l−1} + b_l)``, ``h_0 = x``
+(Sitzmann et al. 2020 initialisation; ``ω_1 = first_omega``, hidden ``ω = hidden_omega``).
+
+A PINN loss needs ``N`` and its input gradient ``∇_x N``; its parameter gradient is a second-order
+(double-backward) quantity. Instead of autograd's ``create_graph=True`` double backward, this
+module computes
+
+- :meth:`Siren.value_and_input_grad`: ``N`` and ``∇_x N`` in one forward and one reverse sweep
+  (analytic, no autograd; used by policies under ``torch.no_grad()``), and
+- :meth:`Siren.accumulate_loss_grad`: the same two sweeps, then the exact adjoint of both
+  (``6`` matrix products per hidden layer, like autograd, but no graph, fused elementwise work,
+  buffers reused in place), accumulating ``∂loss/∂θ`` into ``.grad``.
+
+Shapes: ``x [B, d_in]`` (normalised inputs), ``N [B]``, ``∇_x N [B, d_in]``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import torch
+from torch import nn
+
+
+class Siren(nn.Module):
+    def __init__(self, in_features: int, hidden: int = 256, layers: int = 3,
+                 first_omega: float = 30.0, hidden_omega: float = 30.0):
+        super().__init__()
+        if layers < 1 or hidden < 1 or in_features < 1:
+            raise ValueError("Siren needs in_features, hidden, layers ≥ 1")
+        self.in_features, self.hidden, self.n_layers = in_features, hidden, layers
+        self.omegas = [float(first_omega)] + [float(hidden_omega)] * (layers - 1)
+        dims = [in_features] + [hidden] * layers
+        self.hidden_layers = nn.ModuleList(nn.Linear(dims[i], dims[i + 1]) for i in range(layers))
+        self.out = nn.Linear(hidden, 1)
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        with torch.no_grad():
+            for i, lin in enumerate(self.hidden_layers):
+                fan_in = lin.in_features
+                bound = 1.0 / fan_in if i == 0 else math.sqrt(6.0 / fan_in) / self.omegas[i]
+                lin.weight.uniform_(-bound, bound)
+                lin.bias.uniform_(-1.0 / math.sqrt(fan_in), 1.0 / math.sqrt(fan_in))
+            bound = math.sqrt(6.0 / self.hidden) / self.omegas[-1]
+            self.out.weight.uniform_(-bound, bound)
+            self.out.bias.zero_()
+
+    # ---- plain autograd forward (reference, tests) --------------------------------------
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = x
+        for lin, w in zip(self.hidden_layers, self.omegas):
+            h = torch.sin(w * lin(h))
+        return self.out(h)[..., 0]
+
+    # ---- analytic input gradient ----------------------------------------------------------
+    def _scaled(self):
+        """``(ω_l W_l, ω_l b_l)`` per hidden layer: the frequencies folded into the weights."""
+        return [(w * lin.weight, w * lin.bias) for lin, w in zip(self.hidden_layers, self.omegas)]
+
+    def _sweeps(self, x: torch.Tensor, scaled, keep: bool):
+        """Forward sweep (``h_l``, ``cos a_l``) and reverse sweep for ``∇_x N``. Returns
+        ``(N, ∇_x N, hs, cs, gs, dps)`` with ``gs[l] = ∂N/∂h_l`` and ``dps[l] = cos a_l ⊙ gs[l]``."""
+        hs, cs = [x], []
+        h = x
+        for weight, bias in scaled:
+            a = torch.addmm(bias, h, weight.t())
+            h = torch.sin(a)
+            cs.append(a.cos_())
+            hs.append(h)
+        n = torch.addmm(self.out.bias, h, self.out.weight.t())[:, 0]
+        g = self.out.weight.expand(x.shape[0], -1)
+        L = self.n_layers
+        gs, dps = [None] * (L + 1), [None] * (L + 1)
+        gs[L] = g
+        for layer in range(L, 0, -1):
+            dp = cs[layer - 1] * g  # δ'_l = cos(a_l) ⊙ ∂N/∂h_l
+            g = torch.mm(dp, scaled[layer - 1][0])  # ∂N/∂h_{l−1}
+            if keep:
+                dps[layer] = dp
+                gs[layer - 1] = g
+        return n, g, hs, cs, gs, dps
+
+    def value_and_input_grad(self, x: torch.Tensor):
+        """``N [B]`` and ``∇_x N [B, d_in]`` without autograd (exact)."""
+        with torch.no_grad():
+            n, g, *_ = self._sweeps(x.detach(), self._scaled(), keep=False)
+        return n, g
+
+    # ---- fused training backward ----------------------------------------------------------
+    def accumulate_loss_grad(
+        self, x: torch.Tensor,
+        head: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor, torch.Tensor]],
+    ):
+        """Compute ``N`` and ``∇_x N``, call ``head(N, ∇_x N) -> (loss, ∂loss/∂N, ∂loss/∂∇_x N)``
+        and add the exact ``∂loss/∂θ`` to every parameter's ``.grad``. Returns ``(loss, N, ∇_x N)``.
+
+        With ``V_l = ω_l W_l``: ``a_l = V_l h_{l−1} + ω_l b_l``, ``g_{l−1} = δ'_l V_l``,
+        ``δ'_l = cos(a_l) ⊙ g_l``; the adjoints (bars) of both sweeps give ``∂/∂V_l`` and
+        ``∂/∂W_l = ω_l ∂/∂V_l``.
+        """
+        with torch.no_grad():
+            x = x.detach()
+            scaled = self._scaled()
+            n, g0, hs, cs, gs, dps = self._sweeps(x, scaled, keep=True)
+            loss, n_bar, g_bar = head(n, g0)
+            L = self.n_layers
+            v_bar = [None] * (L + 1)
+            a_from_cos = [None] * (L + 1)
+            # adjoint of the ∇_x N sweep, from the input layer upwards
+            gb = g_bar
+            for layer in range(1, L + 1):
+                weight = scaled[layer - 1][0]
+                dp_bar = torch.mm(gb, weight.t())  # ∂/∂δ'_l
+                v_bar[layer] = torch.mm(dps[layer].t(), gb)
+                gb = dp_bar * cs[layer - 1]  # ∂/∂g_l through δ'_l = cos ⊙ g_l
+                a_from_cos[layer] = dp_bar.mul_(gs[layer]).mul_(hs[layer])  # minus ∂/∂a_l through cos
+            w_out_grad = gb.sum(0, keepdim=True)  # g_L = w_o for every sample
+            # adjoint of the forward sweep, from the output downwards
+            w_out_grad.add_(torch.mm(n_bar[None, :], hs[L]))
+            grads = {self.out.weight: w_out_grad, self.out.bias: n_bar.sum().reshape(1)}
+            h_bar = n_bar[:, None] * self.out.weight  # [B, hidden]
+            for layer in range(L, 0, -1):
+                lin, w = self.hidden_layers[layer - 1], self.omegas[layer - 1]
+                ab = torch.mul(h_bar, cs[layer - 1]).sub_(a_from_cos[layer])  # ∂/∂a_l
+                v_bar[layer].addmm_(ab.t(), hs[layer - 1])
+                grads[lin.weight] = v_bar[layer].mul_(w)
+                grads[lin.bias] = ab.sum(0).mul_(w)
+                if layer > 1:
+                    h_bar = torch.mm(ab, scaled[layer - 1][0])
+            for p, gr in grads.items():
+                if p.grad is None:
+                    p.grad = gr
+                else:
+                    p.grad.add_(gr)
+        return loss, n, g0

@@ -1,0 +1,179 @@
+"""One PINN trainer for both value functions (V̂ and V_s).
+
+Each iteration draws a fresh uniform batch of states and curriculum times (DeepReach: times on
+``[T − α·T, T]`` with α growing linearly from 0 to 1 over ``curriculum_fraction`` of the
+iterations), evaluates the single HJB residual loss (paper eq. ``loss`` / ``HJI-VI``) with the
+fused exact derivatives of :class:`~madpinn.value_functions.siren.Siren`, and takes an Adam step.
+
+Robustness: the batch of iteration ``k`` is a pure function of ``(seed, k)``, so a run resumed
+from a periodic checkpoint (network, Adam state, loss history) ends with the same weights as an
+uninterrupted one; a non-finite loss or gradient stops training with :class:`TrainingDiverged`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from tqdm.auto import tqdm
+
+from madpinn.value_functions.model import (
+    CheckpointError, build_network, model_payload, read_checkpoint, save_atomic,
+)
+from madpinn.value_functions.problems import PINNProblem, as_time, assemble
+
+
+class TrainingDiverged(RuntimeError):
+    """The loss or a gradient became non-finite."""
+
+
+@dataclass
+class TrainSettings:
+    iterations: int
+    batch_size: int
+    lr: float
+    lr_final: float
+    curriculum_fraction: float
+    checkpoint_every: int
+    loss: str = "l1"
+    output_scale: float = 1.0
+    network: dict = field(default_factory=lambda: {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0})
+    seed: int = 0
+
+    @classmethod
+    def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":
+        return cls(
+            iterations=int(vcfg["iterations"]), batch_size=int(vcfg["batch_size"]), lr=float(vcfg["lr"]),
+            lr_final=float(vcfg.get("lr_final", vcfg["lr"])), curriculum_fraction=float(vcfg["curriculum_fraction"]),
+            checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg.get("loss", "l1")),
+            output_scale=float(vcfg["output_scale"]), network=dict(vcfg["network"]), seed=int(seed),
+        )
+
+
+def batch_generator(seed: int, iteration: int) -> torch.Generator:
+    return torch.Generator().manual_seed(int(seed) * 1_000_003 + int(iteration))
+
+
+def curriculum_alpha(iteration: int, s: TrainSettings) -> float:
+    span = s.curriculum_fraction * s.iterations
+    return 1.0 if span <= 0 else min(1.0, (iteration + 1) / span)
+
+
+def learning_rate(iteration: int, s: TrainSettings) -> float:
+    """Cosine decay from ``lr`` to ``lr_final`` (constant when equal)."""
+    frac = iteration / max(1, s.iterations - 1)
+    return s.lr_final + 0.5 * (s.lr - s.lr_final) * (1.0 + math.cos(math.pi * frac))
+
+
+def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale: float, loss_kind: str):
+    """Loss head ``(N, ∇N) -> (loss, ∂loss/∂N, ∂loss/∂∇N)``: autograd over the per-sample formula only."""
+
+    def head(n, grad_n):
+        with torch.enable_grad():
+            n_ = n.detach().requires_grad_(True)
+            g_ = grad_n.detach().requires_grad_(True)
+            value, dv_dt, dv_ds = assemble(problem, s, t, n_, g_, boundary, grad_boundary, output_scale)
+            r = problem.residual(s, t, value, dv_dt, dv_ds)
+            loss = r.abs().mean() if loss_kind == "l1" else r.square().mean()
+            n_bar, g_bar = torch.autograd.grad(loss, [n_, g_])
+        return loss.detach(), n_bar, g_bar
+
+    return head
+
+
+def training_batch(problem: PINNProblem, settings: TrainSettings, iteration: int, device, dtype):
+    """States ``[B, S]`` and times ``[B]`` of one iteration (pure function of seed and iteration)."""
+    gen = batch_generator(settings.seed, iteration)
+    s = problem.sample_states(settings.batch_size, gen, dtype)
+    t = problem.sample_times(settings.batch_size, curriculum_alpha(iteration, settings), gen, dtype)
+    return s.to(device), t.to(device)
+
+
+def train_step(problem, net, opt, settings, iteration, device, dtype) -> float:
+    s, t = training_batch(problem, settings, iteration, device, dtype)
+    b, gb = problem.boundary_and_grad(s)
+    head = make_head(problem, s, t, b, gb, settings.output_scale, settings.loss)
+    for group in opt.param_groups:
+        group["lr"] = learning_rate(iteration, settings)
+    opt.zero_grad(set_to_none=True)
+    loss, _, _ = net.accumulate_loss_grad(problem.normalise(s, t), head)
+    loss = float(loss)
+    grad_ok = all(bool(torch.isfinite(p.grad).all()) for p in net.parameters())
+    if not math.isfinite(loss) or not grad_ok:
+        raise TrainingDiverged(
+            f"{problem.kind}: training diverged at iteration {iteration}: loss={loss}, finite gradients={grad_ok}. "
+            f"Lower value_functions.{problem.kind}.lr or output_scale and re-run (the last checkpoint is kept)."
+        )
+    opt.step()
+    return loss
+
+
+def residual_stats(problem: PINNProblem, model, samples: int, seed: int, chunk: int = 8192) -> dict:
+    """Held-out HJB residual ``|min(...)|`` on uniform states and times ``t ∈ [0, T]``."""
+    gen = torch.Generator().manual_seed(10_000_019 + int(seed))
+    p = next(model.net.parameters())
+    out = []
+    for first in range(0, samples, chunk):
+        n = min(chunk, samples - first)
+        s = problem.sample_states(n, gen, p.dtype).to(p.device)
+        t = problem.sample_times(n, 1.0, gen, p.dtype).to(p.device)
+        v, dv_dt, dv_ds = model.state_value_and_grads(s, t)
+        out.append(problem.residual(s, t, v, dv_dt, dv_ds).abs())
+    r = torch.cat(out).double()
+    q = torch.quantile(r[: min(r.numel(), 1_000_000)], torch.tensor([0.5, 0.9, 0.99], dtype=torch.float64))
+    return {"residual_mean": float(r.mean()), "residual_median": float(q[0]), "residual_p90": float(q[1]),
+            "residual_p99": float(q[2]), "residual_max": float(r.max()), "residual_samples": int(r.numel())}
+
+
+def train(
+    problem: PINNProblem, settings: TrainSettings, checkpoint: str | Path, config_hash: str,
+    device=torch.device("cpu"), dtype=torch.float32, progress: bool = True, stop_after: int | None = None,
+) -> tuple[torch.nn.Module, dict]:
+    """Train (resuming from ``checkpoint`` when it matches ``config_hash``); return
+    ``(network, info)`` with the per-iteration loss history. ``stop_after`` ends the run early
+    after that many iterations in this call (used to test resume)."""
+    torch.manual_seed(settings.seed)
+    net = build_network(problem, settings.network).to(device=device, dtype=dtype)
+    opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
+    start, history, wall = 0, [], 0.0
+    checkpoint = Path(checkpoint)
+    if checkpoint.is_file():
+        try:
+            data = read_checkpoint(checkpoint, problem.kind)
+            train_state = data["meta"].get("train_state")
+            if train_state and train_state["config_hash"] == config_hash:
+                net.load_state_dict(data["state_dict"])
+                opt.load_state_dict(train_state["optimizer"])
+                start = int(train_state["iteration"])
+                history = train_state["history"].tolist()
+                wall = float(train_state["wall_s"])
+                print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
+            else:
+                print(f"{problem.kind}: ignoring {checkpoint} (different configuration)")
+        except CheckpointError as exc:
+            print(f"{problem.kind}: ignoring unusable checkpoint: {exc}")
+
+    def save(iteration: int) -> None:
+        meta = {"train_state": {"config_hash": config_hash, "iteration": iteration, "optimizer": opt.state_dict(),
+                                "history": torch.tensor(history, dtype=torch.float64), "wall_s": wall}}
+        save_atomic(model_payload(problem, net, settings.output_scale, meta), checkpoint)
+
+    end = settings.iterations if stop_after is None else min(settings.iterations, start + stop_after)
+    bar = tqdm(range(start, end), initial=start, total=settings.iterations, desc=f"train {problem.kind}",
+               disable=not progress, mininterval=5.0)
+    t0 = time.perf_counter()
+    for it in bar:
+        history.append(train_step(problem, net, opt, settings, it, device, dtype))
+        if (it + 1) % 50 == 0:
+            bar.set_postfix(loss=f"{sum(history[-50:]) / 50:.4g}", refresh=False)
+        if (it + 1) % settings.checkpoint_every == 0 and it + 1 < settings.iterations:
+            wall_now = wall + time.perf_counter() - t0
+            wall, t0 = wall_now, time.perf_counter()
+            save(it + 1)
+    wall += time.perf_counter() - t0
+    if end < settings.iterations:
+        save(end)
+    return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations}

@@ -1,0 +1,127 @@
+"""Validation of trained value functions: V_s rollouts, V̂ residuals, the epigraph z* search and
+the grids behind the figures. Pure computations (figures live in :mod:`.figures`)."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from madpinn.observation import build_observation
+
+
+def min_feasible_z(vhat, obs: torch.Tensor, t=0.0, tol: float | None = None):
+    """``z* = min{z ∈ [0, z_max] : V̂(t, o, z) ≤ 0}`` by vectorised bisection (SPEC §6).
+
+    Returns ``(z* [B], feasible [B] bool)``; where ``V̂(t, o, z_max) > 0`` (unsafe) ``z* = z_max``.
+    ``tol`` defaults to ``1e-3·z_max``.
+    """
+    z_max = vhat.z_max
+    tol = 1e-3 * z_max if tol is None else float(tol)
+    steps = max(1, math.ceil(math.log2(z_max / tol)))
+    B = obs.shape[0]
+    lo = torch.zeros(B, dtype=obs.dtype, device=obs.device)
+    hi = torch.full_like(lo, z_max)
+    feasible = vhat.value(obs, hi, t) <= 0
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        ok = vhat.value(obs, mid, t) <= 0
+        hi = torch.where(ok, mid, hi)
+        lo = torch.where(ok, lo, mid)
+    return torch.where(feasible, hi, torch.full_like(hi, z_max)), feasible
+
+
+@torch.no_grad()
+def vs_rollouts(vs, samples: int, dt: float, seed: int = 0, chunk: int = 4096) -> dict:
+    """Simulate the pair under the V_s-optimal cooperative control from uniform relative states.
+
+    For each state: predicted ``V_s(x, 0)`` and the rollout's ``min_τ ψ`` over ``[0, T]``
+    (exact ZOH steps of ``dt``, control re-evaluated each step from ``∇V_s(x, τ)``).
+    False safe: ``V_s > 0`` but the rollout collides (``min ψ ≤ 0``).
+    """
+    system = vs.system
+    gen = torch.Generator().manual_seed(20_000_003 + int(seed))
+    p = next(vs.net.parameters())
+    steps = max(1, round(system.horizon / dt))
+    dt = system.horizon / steps
+    pred, mins = [], []
+    for first in range(0, samples, chunk):
+        n = min(chunk, samples - first)
+        x = system.sample(n, gen, p.dtype).to(p.device)
+        pred.append(vs.value(x, 0.0))
+        m = system.target(x)
+        for k in range(steps):
+            _, grad = vs.value_and_grad(x, k * dt)
+            x = system.step(x, system.optimal_control(grad), dt)
+            m = torch.minimum(m, system.target(x))
+        mins.append(m)
+    v, m = torch.cat(pred).double(), torch.cat(mins).double()
+    pred_safe, collided = v > 0, m <= 0
+    false_safe = pred_safe & collided
+    return {
+        "samples": int(v.numel()), "rollout_dt": dt, "horizon": system.horizon,
+        "false_safe_rate": float(false_safe.double().mean()),
+        "false_safe_given_predicted_safe": float(false_safe.sum() / pred_safe.sum().clamp_min(1)),
+        "false_unsafe_rate": float((~pred_safe & ~collided).double().mean()),
+        "predicted_safe_fraction": float(pred_safe.double().mean()),
+        "rollout_collision_fraction": float(collided.double().mean()),
+        "mean_abs_error": float((v - m).abs().mean()),
+        "mean_error": float((v - m).mean()),
+        "p95_abs_error": float(torch.quantile((v - m).abs(), 0.95)),
+    }
+
+
+def vs_slices(vs, velocities, points: int = 161):
+    """V_s(x, 0) on the relative-position plane ``[-p_range, p_range]²`` for each relative
+    velocity: returns ``(axis [P], values [K, P, P])`` (rows: y, columns: x)."""
+    system = vs.system
+    axis = torch.linspace(-system.p_range, system.p_range, points, dtype=torch.float64)
+    yy, xx = torch.meshgrid(axis, axis, indexing="ij")
+    out = []
+    for vel in velocities:
+        x = torch.stack([xx.flatten(), yy.flatten(), torch.full_like(xx.flatten(), vel[0]),
+                         torch.full_like(xx.flatten(), vel[1])], dim=-1)
+        out.append(vs.value(x.float(), 0.0).double().reshape(points, points))
+    return axis, torch.stack(out)
+
+
+# The paper's heatmap configuration (Fig. value function): ego at velocity [1, 0] heading to its
+# goal at [-0.5, 0]; neighbours at [-0.3, ±0.4] moving at [-1, 0]. The paper does not state the
+# neighbours' goals: we put each 0.7 m ahead of it along its velocity, at [-1.0, ±0.4].
+HEATMAP = {
+    "ego_velocity": (1.0, 0.0), "ego_goal": (-0.5, 0.0),
+    "neighbours": [(-0.3, 0.4), (-0.3, -0.4)], "neighbour_velocity": (-1.0, 0.0),
+    "neighbour_goals": [(-1.0, 0.4), (-1.0, -0.4)],
+}
+
+
+def heatmap_observations(spec, half_width: float = 1.0, points: int = 101, cfg: dict = HEATMAP):
+    """Observations ``[P*P, D]`` of the ego over a grid of its positions on ``[-hw, hw]²`` in the
+    heatmap configuration, built with :func:`madpinn.observation.build_observation`."""
+    axis = torch.linspace(-half_width, half_width, points, dtype=torch.float32)
+    yy, xx = torch.meshgrid(axis, axis, indexing="ij")
+    P = points * points
+    ego_p = torch.stack([xx.flatten(), yy.flatten()], dim=-1)
+    nb_p = torch.tensor(cfg["neighbours"], dtype=torch.float32)
+    state = torch.zeros(P, 3, 4)
+    state[:, 0, 0:2] = ego_p
+    state[:, 0, 2:4] = torch.tensor(cfg["ego_velocity"])
+    state[:, 1:, 0:2] = nb_p
+    state[:, 1:, 2:4] = torch.tensor(cfg["neighbour_velocity"])
+    goals = torch.zeros(P, 3, 2)
+    goals[:, 0] = torch.tensor(cfg["ego_goal"])
+    goals[:, 1:] = torch.tensor(cfg["neighbour_goals"])
+    neighbours = torch.tensor([[1, 2], [0, 2], [0, 1]]).expand(P, 3, 2)
+    obs = build_observation(state, goals, neighbours, spec)[:, 0]
+    return axis, obs
+
+
+def heatmap_values(vhat, half_width: float = 1.0, points: int = 101):
+    """``(axis [P], V_d = z* [P, P], feasible [P, P], V̂(0, o, z=0) [P, P])`` over the ego position."""
+    axis, obs = heatmap_observations(vhat.obs_spec, half_width, points)
+    p = next(vhat.net.parameters())
+    obs = obs.to(device=p.device, dtype=p.dtype)
+    z_star, feasible = min_feasible_z(vhat, obs, 0.0)
+    v0 = vhat.value(obs, torch.zeros(obs.shape[0], dtype=obs.dtype, device=obs.device), 0.0)
+    shape = (points, points)
+    return axis, z_star.reshape(shape).cpu(), feasible.reshape(shape).cpu(), v0.reshape(shape).cpu()

@@ -1,0 +1,87 @@
+# Value functions (issue 3): train V̂ and V_s, validate them, and draw their figures.
+# Other rule files depend on VHAT_MODEL / VS_MODEL (e.g. METHOD_INPUTS["madpinn"] = [VHAT_MODEL, VS_MODEL]).
+VHAT_MODEL = f"{RESULTS}/models/vhat.pt"
+VS_MODEL = f"{RESULTS}/models/vs.pt"
+VF_THREADS = int(config["value_functions"]["threads"])
+
+
+rule train_vhat:
+    input:
+        tracking=TRACKING,
+    output:
+        model=VHAT_MODEL,
+        loss=f"{RESULTS}/models/vhat_loss.csv",
+        summary=f"{RESULTS}/models/vhat_train.json",
+    threads: VF_THREADS
+    log:
+        f"{LOGS}/train_vhat.log",
+    shell:
+        "{PY} -m madpinn train-value --config {RESOLVED} --kind vhat --out {output.model} --threads {threads} 2>&1 | tee {log}"
+
+
+rule train_vs:
+    input:
+        tracking=TRACKING,
+    output:
+        model=VS_MODEL,
+        loss=f"{RESULTS}/models/vs_loss.csv",
+        summary=f"{RESULTS}/models/vs_train.json",
+    threads: VF_THREADS
+    log:
+        f"{LOGS}/train_vs.log",
+    shell:
+        "{PY} -m madpinn train-value --config {RESOLVED} --kind vs --out {output.model} --threads {threads} 2>&1 | tee {log}"
+
+
+rule validate_vs:
+    input:
+        tracking=TRACKING,
+        model=VS_MODEL,
+    output:
+        report=f"{RESULTS}/validation/vs_rollouts.json",
+        figure=multiext(f"{FIGURES}/fig_vs_slices", ".pdf", ".png"),
+    params:
+        stem=f"{FIGURES}/fig_vs_slices",
+    threads: 1
+    log:
+        f"{LOGS}/validate_vs.log",
+    shell:
+        "{PY} -m madpinn validate-vs --config {RESOLVED} --model {input.model} --out {output.report}"
+        " --fig-stem {params.stem} --threads {threads} 2>&1 | tee {log}"
+
+
+rule validate_vhat:
+    input:
+        tracking=TRACKING,
+        model=VHAT_MODEL,
+    output:
+        report=f"{RESULTS}/validation/vhat_residuals.json",
+    threads: 1
+    log:
+        f"{LOGS}/validate_vhat.log",
+    shell:
+        "{PY} -m madpinn validate-vhat --config {RESOLVED} --model {input.model} --out {output.report}"
+        " --threads {threads} 2>&1 | tee {log}"
+
+
+rule fig_value_heatmap:
+    input:
+        tracking=TRACKING,
+        model=VHAT_MODEL,
+    output:
+        multiext(f"{FIGURES}/fig_value_heatmap", ".pdf", ".png"),
+    params:
+        stem=f"{FIGURES}/fig_value_heatmap",
+    threads: 1
+    log:
+        f"{LOGS}/fig_value_heatmap.log",
+    shell:
+        "{PY} -m madpinn fig-value-heatmap --config {RESOLVED} --model {input.model} --out-stem {params.stem}"
+        " --threads {threads} 2>&1 | tee {log}"
+
+
+EXTRA_TARGETS += [
+    f"{RESULTS}/validation/vs_rollouts.json",
+    f"{RESULTS}/validation/vhat_residuals.json",
+    *[f"{FIGURES}/{name}.{ext}" for name in ("fig_value_heatmap", "fig_vs_slices") for ext in ("pdf", "png")],
+]
