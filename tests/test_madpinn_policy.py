@@ -71,6 +71,9 @@ def test_bisection_matches_dense_grid_and_warm_start_matches_cold():
     z_prev = (z + (torch.rand(z.shape, generator=torch.Generator().manual_seed(0)) - 0.5) * 0.3).clamp(0, vhat.z_max)
     zw, fw, hit = warm_budget_search(vhat, obs, z_prev, steps)
     assert hit.float().mean() > 0.3
+    unsafe_mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & ~feasible
+    assert unsafe_mono.sum() >= 3 and not fw[unsafe_mono].any() and torch.all(zw[unsafe_mono] == vhat.z_max)
+    assert hit[unsafe_mono].all()  # previous answer near z_max: resolved by the top block, no cold search
     iw = torch.round(zw / h).long()
     assert torch.equal(iw[mono], i[mono]) and torch.equal(fw[mono], feasible[mono])
     assert torch.allclose(zw[mono], z[mono], rtol=1e-6, atol=0)

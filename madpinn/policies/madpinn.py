@@ -73,10 +73,11 @@ def warm_budget_search(vhat, obs: torch.Tensor, z_prev: torch.Tensor, steps: int
     returns a point of the dyadic grid ``z_max·i/2^steps``. Here each row first tests the aligned
     block of ``2^warm_log2`` grid cells whose upper end is nearest above ``z_prev``: if
     ``V̂(lo) > 0`` (or ``lo = 0``, which the cold search never evaluates either) and
-    ``V̂(hi) ≤ 0``, ``warm_log2`` halvings inside the block finish the search; the other rows
-    run the cold search. For V̂ non-increasing in z (the exact V̂ is) both give the same grid
-    point, with 2 + warm_log2 network evaluations instead of 1 + steps for most rows.
-    Returns ``(z* [B], feasible [B], warm_hit [B])``.
+    ``V̂(hi) ≤ 0``, ``warm_log2`` halvings inside the block finish the search; a row whose block
+    is the top one and ``V̂(z_max) > 0`` is unsafe (``z_max``, exactly the cold answer); the other
+    rows run the cold search. For V̂ non-increasing in z (the exact V̂ is) both give the same grid
+    point, with 2 + warm_log2 (2 when unsafe) network evaluations instead of 1 + steps.
+    Returns ``(z* [B], feasible [B], resolved_warm [B])``.
     """
     z_max = vhat.z_max
     cells = 2**steps
@@ -87,18 +88,24 @@ def warm_budget_search(vhat, obs: torch.Tensor, z_prev: torch.Tensor, steps: int
     lo, hi = block * width * h, (block + 1) * width * h
     B = obs.shape[0]
     v = vhat.value(torch.cat([obs, obs]), torch.cat([lo, hi]), 0.0)
-    hit = ((block == 0) | (v[:B] > 0)) & (v[B:] <= 0)
-    for _ in range(min(warm_log2, steps)):
-        mid = 0.5 * (lo + hi)
-        ok = vhat.value(obs, mid, 0.0) <= 0
-        hi = torch.where(ok, mid, hi)
-        lo = torch.where(ok, lo, mid)
-    z, feasible = hi, hit.clone()
-    miss = (~hit).nonzero(as_tuple=True)[0]
+    v_lo, v_hi = v[:B], v[B:]
+    hit = ((block == 0) | (v_lo > 0)) & (v_hi <= 0)
+    unsafe = (block == cells // width - 1) & (v_hi > 0)  # V̂(0, o, z_max) > 0: the cold answer is z_max
+    z = torch.full_like(z_prev, z_max)
+    feasible = torch.zeros(B, dtype=torch.bool, device=obs.device)
+    rows = hit.nonzero(as_tuple=True)[0]
+    if rows.numel():
+        o, lo_r, hi_r = obs[rows], lo[rows], hi[rows]
+        for _ in range(min(warm_log2, steps)):
+            mid = 0.5 * (lo_r + hi_r)
+            ok = vhat.value(o, mid, 0.0) <= 0
+            hi_r = torch.where(ok, mid, hi_r)
+            lo_r = torch.where(ok, lo_r, mid)
+        z[rows], feasible[rows] = hi_r, True
+    miss = (~(hit | unsafe)).nonzero(as_tuple=True)[0]
     if miss.numel():
-        z_cold, f_cold = cold_budget_search(vhat, obs[miss], steps)
-        z[miss], feasible[miss] = z_cold, f_cold
-    return z, feasible, hit
+        z[miss], feasible[miss] = cold_budget_search(vhat, obs[miss], steps)
+    return z, feasible, hit | unsafe
 
 
 def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float, strategy: str) -> None:
