@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import gc
 import resource
+import subprocess
+import sys
 import time
 
 import torch
@@ -81,18 +83,28 @@ def time_methods(methods, batch, repeats, device, dtype) -> dict:
     return best
 
 
-def peak_memory_mb(step, batch, device, dtype) -> float:
-    """Peak memory of one iteration: CUDA allocator peak, or on CPU the growth of the process
-    max RSS over a fresh process-wide peak (run ours first: the reference's peak is larger)."""
-    problem, settings, net, opt = setup(batch, device, dtype)
-    gc.collect()
+def peak_memory_mb(method: str, batch: int, device, dtype) -> float:
+    """Peak memory of one iteration of ``method``: CUDA allocator peak, or on CPU the growth of the
+    max RSS of a fresh subprocess over its level after setup (each method measured alone)."""
     if device.type == "cuda":
+        problem, settings, net, opt = setup(batch, device, dtype)
         torch.cuda.reset_peak_memory_stats()
-        step(problem, net, opt, settings, 0, device, dtype)
+        METHODS[method](problem, net, opt, settings, 0, device, dtype)
         return torch.cuda.max_memory_allocated() / 2**20
+    out = subprocess.run([sys.executable, __file__, "--memory-of", method, "--batches", str(batch)],
+                         capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def _memory_of(method: str, batch: int) -> None:
+    problem, settings, net, opt = setup(batch, torch.device("cpu"), torch.float32)
+    gc.collect()
     before = peak_rss_mb()
-    step(problem, net, opt, settings, 0, device, dtype)
-    return peak_rss_mb() - before
+    METHODS[method](problem, net, opt, settings, 0, torch.device("cpu"), torch.float32)
+    print(peak_rss_mb() - before)
+
+
+METHODS = {"ours": train_step, "autograd_reference": reference_step}
 
 
 def main() -> None:
@@ -101,15 +113,18 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--device", default="auto")
+    ap.add_argument("--memory-of", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
+    if args.memory_of:
+        return _memory_of(args.memory_of, args.batches[0])
     device = resolve_device(args.device)
     dtype = torch.float32
     print(f"device={device} threads={torch.get_num_threads()} torch={torch.__version__} network=SIREN 3x256 float32")
     speedup = None
-    methods = {"ours": train_step, "autograd_reference": reference_step}
+    methods = METHODS
     for batch in args.batches:
-        mem = {name: peak_memory_mb(step, batch, device, dtype) for name, step in methods.items()}
+        mem = {name: peak_memory_mb(name, batch, device, dtype) for name in methods}
         best = time_methods(methods, batch, args.repeats, device, dtype)
         unit = "peak_cuda_alloc_mb" if device.type == "cuda" else "peak_rss_growth_mb"
         for name in methods:

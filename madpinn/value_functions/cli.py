@@ -11,9 +11,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-import torch
-
 from madpinn.config import config_hash, load_config
 
 KINDS = ("vhat", "vs")
@@ -45,6 +42,8 @@ def _setup(cfg: dict, threads: int | None):
 
 def decimate(history, points: int = 2000) -> list[float]:
     """Window means of the per-iteration loss (≤ ``points`` values) for MLflow step metrics."""
+    import numpy as np
+
     h = np.asarray(history, dtype=float)
     w = max(1, int(np.ceil(h.size / points)))
     n = h.size // w
@@ -66,6 +65,8 @@ def validation_figure(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
 
 
 def _train(args) -> int:
+    import numpy as np
+
     from madpinn.tracking import log_job
     from madpinn.tracking.mlflow_store import git_commit
     from madpinn.value_functions import figures

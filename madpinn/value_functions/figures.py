@@ -45,12 +45,13 @@ def loss_curve(history, title: str, path: Path) -> Path:
 
 
 def value_heatmap(axis, z_star, feasible, stem: Path) -> list[Path]:
-    """Paper figure: V_d = z* over the ego position; infeasible (V̂(0, o, z_max) > 0) hatched."""
+    """Paper figure: V_d = z* over the ego position; infeasible (V̂(0, o, z_max) > 0) in grey."""
     ax_np = axis.numpy()
     z = np.where(feasible.numpy(), z_star.numpy(), np.nan)
     fig, ax = plt.subplots(figsize=(4.6, 4))
     im = ax.pcolormesh(ax_np, ax_np, z, cmap="coolwarm", shading="auto")
-    ax.contourf(ax_np, ax_np, (~feasible.numpy()).astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"])
+    unsafe = np.ma.masked_where(feasible.numpy(), np.ones(z.shape))
+    ax.pcolormesh(ax_np, ax_np, unsafe, cmap=matplotlib.colors.ListedColormap(["0.35"]), shading="auto")
     ax.contour(ax_np, ax_np, feasible.numpy().astype(float), levels=[0.5], colors="k", linewidths=0.8)
     fig.colorbar(im, ax=ax, label=r"$V_d = z^*$ (cost)")
     for (x, y), (gx, gy) in zip(HEATMAP["neighbours"], HEATMAP["neighbour_goals"]):
@@ -61,7 +62,7 @@ def value_heatmap(axis, z_star, feasible, stem: Path) -> list[Path]:
     ax.set_xlabel("ego x (m)")
     ax.set_ylabel("ego y (m)")
     ax.set_aspect("equal")
-    ax.set_title(r"learned value, ego $v=[1,0]$; hatched: $\hat V(0,o,z_{max})>0$", fontsize=8)
+    ax.set_title(r"learned value, ego $v=[1,0]$; grey: $\hat V(0,o,z_{max})>0$", fontsize=8)
     ax.legend(loc="lower right", fontsize=7)
     return _save(fig, stem)
 

@@ -1,0 +1,75 @@
+"""Checkpoint files: round trip through the public API, clear errors for bad files."""
+
+import pytest
+import torch
+
+from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.dynamics.pair import PairSystem
+from madpinn.observation import ObservationSpec
+from madpinn.value_functions import CheckpointError, load_vhat, load_vs
+from madpinn.value_functions.model import build_network, model_payload, save_atomic
+from madpinn.value_functions.problems import EpigraphProblem, PairProblem
+
+NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
+
+
+@pytest.fixture()
+def files(tmp_path):
+    torch.manual_seed(0)
+    spec = ObservationSpec()
+    pv = EpigraphProblem(EpigraphSystem(spec, horizon=0.2, z_max=21.45))
+    ps = PairProblem(PairSystem())
+    vh = save_atomic(model_payload(pv, build_network(pv, NET), 1.5, {"iterations": 7}), tmp_path / "vhat.pt")
+    vs = save_atomic(model_payload(ps, build_network(ps, NET), 1.0, {"iterations": 9}), tmp_path / "vs.pt")
+    return vh, vs
+
+
+def test_public_api(files):
+    vh_path, vs_path = files
+    vhat = load_vhat(vh_path)
+    assert vhat.horizon == 0.2 and vhat.z_max == 21.45 and vhat.obs_spec == ObservationSpec()
+    obs = torch.randn(10, 16)
+    z = torch.rand(10) * 5
+    v = vhat.value(obs, z, 0.0)
+    with torch.no_grad():
+        v2, go, gz = vhat.value_and_grad(obs, z, torch.zeros(10))
+    assert v.shape == (10,) and go.shape == (10, 16) and gz.shape == (10,)
+    assert torch.allclose(v, v2, atol=1e-5)
+    vs = load_vs(vs_path, dtype=torch.float64)
+    assert vs.horizon == 1.0 and vs.collision_radius == 0.1
+    x = torch.randn(5, 4, dtype=torch.float64)
+    val, grad = vs.value_and_grad(x)
+    assert val.shape == (5,) and grad.shape == (5, 4) and val.dtype == torch.float64
+    assert torch.allclose(vs.value(x, 0.0), val)
+    assert vs.meta["iterations"] == 9
+
+
+def test_missing_truncated_garbage_and_mismatched_files(files, tmp_path):
+    vh_path, vs_path = files
+    with pytest.raises(CheckpointError, match="not found"):
+        load_vhat(tmp_path / "nope.pt")
+    data = vh_path.read_bytes()
+    (tmp_path / "trunc.pt").write_bytes(data[: len(data) // 2])
+    with pytest.raises(CheckpointError, match="corrupted or truncated"):
+        load_vhat(tmp_path / "trunc.pt")
+    (tmp_path / "garbage.pt").write_bytes(b"not a checkpoint at all")
+    with pytest.raises(CheckpointError, match="corrupted or truncated"):
+        load_vs(tmp_path / "garbage.pt")
+    with pytest.raises(CheckpointError, match="'vs' value function, expected 'vhat'"):
+        load_vhat(vs_path)
+    torch.save({"weights": torch.zeros(3)}, tmp_path / "other.pt")
+    with pytest.raises(CheckpointError, match="not a madpinn value-function checkpoint"):
+        load_vs(tmp_path / "other.pt")
+    payload = torch.load(vs_path, weights_only=True)
+    payload["network"]["hidden"] = 32
+    torch.save(payload, tmp_path / "shape.pt")
+    with pytest.raises(CheckpointError, match="do not match"):
+        load_vs(tmp_path / "shape.pt")
+
+
+def test_bad_shapes_are_clear_errors(files):
+    vhat = load_vhat(files[0])
+    with pytest.raises(ValueError, match="disagree"):
+        vhat.value(torch.zeros(4, 16), torch.zeros(3))
+    with pytest.raises(ValueError, match="expected state"):
+        load_vs(files[1]).value(torch.zeros(4, 3))

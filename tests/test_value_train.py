@@ -1,0 +1,68 @@
+"""Trainer: resume after interruption reproduces the uninterrupted run, NaN guard, determinism,
+learning, curriculum and learning-rate schedules."""
+
+import math
+
+import pytest
+import torch
+
+from madpinn.dynamics.pair import PairSystem
+from madpinn.value_functions.problems import PairProblem
+from madpinn.value_functions.train import (
+    TrainingDiverged, TrainSettings, curriculum_alpha, learning_rate, train, training_batch,
+)
+
+NET = {"hidden": 32, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
+
+
+def settings(**kw):
+    base = dict(iterations=24, batch_size=128, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.5,
+                checkpoint_every=5, output_scale=1.0, network=NET, seed=3)
+    base.update(kw)
+    return TrainSettings(**base)
+
+
+def test_resume_after_interruption_gives_the_uninterrupted_model(tmp_path):
+    torch.set_num_threads(1)
+    problem = PairProblem(PairSystem())
+    full, info_full = train(problem, settings(), tmp_path / "a.ckpt", "h", progress=False)
+    part, info = train(problem, settings(), tmp_path / "b.ckpt", "h", progress=False, stop_after=13)
+    assert not info["completed"] and info["iterations"] == 13
+    resumed, info2 = train(problem, settings(), tmp_path / "b.ckpt", "h", progress=False)
+    assert info2["completed"] and len(info2["history"]) == 24
+    assert info2["history"] == pytest.approx(info_full["history"], rel=1e-6)
+    for p, q in zip(full.parameters(), resumed.parameters()):
+        assert torch.allclose(p, q, rtol=1e-6, atol=1e-7)
+    # a checkpoint of another configuration is ignored, not resumed
+    other, info3 = train(problem, settings(iterations=6), tmp_path / "b.ckpt", "other-hash", progress=False)
+    assert len(info3["history"]) == 6
+
+
+def test_deterministic_and_learns():
+    torch.set_num_threads(1)
+    problem = PairProblem(PairSystem())
+    s = settings(iterations=150, checkpoint_every=1000, lr=1e-3, lr_final=1e-4, curriculum_fraction=0.0)
+    a, ia = train(problem, s, "/nonexistent/dir/none.ckpt", "h", progress=False)
+    b, ib = train(problem, s, "/nonexistent/dir/none.ckpt", "h", progress=False)
+    assert ia["history"] == ib["history"]
+    h = ia["history"]
+    assert sum(h[-20:]) / 20 < 0.85 * sum(h[:20]) / 20
+
+
+def test_nan_guard_fails_with_a_clear_message(tmp_path):
+    problem = PairProblem(PairSystem(collision_radius=float("nan")))  # NaN target -> NaN loss
+    with pytest.raises(TrainingDiverged, match="diverged at iteration 0: loss=nan.*Lower value_functions.vs.lr"):
+        train(problem, settings(), tmp_path / "c.ckpt", "h", progress=False)
+
+
+def test_curriculum_and_schedule():
+    s = settings(iterations=100, curriculum_fraction=0.5, lr=1e-3, lr_final=1e-5)
+    assert curriculum_alpha(0, s) == pytest.approx(0.02) and curriculum_alpha(49, s) == 1.0
+    assert learning_rate(0, s) == pytest.approx(1e-3) and learning_rate(99, s) == pytest.approx(1e-5)
+    problem = PairProblem(PairSystem())
+    _, t = training_batch(problem, s, 9, "cpu", torch.float32)
+    assert t.min() >= problem.horizon * (1 - 0.2) - 1e-6 and t.max() <= problem.horizon
+    x1, _ = training_batch(problem, s, 9, "cpu", torch.float32)
+    x2, _ = training_batch(problem, s, 9, "cpu", torch.float32)
+    assert torch.equal(x1, x2)
+    assert math.isclose(learning_rate(50, settings(lr=2e-5, lr_final=2e-5)), 2e-5)

@@ -1,0 +1,94 @@
+"""Validation tools on small trained models: z* bisection, V_s rollouts, heatmap observations,
+and the CLI commands end to end (train -> validate -> figures) on the smoke configuration."""
+
+import json
+
+import pytest
+import torch
+
+from madpinn.cli import main
+from madpinn.config import ConfigError, REPO_ROOT, load_config, validate_config
+from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.dynamics.pair import PairSystem
+from madpinn.observation import ObservationSpec
+from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
+from madpinn.value_functions.model import VHat, PairValue, build_network
+from madpinn.value_functions.problems import EpigraphProblem, PairProblem
+from madpinn.value_functions.validation import HEATMAP, heatmap_observations, vs_rollouts
+
+NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
+CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smoke.yaml")]
+
+
+def test_min_feasible_z_is_the_smallest_feasible_budget():
+    torch.manual_seed(0)
+    spec = ObservationSpec()
+    problem = EpigraphProblem(EpigraphSystem(spec, z_max=21.45))
+    vhat = VHat(problem, build_network(problem, NET), 1.0)
+    obs, _ = problem.system.sample(200, torch.Generator().manual_seed(1))
+    z, ok = min_feasible_z(vhat, obs, 0.0)
+    tol = 1e-3 * vhat.z_max
+    assert ok.any()
+    assert (vhat.value(obs[ok], z[ok]) <= 0).all()
+    assert (vhat.value(obs[ok], (z[ok] - tol).clamp_min(0)) > 0).logical_or(z[ok] <= tol).all()
+    assert (z[~ok] == vhat.z_max).all()
+    assert (vhat.value(obs[~ok], torch.full_like(z[~ok], vhat.z_max)) > 0).all()
+
+
+def test_rollouts_of_an_untrained_network_report_consistent_rates():
+    torch.manual_seed(0)
+    problem = PairProblem(PairSystem())
+    vs = PairValue(problem, build_network(problem, NET), 1.0)
+    r = vs_rollouts(vs, 500, 0.05, seed=0)
+    assert r["samples"] == 500
+    assert 0.0 <= r["false_safe_rate"] <= r["predicted_safe_fraction"] <= 1.0
+    assert r["false_safe_rate"] <= r["rollout_collision_fraction"]
+    assert r["mean_abs_error"] >= abs(r["mean_error"])
+
+
+def test_heatmap_observation_is_the_papers_configuration():
+    spec = ObservationSpec()
+    axis, obs = heatmap_observations(spec, 1.0, points=5)
+    p = torch.stack(torch.meshgrid(axis, axis, indexing="ij")[::-1], -1).reshape(-1, 2)
+    assert torch.allclose(obs[:, 0:2], torch.tensor(HEATMAP["ego_velocity"]).expand(25, 2))
+    assert torch.allclose(obs[:, 2:4], torch.tensor(HEATMAP["ego_goal"]) - p)
+    assert torch.allclose(obs[:, 4:6], torch.tensor(HEATMAP["neighbours"][0]) - p)
+    assert torch.allclose(obs[:, 6:8], torch.tensor(HEATMAP["neighbour_velocity"]).expand(25, 2))
+
+
+def test_schema_rejects_bad_value_function_keys():
+    cfg = load_config(CONFIGS)
+    cfg["value_functions"]["vhat"]["bogus"] = 1
+    with pytest.raises(ConfigError, match="bogus"):
+        validate_config(cfg)
+    cfg = load_config(CONFIGS)
+    cfg["value_functions"]["vs"]["lr"] = -1
+    with pytest.raises(ConfigError, match="value_functions.vs.lr"):
+        validate_config(cfg)
+    cfg = load_config(CONFIGS)
+    del cfg["value_functions"]
+    with pytest.raises(ConfigError, match="value_functions"):
+        validate_config(cfg)
+
+
+def test_cli_train_validate_figures(tmp_path):
+    out = tmp_path / "models"
+    for kind in ("vs", "vhat"):
+        assert main(["train-value", "--config", *CONFIGS, "--kind", kind, "--out", str(out / f"{kind}.pt"),
+                     "--no-track", "--no-progress"]) == 0
+    vhat, vs = load_vhat(out / "vhat.pt"), load_vs(out / "vs.pt")
+    for m in (vhat, vs):
+        assert m.meta["iterations"] == 30 and len(m.meta["config_hash"]) == 12
+        assert m.meta["residual"]["residual_mean"] > 0 and m.meta["git_commit"]
+    assert (out / "vhat_loss.csv").read_text().count("\n") == 31
+    assert main(["validate-vs", "--config", *CONFIGS, "--model", str(out / "vs.pt"), "--out", str(tmp_path / "vs.json"),
+                 "--fig-stem", str(tmp_path / "slices"), "--no-track"]) == 0
+    report = json.loads((tmp_path / "vs.json").read_text())
+    assert report["samples"] == 1000 and 0 <= report["false_safe_rate"] <= 1
+    assert main(["validate-vhat", "--config", *CONFIGS, "--model", str(out / "vhat.pt"), "--out", str(tmp_path / "r.json"),
+                 "--no-track"]) == 0
+    assert json.loads((tmp_path / "r.json").read_text())["residual_samples"] == 2048
+    assert main(["fig-value-heatmap", "--config", *CONFIGS, "--model", str(out / "vhat.pt"),
+                 "--out-stem", str(tmp_path / "heat"), "--no-track"]) == 0
+    for name in ("slices", "heat"):
+        assert (tmp_path / f"{name}.pdf").stat().st_size > 1000 and (tmp_path / f"{name}.png").stat().st_size > 1000
