@@ -11,13 +11,14 @@ from conftest import REPO, SMOKE
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.evaluation.job import evaluate
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.observation import ObservationSpec, build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy
 from madpinn.policies.madpinn import (
     MadPinnPolicy,
     MadPinnSettings,
     bisection_steps,
     cold_budget_search,
+    separate_phantoms,
     warm_budget_search,
 )
 from madpinn.policies.neighbours import make_selector
@@ -100,7 +101,7 @@ def test_control_is_bang_bang_from_ego_gradient_at_z_star_with_fallback():
     state[0, 1, 0:2] = state[0, 0, 0:2]  # a collision: V̂(0, o, z_max) > 0 for agent 0 -> z_max fallback
     pol.reset(state, goals)
     u = pol.act(state, goals, 0.0)
-    obs = build_observation(state, goals, pol.neighbours, SPEC).reshape(18, -1)
+    obs = separate_phantoms(build_observation(state, goals, pol.neighbours, SPEC), pol.neighbours, SPEC).reshape(18, -1)
     z, feasible = cold_budget_search(pol.vhat, obs, 10)
     assert not feasible[0] and z[0] == pol.vhat.z_max and pol.stats["infeasible"] >= 1
     _, grad, _ = pol.vhat.value_and_grad(obs, z, 0.0)
@@ -118,6 +119,23 @@ def test_neighbour_update_schedule(k, period, expected):
         pol.act(state, goals, step * 0.0025)
         calls += 1
     assert pol.stats["neighbour_updates"] == expected and pol.stats["policy_steps"] == calls
+
+
+def test_phantoms_of_an_isolated_agent_do_not_collide():
+    state = torch.zeros(1, 2, 4)
+    state[0, 1, 0] = 5.0  # beyond the sensing radius
+    goals = torch.zeros(1, 2, 2)
+    nbrs = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(0))(state)
+    assert (nbrs == -1).all()
+    raw = build_observation(state, goals, nbrs, SPEC)
+    assert (constraint(raw, 2, 0.1) > 0).all()  # the shared padding: both phantoms at one corner
+    obs = separate_phantoms(raw, nbrs, SPEC)
+    assert (constraint(obs, 2, 0.1) < 0).all()
+    assert torch.equal(obs[..., :10], raw[..., :10])  # ego and slot 0 untouched
+    assert obs[0, 0, 10:12].tolist() == [2.0, -2.0] and obs[0, 0, 14:16].tolist() == [2.0, -2.0]
+    one = torch.tensor([[[1, -1], [0, -1]]])  # one real neighbour: the phantom moves, the real one does not
+    mixed = separate_phantoms(build_observation(state, goals, one, SPEC), one, SPEC)
+    assert mixed[0, 0, 4:6].tolist() == [2.0, 0.0] and mixed[0, 0, 10:12].tolist() == [2.0, -2.0]
 
 
 def test_k_infinity_keeps_initial_neighbours():
