@@ -25,8 +25,9 @@ except ConfigError as exc:
 include: "workflow/rules/common.smk"
 include: "workflow/rules/tracking.smk"
 include: "workflow/rules/evaluate.smk"
-include: "workflow/rules/figures.smk"
 include: "workflow/rules/train.smk"
+include: "workflow/rules/mujoco.smk"
+include: "workflow/rules/figures.smk"
 include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/tables.smk"
 

@@ -15,7 +15,11 @@ from pathlib import Path
 
 from madpinn.config import ConfigError, load_config
 
-COMMAND_MODULES = ["madpinn.cli", "madpinn.value_functions.cli"]
+COMMAND_MODULES = [
+    "madpinn.cli",
+    "madpinn.value_functions.cli",  # train-value, validate-* (issue 3)
+    "madpinn.simulation.mujoco.commands",  # render-clip (issue 5)
+]
 
 
 def add_config_arg(p: argparse.ArgumentParser) -> None:

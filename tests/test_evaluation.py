@@ -20,6 +20,7 @@ def _tiny(cfg, tmp_path, **study):
         "arenas": {"small": {"half_width": 1.0, "episode_s": 0.5}},
         "sim": {"scenario_batch": 3},
         "studies": {"main": {"arena": "small", "agent_counts": [4], "seeds": [0], "scenarios": 5, "runs": ["nominal"], **study}},
+        "figures": {"trajectories": {"study": "main", "n_agents": 4, "seed": 0}},
     }
     cfg = deep_merge(cfg, over)
     validate_config(cfg)

@@ -103,3 +103,14 @@ def test_bad_shapes_are_rejected():
         build_observation(state[0], goals, torch.zeros(3, 6, 2, dtype=torch.long), SPEC)
     with pytest.raises(ValueError, match="features"):
         running_cost(torch.zeros(4, 15), 2)
+
+
+def test_pairwise_distances_are_exact_at_arena_scale():
+    from madpinn.observation import pairwise_distances
+
+    g = torch.Generator().manual_seed(1)
+    p = torch.rand(2, 300, 2, generator=g) * 8 - 4
+    d = pairwise_distances(p)
+    ref = torch.linalg.vector_norm(p.double()[:, :, None] - p.double()[:, None], dim=-1)
+    ref.diagonal(dim1=1, dim2=2).fill_(float("inf"))
+    assert torch.allclose(d.double(), ref, atol=1e-5, rtol=0)

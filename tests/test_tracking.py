@@ -18,6 +18,7 @@ def _cfg(paper_cfg, tmp_path, uri=None):
             "paths": {"results": str(tmp_path / "results"), "figures": str(tmp_path / "figs")},
             "arenas": {"small": {"half_width": 1.0, "episode_s": 0.05}},
             "studies": {"main": {"arena": "small", "agent_counts": [3], "seeds": [0], "scenarios": 2, "runs": ["nominal"]}},
+            "figures": {"trajectories": {"study": "main", "n_agents": 3, "seed": 0}},
         },
     )
 

@@ -26,6 +26,11 @@ def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss)
     st = TrainSettings(iterations=100, batch_size=300, lr=1e-4, lr_final=1e-4, curriculum_fraction=0.5,
                        checkpoint_every=50, loss=loss, output_scale=2.0, network=NET)
     net = build_network(problem, NET).double()
+    # a first call on another batch: the reused workspace must not leak into the next call
+    s0, t0 = training_batch(problem, st, 69, "cpu", torch.float64)
+    b0, gb0 = problem.boundary_and_grad(s0)
+    net.accumulate_loss_grad(problem.normalise(s0, t0), make_head(problem, s0, t0, b0, gb0, 2.0, loss))
+    net.zero_grad(set_to_none=True)
     s, t = training_batch(problem, st, 70, "cpu", torch.float64)
     b, gb = problem.boundary_and_grad(s)
     x = problem.normalise(s, t)

@@ -54,6 +54,7 @@ _REGISTRY: dict[str, PolicyFactory] = {}
 _MODULES = {
     "nominal": "madpinn.policies.nominal",
     "madpinn": "madpinn.policies.madpinn",
+    "mppi": "madpinn.policies.mppi",
 }
 
 

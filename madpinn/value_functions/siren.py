@@ -91,6 +91,15 @@ class Siren(nn.Module):
         return n, g
 
     # ---- fused training backward ----------------------------------------------------------
+    def _buffer(self, key, shape, like: torch.Tensor) -> torch.Tensor:
+        """Reusable workspace tensor (fresh large CPU allocations cost page faults each time)."""
+        ws = self.__dict__.setdefault("_workspace", {})
+        buf = ws.get(key)
+        if buf is None or buf.shape != shape or buf.dtype != like.dtype or buf.device != like.device:
+            buf = torch.empty(shape, dtype=like.dtype, device=like.device)
+            ws[key] = buf
+        return buf
+
     def accumulate_loss_grad(
         self, x: torch.Tensor,
         head: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor, torch.Tensor]],
@@ -100,37 +109,57 @@ class Siren(nn.Module):
 
         With ``V_l = ω_l W_l``: ``a_l = V_l h_{l−1} + ω_l b_l``, ``g_{l−1} = δ'_l V_l``,
         ``δ'_l = cos(a_l) ⊙ g_l``; the adjoints (bars) of both sweeps give ``∂/∂V_l`` and
-        ``∂/∂W_l = ω_l ∂/∂V_l``.
+        ``∂/∂W_l = ω_l ∂/∂V_l``. All ``[B, hidden]`` intermediates live in a reused workspace
+        (13 buffers for 3 layers) and are overwritten in place once dead.
         """
         with torch.no_grad():
             x = x.detach()
+            L, B, H = self.n_layers, x.shape[0], self.hidden
+            buf = lambda key: self._buffer(key, (B, H), x)  # noqa: E731
             scaled = self._scaled()
-            n, g0, hs, cs, gs, dps = self._sweeps(x, scaled, keep=True)
+            w_o = self.out.weight  # [1, H]
+            cs, hs = [None] + [buf(("c", l)) for l in range(1, L + 1)], [x] + [buf(("h", l)) for l in range(1, L + 1)]
+            dps = [None] + [buf(("dp", l)) for l in range(1, L + 1)]
+            gs = [None] + [buf(("g", l)) for l in range(1, L)] + [w_o.expand(B, H)]
+            # forward sweep: cs[l] = cos a_l, hs[l] = sin a_l
+            for layer in range(1, L + 1):
+                weight, bias = scaled[layer - 1]
+                torch.addmm(bias, hs[layer - 1], weight.t(), out=cs[layer])
+                torch.sin(cs[layer], out=hs[layer])
+                cs[layer].cos_()
+            n = torch.addmm(self.out.bias, hs[L], w_o.t())[:, 0]
+            # reverse sweep: ∇_x N
+            for layer in range(L, 0, -1):
+                torch.mul(cs[layer], gs[layer], out=dps[layer])
+                if layer > 1:
+                    torch.mm(dps[layer], scaled[layer - 1][0], out=gs[layer - 1])
+            g0 = torch.mm(dps[1], scaled[0][0])
             loss, n_bar, g_bar = head(n, g0)
-            L = self.n_layers
-            v_bar = [None] * (L + 1)
-            a_from_cos = [None] * (L + 1)
             # adjoint of the ∇_x N sweep, from the input layer upwards
+            v_bar, a_from_cos = [None] * (L + 1), [None] * (L + 1)
             gb = g_bar
             for layer in range(1, L + 1):
-                weight = scaled[layer - 1][0]
-                dp_bar = torch.mm(gb, weight.t())  # ∂/∂δ'_l
+                dp_bar = buf("dp_bar_top") if layer == L else buf("dp_bar")
+                torch.mm(gb, scaled[layer - 1][0].t(), out=dp_bar)  # ∂/∂δ'_l
                 v_bar[layer] = torch.mm(dps[layer].t(), gb)
-                gb = dp_bar * cs[layer - 1]  # ∂/∂g_l through δ'_l = cos ⊙ g_l
-                a_from_cos[layer] = dp_bar.mul_(gs[layer]).mul_(hs[layer])  # minus ∂/∂a_l through cos
+                gb = torch.mul(dp_bar, cs[layer], out=dps[layer])  # ∂/∂g_l (δ'_l is dead now)
+                if layer < L:  # minus ∂/∂a_l through cos: δ̄'⊙g_l⊙sin a_l, stored over g_l
+                    a_from_cos[layer] = gs[layer].mul_(dp_bar).mul_(hs[layer])
+                else:
+                    a_from_cos[layer] = dp_bar.mul_(gs[layer]).mul_(hs[layer])
             w_out_grad = gb.sum(0, keepdim=True)  # g_L = w_o for every sample
             # adjoint of the forward sweep, from the output downwards
             w_out_grad.add_(torch.mm(n_bar[None, :], hs[L]))
             grads = {self.out.weight: w_out_grad, self.out.bias: n_bar.sum().reshape(1)}
-            h_bar = n_bar[:, None] * self.out.weight  # [B, hidden]
+            h_bar = torch.mul(n_bar[:, None], w_o, out=dps[L])
             for layer in range(L, 0, -1):
                 lin, w = self.hidden_layers[layer - 1], self.omegas[layer - 1]
-                ab = torch.mul(h_bar, cs[layer - 1]).sub_(a_from_cos[layer])  # ∂/∂a_l
+                ab = cs[layer].mul_(h_bar).sub_(a_from_cos[layer])  # ∂/∂a_l, over cos a_l
                 v_bar[layer].addmm_(ab.t(), hs[layer - 1])
                 grads[lin.weight] = v_bar[layer].mul_(w)
                 grads[lin.bias] = ab.sum(0).mul_(w)
                 if layer > 1:
-                    h_bar = torch.mm(ab, scaled[layer - 1][0])
+                    h_bar = torch.mm(ab, scaled[layer - 1][0], out=hs[layer])  # h_l is dead now
             for p, gr in grads.items():
                 if p.grad is None:
                     p.grad = gr

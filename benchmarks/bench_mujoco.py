@@ -1,0 +1,114 @@
+"""Physics + controller time per drone-step of the MuJoCo Crazyflie backend.
+
+    PYTHONPATH=$PWD python benchmarks/bench_mujoco.py [--config config.yaml] [--steps 200] [--repeats 3]
+    PYTHONPATH=$PWD python benchmarks/bench_mujoco.py --compare-forces   # qfrc vs xfrc vs site actuators
+
+For N ∈ {16, 256, 1024, 5120} drones in one backend (one job's S × N), times ``command`` +
+``step`` (one ``sim.dt`` with ``sim.mujoco.substeps`` physics + controller substeps) under
+bang-bang policy accelerations; prints best-of-``repeats`` µs per drone-step as process CPU time
+(single-threaded, so equal to wall time on an idle machine, and much less disturbed by other
+jobs sharing the cores) and as wall time, with MuJoCo's bare free-body step for reference. The
+last line is ``us_per_drone_step_at_5120: X`` (CPU time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+import numpy as np
+import torch
+
+from madpinn.config import deep_merge, load_config
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, compile_world
+
+COUNTS = (16, 256, 1024, 5120)
+
+
+def _best(fn, repeats: int, per: int, setup=lambda: None) -> tuple[float, float]:
+    """Best-of-``repeats`` (CPU, wall) µs per unit of ``fn()``, which does ``per`` units;
+    ``setup()`` runs untimed before each repeat."""
+    cpu = wall = float("inf")
+    for _ in range(repeats):
+        setup()
+        c0, w0 = time.process_time(), time.perf_counter()
+        fn()
+        cpu = min(cpu, time.process_time() - c0)
+        wall = min(wall, time.perf_counter() - w0)
+    return 1e6 * cpu / per, 1e6 * wall / per
+
+
+def time_backend(cfg: dict, count: int, steps: int, repeats: int, overrides: dict | None = None) -> tuple[float, float]:
+    """Best-of-``repeats`` (CPU, wall) µs per drone-step (command + step) for ``count`` drones."""
+    settings = MujocoSettings.from_config(deep_merge(cfg["sim"].get("mujoco") or {}, overrides or {}))
+    dyn = DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"])
+    backend = MujocoBackend(dyn, cfg["sim"]["dt"], settings)
+    gen = torch.Generator().manual_seed(0)
+    starts = torch.rand(1, count, 2, generator=gen) * 2 - 1
+    accel = (torch.randint(0, 2, (steps, 1, count, 2), generator=gen) * 2 - 1) * cfg["agents"]["u_max"]
+    backend.reset(starts, torch.zeros_like(starts))  # warm-up: model compile, caches
+    accel = accel.float()
+
+    def episode():
+        for k in range(steps):
+            backend.command(accel[k], backend.dt)
+            backend.step()
+
+    return _best(episode, repeats, steps * count, setup=lambda: backend.reset(starts, torch.zeros_like(starts)))
+
+
+def time_bare_mujoco(cfg: dict, count: int, steps: int, repeats: int) -> tuple[float, float]:
+    """Best-of µs per drone per ``sim.dt`` of MuJoCo alone (same worlds and substeps, constant
+    hover forces, no controller)."""
+    settings = MujocoSettings.from_config(cfg["sim"].get("mujoco"))
+    h = cfg["sim"]["dt"] / settings.substeps
+    worlds = []
+    for start in range(0, count, settings.drones_per_world):
+        model = compile_world(min(settings.drones_per_world, count - start), h, settings.spec)
+        data = mujoco.MjData(model)
+        data.qfrc_applied.reshape(-1, 6)[:, 2] = settings.spec.mass * 9.81
+        worlds.append((model, data))
+    def run():
+        for _ in range(steps * settings.substeps):
+            for model, data in worlds:
+                mujoco.mj_step(model, data)
+
+    return _best(run, repeats, steps * count)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--config", nargs="+", default=["config.yaml"])
+    ap.add_argument("--steps", type=int, default=200, help="sim steps timed per repeat")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--compare-forces", action="store_true", help="also time xfrc and site actuators")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    cfg = load_config(args.config)
+    m = cfg["sim"].get("mujoco") or {}
+    print(f"MuJoCo {mujoco.__version__}, dt = {cfg['sim']['dt']} s, substeps = {m.get('substeps')}, "
+          f"force_application = {m.get('force_application')}, drones_per_world = {m.get('drones_per_world')}")
+    if args.compare_forces:
+        for count in (16, 64, 256, 1024):
+            row = []
+            for mode in ("qfrc", "xfrc", "site"):
+                if mode == "site" and count > 1024:
+                    continue
+                cpu, _ = time_backend(cfg, count, max(20, args.steps // 4), args.repeats,
+                                      {"force_application": mode, "drones_per_world": count})
+                row.append(f"{mode} {cpu:.3f}")
+            print(f"forces N={count:5d} (one world): " + ", ".join(row) + "  us/drone-step (CPU)", flush=True)
+    result = {}
+    for count in COUNTS:
+        cpu, wall = time_backend(cfg, count, args.steps, args.repeats)
+        bare_cpu, bare_wall = time_bare_mujoco(cfg, count, args.steps, args.repeats)
+        result[count] = cpu
+        print(f"N={count:5d}: backend {cpu:.3f} us/drone-step CPU ({wall:.3f} wall); "
+              f"MuJoCo alone {bare_cpu:.3f} CPU ({bare_wall:.3f} wall)", flush=True)
+    print(f"us_per_drone_step_at_5120: {result[5120]:.3f}")
+
+
+if __name__ == "__main__":
+    main()

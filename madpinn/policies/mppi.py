@@ -1,0 +1,209 @@
+"""MPPI baseline (SPEC §8): decentralized sampling-based MPC with a soft collision penalty.
+
+Every agent of every scenario solves its own decentralized SC-OCP at each policy step, all in one
+tensor program over ``B = S·N`` agents × ``K`` samples (the only Python loop is over the ``H``
+horizon knots):
+
+1. Observation: the same ego-centric observation as MAD-PINN (``madpinn.observation``), with the
+   ``n`` nearest agents within the sensing radius as neighbours (absent ones are masked out).
+2. Plan: piecewise-constant accelerations on an absolute time grid of ``plan_dt`` s (knots at
+   ``t_k = k·plan_dt``). A query at time t inside ``[t_k, t_{k+1})`` rolls out a first segment of
+   ``t_{k+1} − t`` s and ``H − 1`` full segments; when t passes a knot the plan shifts by one knot
+   (warm start) and the new last knot is zero. Replanning more often than ``plan_dt`` therefore
+   refines the current knot instead of blurring the plan.
+3. Samples: ``clip(U + ε)`` with ``ε ~ N(0, σ²)`` per knot and axis; sample 0 is the unperturbed
+   plan. Rollouts use the exact double-integrator step; neighbours move at constant velocity.
+4. Cost of a sample (m·s and m): ``∫ ‖p − g‖ dt + w_T·‖p(t_H) − g‖ + λ·∫ Σ_j max(0, r + margin − d_j) dt``
+   where ``d_j`` is the smallest ego–neighbour distance on each segment (relative motion linearised
+   within the segment, so fast crossings between knots are not missed). The neighbours' own goal
+   terms of ``l_d`` do not depend on the ego's controls and are dropped.
+5. Update: ``U ← Σ_k w_k·clip(U + ε_k)`` with ``w = softmax(−(J − min J)/temperature)`` — a convex
+   combination of in-box sequences, so the plan stays in the control box. The first knot is applied.
+6. Optional dual ascent on a per-agent λ: ``λ ← clip(λ + η·E_w[violation], λ₀, λ_max)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.observation import ObservationSpec, build_observation, nearest_neighbours, split_observation
+from madpinn.policies.base import PolicyContext, register_policy
+
+_KNOT_EPS = 1e-9  # s; guards floor(t / plan_dt) against round-off at knot times
+
+
+@dataclass(frozen=True)
+class MPPIParams:
+    """MPPI hyperparameters (``methods.mppi`` in config.yaml).
+
+    samples: K sampled acceleration sequences per agent; horizon: H knots of ``plan_dt`` s;
+    noise_sigma: σ of the sampling noise (m/s², per axis); temperature: of the importance weights
+    (units of cost, m·s); penalty_weight: λ (1/s — penalty integral per m of violation);
+    margin: added to r in the penalty (m); terminal_weight: w_T; dual_lr: η of the dual ascent
+    (0 = fixed λ); penalty_max: upper bound of λ under dual ascent.
+    """
+
+    samples: int
+    horizon: int
+    plan_dt: float
+    noise_sigma: float
+    temperature: float
+    penalty_weight: float
+    margin: float
+    terminal_weight: float = 1.0
+    dual_lr: float = 0.0
+    penalty_max: float = 1.0e4
+
+    def __post_init__(self):
+        if self.samples < 1 or self.horizon < 1:
+            raise ValueError(f"MPPI needs samples ≥ 1 and horizon ≥ 1, got {self.samples}, {self.horizon}")
+        for name in ("plan_dt", "noise_sigma", "temperature"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"MPPI {name} must be > 0, got {getattr(self, name)}")
+        if self.penalty_weight < 0 or self.margin < 0 or self.dual_lr < 0:
+            raise ValueError("MPPI penalty_weight, margin and dual_lr must be ≥ 0")
+
+    @classmethod
+    def from_config(cls, mcfg: dict) -> "MPPIParams":
+        dual = mcfg.get("dual_ascent", {}) or {}
+        return cls(
+            samples=int(mcfg["samples"]),
+            horizon=int(mcfg["horizon"]),
+            plan_dt=float(mcfg["plan_dt"]),
+            noise_sigma=float(mcfg["noise_sigma"]),
+            temperature=float(mcfg["temperature"]),
+            penalty_weight=float(mcfg["penalty_weight"]),
+            margin=float(mcfg["margin"]),
+            terminal_weight=float(mcfg.get("terminal_weight", 1.0)),
+            dual_lr=float(dual.get("lr", 0.0)),
+            penalty_max=float(dual.get("max", 1.0e4)),
+        )
+
+
+def segment_distance(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Distance from the origin to the segments ``a → b`` (``[..., 2]`` each) -> ``[...]`` (m)."""
+    d = b - a
+    s = (-(a * d).sum(-1) / (d * d).sum(-1).clamp_min(1e-12)).clamp(0.0, 1.0)
+    return torch.linalg.vector_norm(a + s.unsqueeze(-1) * d, dim=-1)
+
+
+class MPPIPlanner:
+    """Batched MPPI over independent ego-centric problems (``B`` agents).
+
+    Holds the plan ``U`` ``[B, H, 2]`` (m/s²), its knot index, and the per-agent λ ``[B]``.
+    """
+
+    def __init__(self, params: MPPIParams, dynamics: DoubleIntegrator, collision_radius: float,
+                 generator: torch.Generator):
+        self.p = params
+        self.dynamics = dynamics
+        self.r = float(collision_radius)
+        self.gen = generator
+        self.U: torch.Tensor | None = None
+        self.penalty: torch.Tensor | None = None
+        self.knot = 0
+
+    def reset(self, batch: int, device, dtype) -> None:
+        self.U = torch.zeros(batch, self.p.horizon, 2, device=device, dtype=dtype)
+        self.penalty = torch.full((batch,), self.p.penalty_weight, device=device, dtype=dtype)
+        self.knot = 0
+
+    def _advance_to(self, t: float) -> float:
+        """Shift the plan to the knot containing t; return the first segment's duration (s)."""
+        knot = int((t + _KNOT_EPS) // self.p.plan_dt)
+        shift = knot - self.knot
+        if shift < 0:
+            raise ValueError(f"MPPI queried at t={t} s before its current knot {self.knot} (call reset)")
+        if shift:
+            kept = self.U[:, shift:]
+            self.U = torch.cat([kept, self.U.new_zeros(self.U.shape[0], self.p.horizon - kept.shape[1], 2)], dim=1)
+            self.knot = knot
+        return max((knot + 1) * self.p.plan_dt - t, _KNOT_EPS)
+
+    def plan(self, ego_vel: torch.Tensor, goal: torch.Tensor, nbr_pos: torch.Tensor, nbr_vel: torch.Tensor,
+             nbr_mask: torch.Tensor, t: float) -> torch.Tensor:
+        """One MPPI update at time t (s) for all agents; returns the control to apply ``[B, 2]``.
+
+        ego_vel ``[B, 2]`` (m/s), goal ``[B, 2]`` (m, relative to the ego), nbr_pos ``[B, n, 2]``
+        (m, relative), nbr_vel ``[B, n, 2]`` (m/s), nbr_mask ``[B, n]`` (True = real neighbour).
+        """
+        p = self.p
+        first_dt = self._advance_to(t)
+        B, H, K = ego_vel.shape[0], p.horizon, p.samples
+        U = self.U
+        noise = torch.randn(B, K, H, 2, generator=self.gen, device=U.device, dtype=U.dtype) * p.noise_sigma
+        noise[:, 0] = 0.0
+        V = self.dynamics.clip_control(U.unsqueeze(1) + noise)  # [B, K, H, 2]
+
+        state = torch.cat([torch.zeros_like(ego_vel), ego_vel], dim=-1).unsqueeze(1).expand(B, K, 4)
+        goal = goal.unsqueeze(1)  # [B, 1, 2]
+        nbr_pos, nbr_vel = nbr_pos.unsqueeze(1), nbr_vel.unsqueeze(1)  # [B, 1, n, 2]
+        mask = nbr_mask.unsqueeze(1).to(U.dtype)  # [B, 1, n]
+        reach = self.r + p.margin
+        rel_prev = -nbr_pos.expand(B, K, -1, -1)
+        cost = torch.zeros(B, K, device=U.device, dtype=U.dtype)
+        violation = torch.zeros_like(cost)
+        elapsed = 0.0
+        for h in range(H):
+            dt = first_dt if h == 0 else p.plan_dt
+            elapsed += dt
+            state = self.dynamics.step(state, V[:, :, h], dt)
+            pos = state[..., 0:2]
+            cost = cost + dt * torch.linalg.vector_norm(pos - goal, dim=-1)
+            rel = pos.unsqueeze(2) - (nbr_pos + elapsed * nbr_vel)  # [B, K, n, 2]
+            depth = (reach - segment_distance(rel_prev, rel)).clamp_min(0.0) * mask
+            violation = violation + dt * depth.sum(-1)
+            rel_prev = rel
+        cost = cost + p.terminal_weight * torch.linalg.vector_norm(state[..., 0:2] - goal, dim=-1)
+        total = cost + self.penalty.unsqueeze(1) * violation
+        weights = torch.softmax(-(total - total.amin(dim=1, keepdim=True)) / p.temperature, dim=1)
+        self.U = torch.einsum("bk,bkhd->bhd", weights, V)
+        if p.dual_lr > 0:
+            expected = (weights * violation).sum(1)
+            self.penalty = (self.penalty + p.dual_lr * expected).clamp(p.penalty_weight, p.penalty_max)
+        return self.U[:, 0]
+
+
+class MPPIPolicy:
+    """Policy protocol around :class:`MPPIPlanner`: observation, neighbours, one batched plan."""
+
+    def __init__(self, planner: MPPIPlanner, spec: ObservationSpec, dynamics: DoubleIntegrator):
+        self.planner = planner
+        self.spec = spec
+        self.dynamics = dynamics
+
+    def reset(self, state: torch.Tensor, goals: torch.Tensor) -> None:
+        S, N, _ = state.shape
+        self.planner.reset(S * N, state.device, state.dtype)
+
+    def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
+        S, N, _ = state.shape
+        n = self.spec.n_neighbours
+        nbr = nearest_neighbours(state, n, radius=self.spec.sensing_radius)
+        obs = build_observation(state, goals, nbr, self.spec)
+        positions, velocities, goals_rel = split_observation(obs, n)  # [S, N, n+1, 2] each
+        u = self.planner.plan(
+            ego_vel=velocities[..., 0, :].reshape(S * N, 2),
+            goal=goals_rel[..., 0, :].reshape(S * N, 2),
+            nbr_pos=positions[..., 1:, :].reshape(S * N, n, 2),
+            nbr_vel=velocities[..., 1:, :].reshape(S * N, n, 2),
+            nbr_mask=(nbr >= 0).reshape(S * N, n),
+            t=float(t),
+        )
+        return self.dynamics.clip_control(u.reshape(S, N, 2))
+
+
+def make_generator(device, seed: int) -> torch.Generator:
+    gen = torch.Generator(device=device)
+    gen.manual_seed(int(seed))
+    return gen
+
+
+@register_policy("mppi")
+def make_mppi(ctx: PolicyContext) -> MPPIPolicy:
+    params = MPPIParams.from_config(ctx.method_cfg)
+    planner = MPPIPlanner(params, ctx.dynamics, ctx.obs_spec.collision_radius, make_generator(ctx.device, ctx.seed))
+    return MPPIPolicy(planner, ctx.obs_spec, ctx.dynamics)

@@ -1,0 +1,38 @@
+"""MuJoCo Crazyflie 2.x backend (SPEC §7, issue 5): select it with ``sim.backend: mujoco``.
+
+Modules: ``model`` (MJCF of the drone and of many-drone worlds), ``controller`` (cascaded
+position → attitude controller), ``forces`` (rotor thrusts → MuJoCo forces), ``settings``
+(``sim.mujoco`` config), ``backend`` (the :class:`MujocoBackend`), ``render`` (optional clip),
+``commands`` (CLI ``render-clip``).
+
+Importing this package selects MuJoCo's headless EGL context for offscreen rendering when
+``MUJOCO_GL`` is unset and an EGL library exists (MuJoCo reads ``MUJOCO_GL`` once, at its first
+import); rendering is optional and nothing else depends on it.
+"""
+
+import ctypes.util
+import os
+import sys
+
+if "mujoco" not in sys.modules and "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
+    os.environ["MUJOCO_GL"] = "egl"
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.simulation.backend import register_backend
+from madpinn.simulation.mujoco.backend import MujocoBackend, PhysicsDivergedError
+from madpinn.simulation.mujoco.controller import CascadedController, ControllerGains
+from madpinn.simulation.mujoco.model import CrazyflieSpec, compile_world, mixer_matrix, world_xml
+from madpinn.simulation.mujoco.settings import MujocoSettings
+
+
+@register_backend("mujoco")
+def make_mujoco_backend(cfg: dict, device, dtype) -> MujocoBackend:
+    dyn = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
+    settings = MujocoSettings.from_config(cfg["sim"].get("mujoco"))
+    return MujocoBackend(dyn, dt=cfg["sim"]["dt"], settings=settings, device=device, dtype=dtype)
+
+
+__all__ = [
+    "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerGains", "CrazyflieSpec",
+    "MujocoSettings", "compile_world", "mixer_matrix", "world_xml", "make_mujoco_backend",
+]

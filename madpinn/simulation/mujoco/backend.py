@@ -1,0 +1,176 @@
+"""MuJoCo Crazyflie backend implementing the :class:`~madpinn.simulation.backend.SimBackend` protocol.
+
+All S × N drones of a job fly in MuJoCo worlds of at most ``drones_per_world`` drones (drone
+``s·N + i`` is agent i of scenario s). Per ``sim.dt`` the backend runs ``substeps`` times:
+setpoint (p_d, v_d, a_ff) → cascaded controller → rotor thrusts → forces → ``mj_step``. The
+planar state returned is read from the simulated drones after the last substep.
+
+Setpoints: the policy acceleration ``a`` (clipped to the control box) drives a double-integrator
+reference (``madpinn.dynamics.DoubleIntegrator``, exact ZOH with velocity saturation) at the
+physics rate, so over one policy step the setpoint is the integral of ``a``; ``a`` itself is the
+feed-forward. Altitude setpoint ``altitude`` m, vertical velocity 0, yaw 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.simulation.mujoco.controller import CascadedController
+from madpinn.simulation.mujoco.forces import apply_rotor_thrusts
+from madpinn.simulation.mujoco.model import compile_world
+from madpinn.simulation.mujoco.settings import MujocoSettings
+
+
+class PhysicsDivergedError(RuntimeError):
+    """The MuJoCo state became non-finite or MuJoCo flagged an unstable acceleration."""
+
+
+class MujocoBackend:
+    """Batched Crazyflie simulation; ``dt`` (s) is the step of :meth:`step`."""
+
+    def __init__(self, dynamics: DoubleIntegrator, dt: float, settings: MujocoSettings = MujocoSettings(),
+                 device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32):
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"sim.dt must be positive, got {dt}")
+        settings.validate()
+        self.dynamics = dynamics
+        self.dt = float(dt)
+        self.settings = settings
+        self.spec = settings.spec
+        self.h = self.dt / int(settings.substeps)
+        self.controller = CascadedController(settings.gains, self.spec)
+        self.device, self.dtype = torch.device(device), dtype
+        self._shape: tuple[int, int] | None = None
+        self._worlds: list[tuple[mujoco.MjModel, mujoco.MjData, slice]] = []
+        self._setpoint_buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ protocol
+    def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
+        """Place S × N level drones at ``positions`` ``[S, N, 2]`` (m), altitude ``altitude``, with
+        planar ``velocities`` ``[S, N, 2]`` (m/s); returns the planar state ``[S, N, 4]``."""
+        if positions.dim() != 3 or positions.shape[-1] != 2 or velocities.shape != positions.shape:
+            raise ValueError(f"positions and velocities must both be [S, N, 2], got {tuple(positions.shape)} and {tuple(velocities.shape)}")
+        S, N, _ = positions.shape
+        count = S * N
+        if not 1 <= count <= self.settings.max_drones:
+            raise ValueError(f"the MuJoCo backend simulates 1..{self.settings.max_drones} drones (sim.mujoco.max_drones), got S×N = {S}×{N} = {count}")
+        p = positions.detach().to("cpu", torch.float64).reshape(count, 2).numpy()
+        v = velocities.detach().to("cpu", torch.float64).reshape(count, 2).numpy()
+        if not (np.isfinite(p).all() and np.isfinite(v).all()):
+            raise ValueError("non-finite initial positions or velocities")
+        self._shape = (S, N)
+        self._build_worlds(count)
+        self.qpos = np.zeros((count, 7))
+        self.qvel = np.zeros((count, 6))
+        self.qpos[:, 0:2] = p
+        self.qpos[:, 2] = self.settings.altitude
+        self.qpos[:, 3] = 1.0
+        self.qvel[:, 0:2] = v
+        for model, data, sl in self._worlds:
+            mujoco.mj_resetData(model, data)
+            data.qpos[:] = self.qpos[sl].reshape(-1)
+            data.qvel[:] = self.qvel[sl].reshape(-1)
+            mujoco.mj_forward(model, data)
+        self.reference = np.concatenate([p, np.clip(v, -self.dynamics.v_max, self.dynamics.v_max)], axis=1)
+        self.accel = np.zeros((count, 2))
+        self.thrusts = np.zeros((count, 4))
+        self.time = 0.0
+        return self._planar_state()
+
+    def command(self, accel: torch.Tensor, duration: float) -> None:
+        """Hold policy acceleration ``accel`` ``[S, N, 2]`` (m/s², clipped to the control box) for
+        the next ``duration`` s: the setpoint integrates it, and it is the feed-forward."""
+        if self._shape is None:
+            raise RuntimeError("reset() before command()")
+        if tuple(accel.shape) != self._shape + (2,):
+            raise ValueError(f"accel must be {self._shape + (2,)}, got {tuple(accel.shape)}")
+        if not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f"command duration must be positive, got {duration}")
+        a = accel.detach().to("cpu", torch.float64).reshape(-1, 2)
+        if not torch.isfinite(a).all():
+            raise ValueError("non-finite acceleration command (NaN/inf setpoint)")
+        self.accel = self.dynamics.clip_control(a).numpy()
+
+    def step(self) -> torch.Tensor:
+        """Advance ``dt`` s (``substeps`` physics steps); returns the planar state ``[S, N, 4]``."""
+        if self._shape is None:
+            raise RuntimeError("reset() before step()")
+        for _ in range(int(self.settings.substeps)):
+            self._substep()
+        self.time += self.dt
+        if not (np.isfinite(self.qpos).all() and np.isfinite(self.qvel).all()):
+            raise PhysicsDivergedError(f"MuJoCo state became non-finite at t = {self.time:.4f} s")
+        for _, data, _ in self._worlds:
+            if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+                raise PhysicsDivergedError(f"MuJoCo reported an unstable acceleration at t = {self.time:.4f} s (lower sim.dt or raise sim.mujoco.substeps)")
+        return self._planar_state()
+
+    def hold(self, positions: torch.Tensor) -> None:
+        """Position-hold setpoint: hover at planar ``positions`` ``[S, N, 2]`` (m) until the next
+        :meth:`command` (a setpoint step when far from the current position)."""
+        if self._shape is None:
+            raise RuntimeError("reset() before hold()")
+        if tuple(positions.shape) != self._shape + (2,):
+            raise ValueError(f"positions must be {self._shape + (2,)}, got {tuple(positions.shape)}")
+        p = positions.detach().to("cpu", torch.float64).reshape(-1, 2).numpy()
+        if not np.isfinite(p).all():
+            raise ValueError("non-finite position setpoint")
+        self.reference = np.concatenate([p, np.zeros_like(p)], axis=1)
+        self.accel = np.zeros_like(p)
+
+    # ------------------------------------------------------------------ internals
+    def _build_worlds(self, count: int) -> None:
+        per_world = int(self.settings.drones_per_world)
+        actuated = self.settings.force_application == "site"
+        self._worlds = []
+        for start in range(0, count, per_world):
+            stop = min(count, start + per_world)
+            model = compile_world(stop - start, self.h, self.spec, actuated)
+            self._worlds.append((model, mujoco.MjData(model), slice(start, stop)))
+
+    def _setpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(p_d, v_d, a_ff) ``[M, 3]`` from the planar reference; altitude hold, no vertical motion."""
+        if self._setpoint_buffers is None or self._setpoint_buffers[0].shape[0] != self.reference.shape[0]:
+            p_d, v_d, a_ff = (np.zeros((self.reference.shape[0], 3)) for _ in range(3))
+            p_d[:, 2] = self.settings.altitude
+            self._setpoint_buffers = (p_d, v_d, a_ff)
+        p_d, v_d, a_ff = self._setpoint_buffers
+        p_d[:, 0:2] = self.reference[:, 0:2]
+        v_d[:, 0:2] = self.reference[:, 2:4]
+        a_ff[:, 0:2] = self.accel
+        return p_d, v_d, a_ff
+
+    def _substep(self) -> None:
+        quat = self.qpos[:, 3:7]
+        self.thrusts = self.controller(self.qpos[:, 0:3], self.qvel[:, 0:3], quat, self.qvel[:, 3:6], *self._setpoints())
+        mixer, mode = self.controller.mixer, self.settings.force_application
+        for model, data, sl in self._worlds:
+            apply_rotor_thrusts(mode, data, self.thrusts[sl], quat[sl], mixer)
+            mujoco.mj_step(model, data)
+            self.qpos[sl] = data.qpos.reshape(-1, 7)
+            self.qvel[sl] = data.qvel.reshape(-1, 6)
+        ref = self.dynamics.step(torch.from_numpy(self.reference), torch.from_numpy(self.accel), self.h)
+        self.reference = ref.numpy()
+
+    def _planar_state(self) -> torch.Tensor:
+        S, N = self._shape
+        planar = np.concatenate([self.qpos[:, 0:2], self.qvel[:, 0:2]], axis=1).reshape(S, N, 4)
+        return torch.from_numpy(planar).to(device=self.device, dtype=self.dtype)
+
+    # ------------------------------------------------------------------ inspection
+    @property
+    def rotor_thrusts(self) -> np.ndarray:
+        """Rotor thrusts ``[S, N, 4]`` (N) applied during the last physics step."""
+        S, N = self._shape
+        return self.thrusts.reshape(S, N, 4)
+
+    @property
+    def poses(self) -> np.ndarray:
+        """Full free-joint state ``[S, N, 7]``: position (m) and quaternion (w, x, y, z)."""
+        S, N = self._shape
+        return self.qpos.reshape(S, N, 7).copy()

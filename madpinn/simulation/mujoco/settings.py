@@ -1,0 +1,65 @@
+"""``sim.mujoco`` configuration: defaults here equal ``config.yaml`` (a test keeps them equal)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+from madpinn.simulation.mujoco.controller import ControllerGains
+from madpinn.simulation.mujoco.forces import FORCE_MODES
+from madpinn.simulation.mujoco.model import MAX_DRONES_PER_WORLD, CrazyflieSpec
+
+
+@dataclass(frozen=True)
+class MujocoSettings:
+    """substeps: physics (and controller) steps per ``sim.dt``; force_application: see
+    :mod:`~madpinn.simulation.mujoco.forces`; drones_per_world: largest world compiled (bigger
+    batches use several worlds); altitude (m) of the setpoint; thrust_to_weight sets the rotor
+    limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend;
+    render_clips: the workflow renders one GIF per (study, run) where offscreen GL exists."""
+
+    substeps: int = 2
+    force_application: str = "qfrc"
+    drones_per_world: int = 1024
+    altitude: float = 1.0
+    thrust_to_weight: float = 2.25
+    max_drones: int = 65536
+    render_clips: bool = False
+    gains: ControllerGains = field(default_factory=ControllerGains)
+
+    @property
+    def spec(self) -> CrazyflieSpec:
+        return CrazyflieSpec(thrust_to_weight=self.thrust_to_weight)
+
+    def validate(self) -> None:
+        if int(self.substeps) < 1:
+            raise ValueError(f"sim.mujoco.substeps must be ≥ 1, got {self.substeps}")
+        if self.force_application not in FORCE_MODES:
+            raise ValueError(f"sim.mujoco.force_application must be one of {FORCE_MODES}, got '{self.force_application}'")
+        if not 1 <= int(self.drones_per_world) <= MAX_DRONES_PER_WORLD:
+            raise ValueError(f"sim.mujoco.drones_per_world must be in 1..{MAX_DRONES_PER_WORLD}, got {self.drones_per_world}")
+        if not (math.isfinite(self.altitude) and self.altitude > 0):
+            raise ValueError(f"sim.mujoco.altitude must be positive, got {self.altitude}")
+        if int(self.max_drones) < 1:
+            raise ValueError(f"sim.mujoco.max_drones must be ≥ 1, got {self.max_drones}")
+        self.spec.validate()
+        self.gains.validate()
+
+    @classmethod
+    def from_config(cls, section: dict | None) -> "MujocoSettings":
+        """Build from the ``sim.mujoco`` mapping (missing keys take the defaults)."""
+        section = dict(section or {})
+        known = {f.name for f in fields(cls)}
+        unknown = set(section) - known
+        if unknown:
+            raise ValueError(f"unknown sim.mujoco keys {sorted(unknown)} (known: {sorted(known)})")
+        gains = dict(section.pop("gains", None) or {})
+        gain_names = {f.name for f in fields(ControllerGains)}
+        if set(gains) - gain_names:
+            raise ValueError(f"unknown sim.mujoco.gains keys {sorted(set(gains) - gain_names)} (known: {sorted(gain_names)})")
+        settings = cls(**section, gains=ControllerGains(**{k: float(v) for k, v in gains.items()}))
+        settings.validate()
+        return settings
+
+    def as_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,24 @@
+# MuJoCo backend extras (issue 5). With sim.backend: mujoco and sim.mujoco.render_clips: true,
+# one GIF per (study, run) — the smallest N, first seed — rendered offscreen from the evaluation
+# job's trajectory and logged to MLflow; without a GL context the job records why and succeeds.
+_MUJOCO = config["sim"].get("mujoco") or {}
+
+if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
+
+    rule render_clip:
+        input:
+            tracking=TRACKING,
+            traj=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}_traj.npz",
+        output:
+            f"{RESULTS}/clips/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.json",
+        log:
+            f"{LOGS}/render_clip/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.log",
+        shell:
+            "{PY} -m madpinn render-clip --config {RESOLVED} --traj {input.traj} --out {output}"
+            " --key {wildcards.backend}/{wildcards.study}/{wildcards.run}/n{wildcards.n}_seed{wildcards.seed} 2>&1 | tee {log}"
+
+    EXTRA_TARGETS += [
+        f"{RESULTS}/clips/{BACKEND}/{study}/{run}/n{min(st['agent_counts'])}_seed{st['seeds'][0]}.json"
+        for study, st in config["studies"].items()
+        for run in st["runs"]
+    ]
