@@ -10,13 +10,16 @@ position, so the observation is translation invariant; units m and m/s)::
 
 Deployment maps a global state into this layout with :func:`build_observation`: goal offsets
 beyond the trained range are shortened along their direction (a carrot), neighbour offsets are
-shrunk along their direction into the trained range, and missing neighbours are padded with a
-motionless phantom at its goal at offset ``(offset_range, offset_range)`` — outside the
-sensing radius of any real neighbour, so it never conflicts with one.
+shrunk along their direction into the trained range, and missing neighbours are padded with
+motionless phantoms sitting at their goals on the boundary of the trained box: phantom slot k
+at bearing π/4 + 2πk/n (slot 0 at the corner ``(offset_range, offset_range)``, slot 1 of two
+at the opposite corner). Phantoms are therefore ≥ offset_range·√2 − sensing_radius away from
+any radius-limited real neighbour and pairwise apart, so they add neither cost nor constraint.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -70,6 +73,14 @@ def shrink_to_box(vec: torch.Tensor, bound: float) -> torch.Tensor:
     return vec * scale
 
 
+def phantom_offsets(n_neighbours: int, offset_range: float) -> torch.Tensor:
+    """Phantom position (= goal) offsets ``[n, 2]`` on the trained box boundary, one per slot."""
+    k = torch.arange(n_neighbours, dtype=torch.float64)
+    angle = math.pi / 4 + 2 * math.pi * k / max(n_neighbours, 1)
+    ray = torch.stack([torch.cos(angle), torch.sin(angle)], dim=-1) * 10.0 * offset_range
+    return shrink_to_box(ray, offset_range)
+
+
 def _gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
     """x ``[S, N, F]``, idx ``[S, N, n]`` (values in 0..N-1) -> ``[S, N, n, F]``."""
     S, N, F = x.shape
@@ -97,10 +108,10 @@ def build_observation(
     g_j = _gather_agents(goals, idx) - p.unsqueeze(2)
     p_j = shrink_to_box(p_j, spec.offset_range)
     g_j = shrink_to_box(g_j, spec.goal_range)
-    corner = torch.full_like(p_j, spec.offset_range)
+    slot = phantom_offsets(spec.n_neighbours, spec.offset_range).to(p_j)
     mask = phantom.unsqueeze(-1)
-    p_j = torch.where(mask, corner, p_j)
-    g_j = torch.where(mask, corner, g_j)
+    p_j = torch.where(mask, slot, p_j)
+    g_j = torch.where(mask, slot, g_j)
     v_j = torch.where(mask, torch.zeros_like(v_j), v_j)
     ego_goal = shrink_to_box(goals - p, spec.goal_range)
     nbr = torch.cat([p_j, v_j, g_j], dim=-1).flatten(-2)

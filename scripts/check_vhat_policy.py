@@ -57,7 +57,10 @@ def main() -> None:
     far = [[-3.0, 3.0], [3.0, -3.0]]
     cases = {
         "single_agent": (torch.tensor([[[-0.6, -0.4], *far]]), torch.tensor([[[0.7, 0.5], *far]])),
-        "head_on_pair": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02], far[0]]]), torch.tensor([[[0.6, 0.0], [-0.6, 0.02], far[0]]])),
+        # each of the pair has its own nearest bystander, placed point-symmetrically
+        "head_on_pair": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02], *far]]), torch.tensor([[[0.6, 0.0], [-0.6, 0.02], *far]])),
+        "head_on_pair_one_bystander": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02], far[0]]]),
+                                       torch.tensor([[[0.6, 0.0], [-0.6, 0.02], far[0]]])),
         "three_agents": (torch.tensor([[[-0.6, 0.0], [0.6, 0.02], [0.0, -0.6]]]),
                          torch.tensor([[[0.6, 0.0], [-0.6, 0.02], [0.0, 0.6]]])),
     }

@@ -18,7 +18,6 @@ from madpinn.policies.madpinn import (
     MadPinnSettings,
     bisection_steps,
     cold_budget_search,
-    separate_phantoms,
     warm_budget_search,
 )
 from madpinn.policies.neighbours import make_selector
@@ -101,7 +100,7 @@ def test_control_is_bang_bang_from_ego_gradient_at_z_star_with_fallback():
     state[0, 1, 0:2] = state[0, 0, 0:2]  # a collision: V̂(0, o, z_max) > 0 for agent 0 -> z_max fallback
     pol.reset(state, goals)
     u = pol.act(state, goals, 0.0)
-    obs = separate_phantoms(build_observation(state, goals, pol.neighbours, SPEC), pol.neighbours, SPEC).reshape(18, -1)
+    obs = build_observation(state, goals, pol.neighbours, SPEC).reshape(18, -1)
     z, feasible = cold_budget_search(pol.vhat, obs, 10)
     assert not feasible[0] and z[0] == pol.vhat.z_max and pol.stats["infeasible"] >= 1
     _, grad, _ = pol.vhat.value_and_grad(obs, z, 0.0)
@@ -121,21 +120,13 @@ def test_neighbour_update_schedule(k, period, expected):
     assert pol.stats["neighbour_updates"] == expected and pol.stats["policy_steps"] == calls
 
 
-def test_phantoms_of_an_isolated_agent_do_not_collide():
+def test_isolated_agent_with_two_phantoms_is_not_declared_unsafe():
     state = torch.zeros(1, 2, 4)
     state[0, 1, 0] = 5.0  # beyond the sensing radius
     goals = torch.zeros(1, 2, 2)
     nbrs = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(0))(state)
     assert (nbrs == -1).all()
-    raw = build_observation(state, goals, nbrs, SPEC)
-    assert (constraint(raw, 2, 0.1) > 0).all()  # the shared padding: both phantoms at one corner
-    obs = separate_phantoms(raw, nbrs, SPEC)
-    assert (constraint(obs, 2, 0.1) < 0).all()
-    assert torch.equal(obs[..., :10], raw[..., :10])  # ego and slot 0 untouched
-    assert obs[0, 0, 10:12].tolist() == [2.0, -2.0] and obs[0, 0, 14:16].tolist() == [2.0, -2.0]
-    one = torch.tensor([[[1, -1], [0, -1]]])  # one real neighbour: the phantom moves, the real one does not
-    mixed = separate_phantoms(build_observation(state, goals, one, SPEC), one, SPEC)
-    assert mixed[0, 0, 4:6].tolist() == [2.0, 0.0] and mixed[0, 0, 10:12].tolist() == [2.0, -2.0]
+    assert (constraint(build_observation(state, goals, nbrs, SPEC), 2, 0.1) < 0).all()
 
 
 def test_k_infinity_keeps_initial_neighbours():

@@ -56,7 +56,9 @@ def test_single_agent_reaches_goal(cfg):
 def test_head_on_penalty_bends_paths(cfg):
     starts, goals = [[[-0.6, 0.0], [0.6, 0.0]]], [[[0.6, 0.0], [-0.6, 0.0]]]
     r = cfg["agents"]["collision_radius"]
-    seps = [episode(cfg, starts, goals, seconds=1.5, penalty_weight=lam).min_separation.min() for lam in (0.0, 10.0, 1000.0)]
+    fixed = {"lr": 0.0, "max": 1.0e4}  # fixed λ: isolate the penalty weight
+    seps = [episode(cfg, starts, goals, seconds=1.5, penalty_weight=lam, dual_ascent=fixed).min_separation.min()
+            for lam in (0.0, 10.0, 1000.0)]
     margin = cfg["methods"]["mppi"]["margin"]
     assert seps[0] < r + margin  # without the penalty nothing keeps them apart
     assert seps[0] < seps[1] < seps[2]
@@ -77,6 +79,20 @@ def test_controls_always_in_box(cfg):
         assert u.abs().max() <= 4.0
         assert policy.planner.U.abs().max() <= 4.0 + 1e-6
         state = DoubleIntegrator().step(state, u, SIM_DT)
+
+
+def test_dual_ascent_raises_lambda_only_in_conflict(cfg):
+    # scenario 0: two agents head-on; scenario 1: the same two agents far apart on parallel lanes
+    starts = torch.tensor([[[-0.5, 0.0], [0.5, 0.0]], [[-0.5, -0.9], [-0.5, 0.9]]])
+    goals = torch.tensor([[[0.5, 0.0], [-0.5, 0.0]], [[0.5, -0.9], [0.5, 0.9]]])
+    policy = make(cfg, period=1, penalty_weight=10.0, dual_ascent={"lr": 1.0e6, "max": 500.0})
+    state = torch.cat([starts, torch.zeros_like(starts)], dim=-1)
+    policy.reset(state, goals)
+    for k in range(80):
+        state = DoubleIntegrator().step(state, policy.act(state, goals, k * SIM_DT), SIM_DT)
+    lam = policy.planner.penalty.reshape(2, 2)
+    assert torch.all(lam[0] > 10.0) and torch.all(lam[0] <= 500.0)
+    assert torch.all(lam[1] == 10.0)
 
 
 def _actions(cfg, seed, steps=30):
@@ -114,9 +130,11 @@ def test_warm_start_shifts_plan_by_knots(cfg):
 
 
 def test_segment_distance_catches_crossings_between_knots():
+    # first: crossing the origin between the knots; second: closest at the start point
     a = torch.tensor([[-1.0, 0.05], [0.3, 0.4]])
     b = torch.tensor([[1.0, 0.05], [0.6, 0.8]])
-    torch.testing.assert_close(segment_distance(a, b), torch.tensor([0.05, 0.5]))
+    d = segment_distance(a[:, 0], a[:, 1], b[:, 0], b[:, 1])
+    torch.testing.assert_close(d, torch.tensor([0.05, 0.5]))
 
 
 def test_bad_parameters_fail_early(cfg):

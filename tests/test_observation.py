@@ -51,7 +51,7 @@ def test_phantom_padding_when_too_few_neighbours():
     assert nbrs[0, 0].tolist() == [1, -1]
     obs = build_observation(state, goals, nbrs, SPEC)
     phantom = obs[0, 0, 10:16]
-    assert phantom.tolist() == [2.0, 2.0, 0.0, 0.0, 2.0, 2.0]
+    assert torch.allclose(phantom, torch.tensor([-2.0, -2.0, 0.0, 0.0, -2.0, -2.0]))  # slot 1: opposite corner
     # the phantom sits at its goal (no cost) and far from everyone (no constraint)
     assert running_cost(obs[0, 0], 2).item() == pytest.approx(0.5)  # ego at goal, neighbour 0.5 m off
     assert constraint(obs[0, 0], 2, 0.1).item() == pytest.approx(0.1 - 0.5)
@@ -114,3 +114,14 @@ def test_pairwise_distances_are_exact_at_arena_scale():
     ref = torch.linalg.vector_norm(p.double()[:, :, None] - p.double()[:, None], dim=-1)
     ref.diagonal(dim1=1, dim2=2).fill_(float("inf"))
     assert torch.allclose(d.double(), ref, atol=1e-5, rtol=0)
+
+
+def test_phantoms_never_conflict_with_each_other():
+    """An agent with no neighbour in range gets two phantoms that are far apart, so g_d < 0."""
+    state = torch.zeros(1, 3, 4)
+    state[0, 1, 0], state[0, 2, 0] = 3.0, -3.0
+    nbrs = nearest_neighbours(state, 2, radius=1.0)
+    assert nbrs[0, 0].tolist() == [-1, -1]
+    obs = build_observation(state, torch.zeros(1, 3, 2), nbrs, SPEC)
+    assert constraint(obs[0, 0], 2, 0.1).item() < -1.0
+    assert running_cost(obs[0, 0], 2).item() == pytest.approx(0.0)

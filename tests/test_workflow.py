@@ -1,7 +1,7 @@
 """The whole smoke DAG through real snakemake into a real MLflow store."""
 
-import json
 import re
+import shutil
 from collections import Counter
 from pathlib import Path
 
@@ -27,15 +27,11 @@ def smoke_run(tmp_path_factory):
     return workdir
 
 
-def _evaluation_cells(configfiles) -> int:
-    """Evaluation jobs the config fans out to: runs × agent counts × seeds, summed over studies."""
-    from madpinn.config import load_config
-
-    cfg = load_config([REPO / "config.yaml", *configfiles])
+def _expected_evaluations(cfg) -> int:
     return sum(len(st["runs"]) * len(st["agent_counts"]) * len(st["seeds"]) for st in cfg["studies"].values())
 
 
-def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
+def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
     figs = smoke_run / "results" / "smoke" / "paper_figures"
     for name in ("table_safety_scaling", "table_ours_scaling"):
         for ext in ("csv", "md", "tex"):
@@ -48,23 +44,32 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run):
     assert (table["n_seeds"] == 2).all()
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
-    assert len(evals) == _evaluation_cells([SMOKE]) and set(counts.values()) == {1}
+    assert len(evals) == _expected_evaluations(smoke_cfg) and set(counts.values()) == {1}
     assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
 
 
 def test_rerun_replaces_runs_without_duplicates(smoke_run):
     before = _job_counts(smoke_run)
-    run_snakemake(smoke_run, "-j2", "all", "--forceall")
+    run_snakemake(smoke_run, "-j2", "all", "--forcerun", "evaluate")
     after = _job_counts(smoke_run)
     assert after == before and set(after.values()) == {1}
 
 
 def test_results_are_deterministic_across_reruns(smoke_run, tmp_path):
-    """A fresh run with 4 parallel writers into a new store gives identical numbers."""
-    run_snakemake(tmp_path, "-j4", "all")
-    for f in sorted((smoke_run / "results" / "smoke" / "eval").rglob("*.parquet")):
-        other = tmp_path / f.relative_to(smoke_run)
-        pd.testing.assert_frame_equal(pd.read_parquet(f), pd.read_parquet(other))
+    """A fresh run with 4 parallel writers into a new store gives identical numbers.
+
+    The trained models are copied over (training is covered by the first run) so that this run
+    is all evaluation jobs writing to MLflow concurrently.
+    """
+    models = smoke_run / "results" / "smoke" / "models"
+    if models.is_dir():
+        shutil.copytree(models, tmp_path / "results" / "smoke" / "models")
+    run_snakemake(tmp_path, "-j4", "table_safety_scaling", "table_ours_scaling")
+    fresh = sorted((tmp_path / "results" / "smoke" / "eval").rglob("*.parquet"))
+    studies = {f.relative_to(tmp_path / "results" / "smoke" / "eval").parts[1] for f in fresh}
+    assert {"main", "scaling"} <= studies
+    for f in fresh:
+        pd.testing.assert_frame_equal(pd.read_parquet(f), pd.read_parquet(smoke_run / f.relative_to(tmp_path)))
     assert set(_job_counts(tmp_path).values()) == {1}
 
 
@@ -76,11 +81,15 @@ def test_single_table_target_rebuilds_alone(smoke_run):
     assert "rule evaluate" not in proc.stdout + proc.stderr
 
 
-def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path):
+def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path, paper_cfg):
     proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=())
     out = proc.stdout + proc.stderr
     m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
-    assert m and int(m.group(1)) == _evaluation_cells([])
+    assert m and int(m.group(1)) == _expected_evaluations(paper_cfg)
+    counts = paper_cfg["studies"]["main"]["agent_counts"] + paper_cfg["studies"]["scaling"]["agent_counts"]
+    assert counts == [3, 8, 12, 16, 64, 128, 256]
+    for n in counts:
+        assert f"n{n}_seed0.parquet" in out
     assert not (tmp_path / "mlflow").exists()
 
 

@@ -5,8 +5,8 @@ For all agents of all scenarios at once, at every policy step (simulation step `
 1. neighbours: re-selected when ``k_sim`` reaches the next multiple of ``update_every`` (k) — with
    a policy period of p simulation steps, the first policy step at or after each multiple of k;
    ``k = ∞`` keeps the neighbours chosen at t = 0 for the whole episode;
-2. observation ``o`` ``[S·N, D]`` via :func:`madpinn.observation.build_observation`, with the
-   phantoms of different slots at distinct corners (:func:`separate_phantoms`);
+2. observation ``o`` ``[S·N, D]`` via :func:`madpinn.observation.build_observation` (phantom
+   slots at distinct points of the trained box, so two phantoms never "collide");
 3. ``z* = min{z ∈ [0, z_max] : V̂(0, o, z) ≤ 0}`` by batched bisection
    (:func:`madpinn.value_functions.min_feasible_z`, tolerance ``z_tolerance·z_max``, i.e.
    ``⌈log2(1/z_tolerance)⌉`` halvings); where ``V̂(0, o, z_max) > 0`` (unsafe) ``z* = z_max``;
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import torch
 
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, ObservationSpec, build_observation
+from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.neighbours import STRATEGIES, make_selector
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
@@ -109,31 +109,6 @@ def warm_budget_search(vhat, obs: torch.Tensor, z_prev: torch.Tensor, steps: int
     return z, feasible, hit | unsafe
 
 
-PHANTOM_CORNERS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
-
-
-def separate_phantoms(obs: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSpec) -> torch.Tensor:
-    """Observation ``[..., D]`` with phantom slot j moved to corner ``j mod 4`` of the offset box.
-
-    :func:`madpinn.observation.build_observation` puts every phantom (position and goal) at
-    ``(R, R)``, ``R = offset_range``; an agent with two phantoms then sees them at distance 0, so
-    ``g_d = r > 0`` and ``V̂ > 0`` for every z (always "unsafe", z* = z_max, control from the
-    constraint branch instead of the goal). Distinct corners keep the phantoms ≥ 2R apart; slot 0
-    keeps ``(R, R)``.
-    """
-    out = obs
-    R = spec.offset_range
-    for j in range(1, spec.n_neighbours):  # over the n neighbour slots, not over agents
-        cx, cy = PHANTOM_CORNERS[j % 4]
-        base = EGO_DIM + NEIGHBOUR_DIM * j
-        mask = (neighbours[..., j] < 0).unsqueeze(-1)
-        corner = obs.new_tensor([cx * R, cy * R])
-        out = out.clone() if out is obs else out
-        for off in (0, 4):  # position offset and goal offset of the slot
-            out[..., base + off : base + off + 2] = torch.where(mask, corner, out[..., base + off : base + off + 2])
-    return out
-
-
 def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float, strategy: str) -> None:
     """Fail early when the trained models do not match the deployment configuration."""
     m = vhat.obs_spec
@@ -188,8 +163,7 @@ class MadPinnPolicy:
         x = state.to(device=self.device, dtype=self.dtype)
         g = goals.to(device=self.device, dtype=self.dtype)
         self._update_neighbours(x, int(round(t / self.sim_dt)))
-        obs = separate_phantoms(build_observation(x, g, self.neighbours, self.spec), self.neighbours, self.spec)
-        obs = obs.reshape(S * N, -1)
+        obs = build_observation(x, g, self.neighbours, self.spec).reshape(S * N, -1)
         steps = bisection_steps(self.settings.z_tolerance)
         if self.settings.warm_start and self._z_prev is not None and self._z_prev.shape[0] == obs.shape[0]:
             z, feasible, hit = warm_budget_search(self.vhat, obs, self._z_prev, steps)

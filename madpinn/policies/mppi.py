@@ -19,7 +19,8 @@ horizon knots):
    terms of ``l_d`` do not depend on the ego's controls and are dropped.
 5. Update: ``U ← Σ_k w_k·clip(U + ε_k)`` with ``w = softmax(−(J − min J)/temperature)`` — a convex
    combination of in-box sequences, so the plan stays in the control box. The first knot is applied.
-6. Optional dual ascent on a per-agent λ: ``λ ← clip(λ + η·E_w[violation], λ₀, λ_max)``.
+6. Dual ascent on a per-agent λ (configured; ``dual_ascent.lr: 0`` = fixed λ):
+   ``λ ← clip(λ + η·E_w[violation], λ₀, λ_max)``.
 """
 
 from __future__ import annotations
@@ -83,11 +84,12 @@ class MPPIParams:
         )
 
 
-def segment_distance(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Distance from the origin to the segments ``a → b`` (``[..., 2]`` each) -> ``[...]`` (m)."""
-    d = b - a
-    s = (-(a * d).sum(-1) / (d * d).sum(-1).clamp_min(1e-12)).clamp(0.0, 1.0)
-    return torch.linalg.vector_norm(a + s.unsqueeze(-1) * d, dim=-1)
+def segment_distance(ax: torch.Tensor, ay: torch.Tensor, bx: torch.Tensor, by: torch.Tensor) -> torch.Tensor:
+    """Distance (m) from the origin to the segments ``(ax, ay) → (bx, by)`` (coordinates as separate
+    broadcastable tensors: this structure-of-arrays form is ~10× faster on CPU than ``[..., 2]``)."""
+    dx, dy = bx - ax, by - ay
+    s = (-(ax * dx + ay * dy) / (dx * dx + dy * dy).clamp_min(1e-12)).clamp(0.0, 1.0)
+    return torch.hypot(ax + s * dx, ay + s * dy)
 
 
 class MPPIPlanner:
@@ -134,33 +136,37 @@ class MPPIPlanner:
         first_dt = self._advance_to(t)
         B, H, K = ego_vel.shape[0], p.horizon, p.samples
         U = self.U
-        noise = torch.randn(B, K, H, 2, generator=self.gen, device=U.device, dtype=U.dtype) * p.noise_sigma
-        noise[:, 0] = 0.0
-        V = self.dynamics.clip_control(U.unsqueeze(1) + noise)  # [B, K, H, 2]
+        # knot-major layout [H, B, K, 2]: each knot's controls are contiguous for the rollout
+        noise = torch.randn(H, B, K, 2, generator=self.gen, device=U.device, dtype=U.dtype) * p.noise_sigma
+        noise[:, :, 0] = 0.0
+        V = self.dynamics.clip_control(U.transpose(0, 1).unsqueeze(2) + noise)
 
         state = torch.cat([torch.zeros_like(ego_vel), ego_vel], dim=-1).unsqueeze(1).expand(B, K, 4)
-        goal = goal.unsqueeze(1)  # [B, 1, 2]
-        nbr_pos, nbr_vel = nbr_pos.unsqueeze(1), nbr_vel.unsqueeze(1)  # [B, 1, n, 2]
+        gx, gy = goal[:, 0:1], goal[:, 1:2]  # [B, 1]
+        # neighbours as [B, 1, n] coordinate tensors (structure of arrays)
+        nx, ny = nbr_pos[..., 0].unsqueeze(1), nbr_pos[..., 1].unsqueeze(1)
+        nvx, nvy = nbr_vel[..., 0].unsqueeze(1), nbr_vel[..., 1].unsqueeze(1)
         mask = nbr_mask.unsqueeze(1).to(U.dtype)  # [B, 1, n]
         reach = self.r + p.margin
-        rel_prev = -nbr_pos.expand(B, K, -1, -1)
+        rx_prev, ry_prev = -nx, -ny
         cost = torch.zeros(B, K, device=U.device, dtype=U.dtype)
         violation = torch.zeros_like(cost)
         elapsed = 0.0
         for h in range(H):
             dt = first_dt if h == 0 else p.plan_dt
             elapsed += dt
-            state = self.dynamics.step(state, V[:, :, h], dt)
-            pos = state[..., 0:2]
-            cost = cost + dt * torch.linalg.vector_norm(pos - goal, dim=-1)
-            rel = pos.unsqueeze(2) - (nbr_pos + elapsed * nbr_vel)  # [B, K, n, 2]
-            depth = (reach - segment_distance(rel_prev, rel)).clamp_min(0.0) * mask
-            violation = violation + dt * depth.sum(-1)
-            rel_prev = rel
-        cost = cost + p.terminal_weight * torch.linalg.vector_norm(state[..., 0:2] - goal, dim=-1)
+            state = self.dynamics.step(state, V[h], dt)
+            px, py = state[..., 0], state[..., 1]  # [B, K]
+            cost += dt * torch.hypot(px - gx, py - gy)
+            rx = px.unsqueeze(-1) - (nx + elapsed * nvx)  # [B, K, n]
+            ry = py.unsqueeze(-1) - (ny + elapsed * nvy)
+            depth = (reach - segment_distance(rx_prev, ry_prev, rx, ry)).clamp_min(0.0) * mask
+            violation += dt * depth.sum(-1)
+            rx_prev, ry_prev = rx, ry
+        cost += p.terminal_weight * torch.hypot(state[..., 0] - gx, state[..., 1] - gy)
         total = cost + self.penalty.unsqueeze(1) * violation
         weights = torch.softmax(-(total - total.amin(dim=1, keepdim=True)) / p.temperature, dim=1)
-        self.U = torch.einsum("bk,bkhd->bhd", weights, V)
+        self.U = torch.einsum("bk,hbkd->bhd", weights, V)
         if p.dual_lr > 0:
             expected = (weights * violation).sum(1)
             self.penalty = (self.penalty + p.dual_lr * expected).clamp(p.penalty_weight, p.penalty_max)

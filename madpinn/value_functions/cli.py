@@ -40,7 +40,7 @@ def _setup(cfg: dict, threads: int | None):
     return resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
 
 
-def decimate(history, points: int = 2000) -> list[float]:
+def decimate(history, points: int = 5000) -> list[float]:
     """Window means of the per-iteration loss (≤ ``points`` values) for MLflow step metrics."""
     import numpy as np
 

@@ -81,7 +81,7 @@ def vs_slices(vs, velocities, points: int = 161):
     for vel in velocities:
         x = torch.stack([xx.flatten(), yy.flatten(), torch.full_like(xx.flatten(), vel[0]),
                          torch.full_like(xx.flatten(), vel[1])], dim=-1)
-        out.append(vs.value(x.float(), 0.0).double().reshape(points, points))
+        out.append(vs.value(x.float(), 0.0).double().cpu().reshape(points, points))
     return axis, torch.stack(out)
 
 
