@@ -30,6 +30,7 @@ include: "workflow/rules/mujoco.smk"
 include: "workflow/rules/safemarl.smk"
 include: "workflow/rules/defmarl.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/tables.smk"
 
 

@@ -53,6 +53,7 @@ _REGISTRY: dict[str, PolicyFactory] = {}
 # dependencies load only when it is used.
 _MODULES = {
     "nominal": "madpinn.policies.nominal",
+    "madpinn": "madpinn.policies.madpinn",
     "mppi": "madpinn.policies.mppi",
     "safemarl": "madpinn.policies.safemarl",
     "defmarl": "madpinn.policies.defmarl",

@@ -1,0 +1,36 @@
+"""Tiny real value functions for the policy tests, trained once per test process through the
+same trainer as the workflow (smoke network and budget: a few seconds)."""
+
+from __future__ import annotations
+
+import functools
+import tempfile
+from pathlib import Path
+
+import torch
+
+from conftest import REPO, SMOKE
+from madpinn.config import load_config
+from madpinn.value_functions import load_vhat, load_vs
+from madpinn.value_functions.cli import problem_from_config, training_hash
+from madpinn.value_functions.model import model_payload, save_atomic
+from madpinn.value_functions.train import TrainSettings, train
+
+
+@functools.lru_cache(maxsize=None)
+def tiny_model_dir() -> Path:
+    """Directory with ``models/vhat.pt`` and ``models/vs.pt`` trained on the smoke budget."""
+    cfg = load_config([REPO / "config.yaml", SMOKE])
+    out = Path(tempfile.mkdtemp(prefix="madpinn-policy-test-")) / "models"
+    torch.set_num_threads(1)
+    for kind in ("vhat", "vs"):
+        problem = problem_from_config(cfg, kind)
+        settings = TrainSettings.from_config(cfg["value_functions"][kind], cfg["value_functions"]["seed"])
+        net, _ = train(problem, settings, out / f"{kind}.ckpt.pt", training_hash(cfg, kind), progress=False)
+        save_atomic(model_payload(problem, net, settings.output_scale, {"iterations": settings.iterations}), out / f"{kind}.pt")
+    return out
+
+
+def tiny_models(dtype=torch.float32):
+    d = tiny_model_dir()
+    return load_vhat(d / "vhat.pt", dtype=dtype), load_vs(d / "vs.pt", dtype=dtype)

@@ -1,0 +1,218 @@
+"""MAD-PINN policy: z* search against a dense z grid, warm start, infeasible fallback, bang-bang
+control, neighbour update schedule (k, k = ∞), decentralization, determinism, clear errors."""
+
+import json
+import shutil
+
+import pytest
+import torch
+
+from conftest import REPO, SMOKE
+from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.evaluation.job import evaluate
+from madpinn.observation import ObservationSpec, build_observation, constraint
+from madpinn.policies import PolicyContext, make_policy
+from madpinn.policies.madpinn import (
+    MadPinnPolicy,
+    MadPinnSettings,
+    bisection_steps,
+    cold_budget_search,
+    warm_budget_search,
+)
+from madpinn.policies.neighbours import make_selector
+from madpinn.simulation import make_backend, run_episode
+from madpinn.value_functions import CheckpointError
+from policy_models import tiny_model_dir, tiny_models
+
+SPEC = ObservationSpec()
+
+
+def observations(B, seed=0, overlap=False):
+    """Observations of random 3-agent groups in the small arena ``[B, D]`` (float32)."""
+    g = torch.Generator().manual_seed(seed)
+    state = torch.cat([2 * torch.rand(B, 3, 2, generator=g) - 1, 8 * torch.rand(B, 3, 2, generator=g) - 4], -1)
+    if overlap:
+        state[:, 1, 0:2] = state[:, 0, 0:2] + 0.01
+    goals = 2 * torch.rand(B, 3, 2, generator=g) - 1
+    nbrs = torch.tensor([[1, 2], [0, 2], [0, 1]]).expand(B, 3, 2)
+    return build_observation(state, goals, nbrs, SPEC)[:, 0]
+
+
+def dense_grid_values(vhat, obs, steps):
+    """V̂(0, o, z) on the bisection grid ``z_max·i/2^steps``, i = 0..2^steps ``[B, 2^steps + 1]``."""
+    zs = torch.linspace(0, vhat.z_max, 2**steps + 1)
+    B = obs.shape[0]
+    v = vhat.value(obs.repeat_interleave(zs.numel(), 0), zs.repeat(B), 0.0)
+    return zs, v.reshape(B, -1)
+
+
+def test_bisection_matches_dense_grid_and_warm_start_matches_cold():
+    vhat, _ = tiny_models()
+    steps = bisection_steps(1e-3)
+    assert steps == 10 and vhat.z_max / 2**steps <= 1e-3 * vhat.z_max
+    obs = torch.cat([observations(300, seed=1), observations(40, seed=2, overlap=True)])
+    zs, grid = dense_grid_values(vhat, obs, steps)
+    z, feasible = cold_budget_search(vhat, obs, steps)
+    assert torch.equal(feasible, grid[:, -1] <= 0)
+    assert torch.all(z[~feasible] == vhat.z_max)  # infeasible fallback
+    h = vhat.z_max / 2**steps
+    i = torch.round(z / h).long()
+    rows = feasible.nonzero().squeeze(1)
+    # the answer is a crossing of the grid: V̂ ≤ 0 at z*, > 0 one cell below (or z* is the first cell)
+    assert torch.all(grid[rows, i[rows]] <= 0)
+    assert torch.all((i[rows] == 1) | (grid[rows, i[rows] - 1] > 0))
+    # where V̂ is non-increasing in z the answer is the smallest feasible grid point (> 0)
+    mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & feasible
+    first = torch.argmax((grid[:, 1:] <= 0).int(), dim=1) + 1
+    assert mono.sum() >= 10
+    assert torch.equal(i[mono], first[mono])
+    # warm start from a perturbed previous answer: same grid point on monotone rows, a crossing elsewhere
+    z_prev = (z + (torch.rand(z.shape, generator=torch.Generator().manual_seed(0)) - 0.5) * 0.3).clamp(0, vhat.z_max)
+    zw, fw, hit = warm_budget_search(vhat, obs, z_prev, steps)
+    assert hit.float().mean() > 0.3
+    unsafe_mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & ~feasible
+    assert unsafe_mono.sum() >= 3 and not fw[unsafe_mono].any() and torch.all(zw[unsafe_mono] == vhat.z_max)
+    assert hit[unsafe_mono].all()  # previous answer near z_max: resolved by the top block, no cold search
+    iw = torch.round(zw / h).long()
+    assert torch.equal(iw[mono], i[mono]) and torch.equal(fw[mono], feasible[mono])
+    assert torch.allclose(zw[mono], z[mono], rtol=1e-6, atol=0)
+    ok = fw.nonzero().squeeze(1)
+    assert torch.all(grid[ok, iw[ok]] <= 0)
+
+
+def policy(strategy="nearest", update_every=5, dtype=torch.float32, seed=0):
+    vhat, vs = tiny_models(dtype)
+    gen = torch.Generator().manual_seed(seed)
+    sel = make_selector(strategy, 2, vs=vs, radius=1.0, generator=gen)
+    return MadPinnPolicy(vhat, sel, SPEC, MadPinnSettings(strategy=strategy, update_every=update_every), sim_dt=0.0025)
+
+
+def scenario(S=2, N=5, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    state = torch.cat([2 * torch.rand(S, N, 2, generator=g) - 1, 4 * torch.rand(S, N, 2, generator=g) - 2], -1)
+    return state, 2 * torch.rand(S, N, 2, generator=g) - 1
+
+
+def test_control_is_bang_bang_from_ego_gradient_at_z_star_with_fallback():
+    pol = policy("value")
+    state, goals = scenario(S=3, N=6)
+    state[0, 1, 0:2] = state[0, 0, 0:2]  # a collision: V̂(0, o, z_max) > 0 for agent 0 -> z_max fallback
+    pol.reset(state, goals)
+    u = pol.act(state, goals, 0.0)
+    obs = build_observation(state, goals, pol.neighbours, SPEC).reshape(18, -1)
+    z, feasible = cold_budget_search(pol.vhat, obs, 10)
+    assert not feasible[0] and z[0] == pol.vhat.z_max and pol.stats["infeasible"] >= 1
+    _, grad, _ = pol.vhat.value_and_grad(obs, z, 0.0)
+    assert torch.equal(u.reshape(18, 2), -4.0 * torch.sign(grad[:, 0:2]))
+    assert set(u.unique().tolist()) <= {-4.0, 0.0, 4.0}
+
+
+@pytest.mark.parametrize("k,period,expected", [(5, 1, 4), (5, 2, 4), (1, 1, 20), (1, 3, 7), ("inf", 1, 1), (7, 4, 3)])
+def test_neighbour_update_schedule(k, period, expected):
+    pol = policy("nearest", update_every=None if k == "inf" else k)
+    state, goals = scenario()
+    pol.reset(state, goals)
+    calls = 0
+    for step in range(0, 20, period):
+        pol.act(state, goals, step * 0.0025)
+        calls += 1
+    assert pol.stats["neighbour_updates"] == expected and pol.stats["policy_steps"] == calls
+
+
+def test_isolated_agent_with_two_phantoms_is_not_declared_unsafe():
+    state = torch.zeros(1, 2, 4)
+    state[0, 1, 0] = 5.0  # beyond the sensing radius
+    goals = torch.zeros(1, 2, 2)
+    nbrs = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(0))(state)
+    assert (nbrs == -1).all()
+    assert (constraint(build_observation(state, goals, nbrs, SPEC), 2, 0.1) < 0).all()
+
+
+def test_k_infinity_keeps_initial_neighbours():
+    pol = policy("nearest", update_every=None)
+    state, goals = scenario(S=1, N=4)
+    state[0, :, 0:2] = torch.tensor([[0.0, 0.0], [0.2, 0.0], [0.4, 0.0], [0.9, 0.0]])
+    pol.reset(state, goals)
+    pol.act(state, goals, 0.0)
+    first = pol.neighbours.clone()
+    moved = state.clone()
+    moved[0, 1:3, 0:2] += 5.0  # the original neighbours of agent 0 leave; agent 3 becomes nearest
+    pol.act(moved, goals, 0.5)
+    assert torch.equal(pol.neighbours, first)
+    pol5 = policy("nearest", update_every=5)
+    pol5.reset(state, goals)
+    pol5.act(state, goals, 0.0)
+    pol5.act(moved, goals, 5 * 0.0025)
+    assert not torch.equal(pol5.neighbours, first)
+
+
+def test_control_is_decentralized():
+    """An agent's control depends only on its own observation (ego + its neighbours)."""
+    pol = policy("nearest", update_every=None)
+    state, goals = scenario(S=1, N=6)
+    state[0, :, 0:2] = torch.tensor([[0.0, 0.0], [0.2, 0.0], [0.0, 0.3], [0.9, 0.9], [-0.9, 0.9], [0.9, -0.9]])
+    pol.reset(state, goals)
+    u1 = pol.act(state, goals, 0.0)
+    other = state.clone()
+    other[0, 4, 2:4] = torch.tensor([3.0, -3.0])  # not a neighbour of agent 0
+    goals2 = goals.clone()
+    goals2[0, 5] = -goals2[0, 5]
+    u2 = pol.act(other, goals2, 0.0025)
+    assert torch.equal(u1[0, 0], u2[0, 0])
+
+
+def context(cfg, run, seed=0):
+    method, mcfg = method_config(cfg, run)
+    return method, PolicyContext(cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(), obs_spec=SPEC,
+                                 device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=0.0025,
+                                 policy_period=1)
+
+
+def tiny_cfg(tmp_path):
+    cfg = load_config([REPO / "config.yaml", SMOKE])
+    results = tmp_path / "results"
+    shutil.copytree(tiny_model_dir(), results / "models")
+    cfg["paths"]["results"] = str(results)
+    cfg["tracking"]["enabled"] = False
+    return cfg
+
+
+def test_episode_deterministic_per_seed_for_every_strategy(tmp_path):
+    cfg = tiny_cfg(tmp_path)
+    state, goals = scenario(S=2, N=6, seed=3)
+    for run in ("madpinn", "madpinn-nearest", "madpinn-random"):
+        outs = []
+        for seed in (0, 0, 1):
+            method, ctx = context(cfg, run, seed)
+            backend = make_backend("double_integrator", cfg, ctx.device, ctx.dtype)
+            res, _ = run_episode(backend, make_policy(method, ctx), state[..., 0:2], goals, 40, 0.1, progress=False)
+            outs.append(res.cost)
+        assert (outs[0] == outs[1]).all()
+        if run == "madpinn-random":
+            assert not (outs[0] == outs[2]).all()
+
+
+def test_evaluation_job_runs_madpinn_and_variants(tmp_path):
+    cfg = tiny_cfg(tmp_path)
+    for run in ("madpinn", "madpinn-kinf"):
+        s = evaluate(cfg, "main", run, 3, 0, tmp_path / f"{run}.parquet", progress=False, track=False)
+        assert s["method"] == "madpinn" and 0.0 <= s["safety_rate"] <= 1.0
+        assert json.loads((tmp_path / f"{run}.json").read_text())["n_agents"] == 3
+
+
+def test_clear_errors(tmp_path):
+    cfg = tiny_cfg(tmp_path)
+    cfg["methods"]["madpinn"]["vhat_model"] = str(tmp_path / "missing.pt")
+    method, ctx = context(cfg, "madpinn")
+    with pytest.raises(CheckpointError, match="not found"):
+        make_policy(method, ctx)
+    cfg = tiny_cfg(tmp_path / "b")
+    method, ctx = context(cfg, "madpinn")
+    ctx.obs_spec = ObservationSpec(goal_range=3.0)
+    with pytest.raises(ValueError, match="goal_range"):
+        make_policy(method, ctx)
+    base = load_yaml(REPO / "config.yaml")
+    for bad in ({"update_every": 0}, {"update_every": "never"}, {"neighbours": "closest"}, {"z_tolerance": 0}, {"unknown": 1}):
+        with pytest.raises(ConfigError, match="methods.madpinn"):
+            validate_config(deep_merge(base, {"methods": {"madpinn": bad}}))
