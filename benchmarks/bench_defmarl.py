@@ -12,7 +12,6 @@ actor step with the z held, and the mean per policy step with ``root_period_step
 from __future__ import annotations
 
 import argparse
-import time
 
 import torch
 
@@ -20,15 +19,8 @@ from madpinn.config import REPO_ROOT, load_config
 from madpinn.marl.defmarl.deploy import DefMarlPolicy
 from madpinn.marl.defmarl.jobs import build_defmarl_trainer
 from madpinn.observation import ObservationSpec
+from timing import best_of  # benchmarks/timing.py
 
-
-def best_of(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:

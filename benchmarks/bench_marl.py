@@ -12,7 +12,6 @@ agents, k critical rows); the nominal actor's deployment step; and, when a learn
 from __future__ import annotations
 
 import argparse
-import time
 
 import torch
 
@@ -23,15 +22,8 @@ from madpinn.marl.ppo import PPOBatch, ppo_update
 from madpinn.observation import ObservationSpec
 from madpinn.policies.cbvf_qp import solve_box_qp
 from madpinn.policies.safemarl import CBVFFilter
+from timing import best_of  # benchmarks/timing.py
 
-
-def best_of(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:

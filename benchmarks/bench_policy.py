@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import math
 import tempfile
-import time
 from pathlib import Path
 
 import torch
@@ -36,6 +35,7 @@ from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, bisection_s
 from madpinn.policies.neighbours import in_domain, make_selector, pair_scores_brute_force, select_lowest
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.value_functions import load_vhat, load_vs
+from timing import best_of  # benchmarks/timing.py
 
 SPEC = ObservationSpec()
 NET = {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0}
@@ -62,14 +62,6 @@ def layout(N: int, seed: int = 0):
     vel = 4.0 * torch.rand(1, N, 2, generator=torch.Generator().manual_seed(seed)) - 2.0
     return torch.cat([starts, vel], -1), goals, hw
 
-
-def best_of(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def batched_step_time(vhat, vs, state, goals, pruned: bool, warm: bool, repeats: int) -> float:

@@ -41,6 +41,25 @@ def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dt
     )
 
 
+def write_training_record(out: Path, history: list[dict], wall: float, first_keys, last_keys, extra: dict | None = None):
+    """Learning curve ``<out>_history.csv`` and summary ``<out>.json`` (first iteration and mean
+    of the last 10); returns ``(summary, curve_path, json_path)``."""
+    curve_path = out.with_name(out.stem + "_history.csv")
+    pd.DataFrame(history).to_csv(curve_path, index=False)
+    tail = history[-min(10, len(history)):]
+    summary = {
+        **(extra or {}),
+        "iterations": len(history),
+        "wall_s": wall,
+        "samples": int(sum(h["samples"] for h in history)),
+        **{f"first_{k}": history[0][k] for k in first_keys},
+        **{f"last10_{k}": sum(h[k] for h in tail) / len(tail) for k in last_keys},
+    }
+    json_path = out.with_suffix(".json")
+    json_path.write_text(json.dumps(summary, indent=2))
+    return summary, curve_path, json_path
+
+
 def train_safemarl_nominal(cfg: dict, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True) -> dict:
     out = Path(out)
     if "safemarl" not in cfg["methods"]:
@@ -52,18 +71,10 @@ def train_safemarl_nominal(cfg: dict, out: str | Path, threads: int = 1, progres
     history = trainer.train(progress=progress, desc="SafeMARL nominal PPO")
     wall = time.perf_counter() - t0
     save_checkpoint(out, trainer, meta={"method": "safemarl-nominal", "wall_s": wall, "arena": tcfg["arena"]})
-    curve_path = out.with_name(out.stem + "_history.csv")
-    pd.DataFrame(history).to_csv(curve_path, index=False)
-    tail = history[-min(10, len(history)):]
-    summary = {
-        "iterations": len(history),
-        "wall_s": wall,
-        "samples": int(sum(h["samples"] for h in history)),
-        **{f"first_{k}": history[0][k] for k in ("episode_return", "final_distance", "collision_rate")},
-        **{f"last10_{k}": sum(h[k] for h in tail) / len(tail) for k in ("episode_return", "final_distance", "reached_rate", "collision_rate")},
-    }
-    json_path = out.with_suffix(".json")
-    json_path.write_text(json.dumps(summary, indent=2))
+    summary, curve_path, json_path = write_training_record(
+        out, history, wall, first_keys=("episode_return", "final_distance", "collision_rate"),
+        last_keys=("episode_return", "final_distance", "reached_rate", "collision_rate"),
+    )
     if track:
         from madpinn.tracking import log_job
 

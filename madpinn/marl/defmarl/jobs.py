@@ -6,20 +6,17 @@ learning curves, constraint-violation rates and z statistics as step metrics.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict
 from functools import partial
 from pathlib import Path
-
-import pandas as pd
 
 from madpinn.config import method_config
 from madpinn.device import seed_everything
 from madpinn.marl.checkpoint import save_checkpoint
 from madpinn.marl.defmarl.epigraph import EpigraphConfig
 from madpinn.marl.defmarl.trainer import DefMarlTrainer
-from madpinn.marl.jobs import CURVES, build_trainer
+from madpinn.marl.jobs import CURVES, build_trainer, write_training_record
 
 DEFMARL_CURVES = CURVES + ("violation_rate", "team_cost", "epigraph_objective", "z_start_mean", "z_end_mean",
                            "z_end_at_min", "loss_cost", "vh_mean", "vl_mean")
@@ -48,19 +45,9 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
     wall = time.perf_counter() - t0
     save_checkpoint(out, trainer, meta={"method": "defmarl", "variant": variant, "epigraph": asdict(trainer.epi),
                                         "wall_s": wall, "arena": tcfg["arena"], "agent_counts": list(tcfg["agent_counts"])})
-    curve_path = out.with_name(out.stem + "_history.csv")
-    pd.DataFrame(history).to_csv(curve_path, index=False)
-    tail = history[-min(10, len(history)):]
-    summary = {
-        "run": run,
-        "iterations": len(history),
-        "wall_s": wall,
-        "samples": int(sum(h["samples"] for h in history)),
-        **{f"first_{k}": history[0][k] for k in SUMMARY_KEYS},
-        **{f"last10_{k}": sum(h[k] for h in tail) / len(tail) for k in SUMMARY_KEYS},
-    }
-    json_path = out.with_suffix(".json")
-    json_path.write_text(json.dumps(summary, indent=2))
+    summary, curve_path, json_path = write_training_record(
+        out, history, wall, first_keys=SUMMARY_KEYS, last_keys=SUMMARY_KEYS, extra={"run": run}
+    )
     if track:
         from madpinn.tracking import log_job
 
