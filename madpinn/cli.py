@@ -28,6 +28,13 @@ def add_config_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", nargs="+", required=True, help="config file(s), later ones override earlier ones")
 
 
+def add_job_args(p: argparse.ArgumentParser) -> None:
+    """Options shared by every workflow job command: thread count, progress bar, MLflow logging."""
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-track", action="store_true")
+
+
 def _validate(args) -> int:
     load_config(args.config)
     print("config OK")
@@ -111,9 +118,7 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--backend", default=None, help="override sim.backend")
     p.add_argument("--out", required=True, help="per-scenario Parquet path")
-    p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--no-progress", action="store_true")
-    p.add_argument("--no-track", action="store_true")
+    add_job_args(p)
     p.set_defaults(func=_evaluate)
 
     p = sub.add_parser("table", help="assemble a paper table from result files")

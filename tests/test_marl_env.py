@@ -12,13 +12,7 @@ from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """Tiny tensors: one intra-op thread is fastest and keeps float reductions reproducible."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 DYN = DoubleIntegrator(4.0, 4.0)

@@ -17,13 +17,7 @@ from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """Tiny tensors: one intra-op thread is fastest and keeps float reductions reproducible."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 TINY = PPOConfig(iterations=12, agents_per_batch=96, epochs=4, minibatch=256, lr=3e-3, discount=0.95,

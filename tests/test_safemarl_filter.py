@@ -28,12 +28,7 @@ from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 U_MAX, R = 4.0, 0.1

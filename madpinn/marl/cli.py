@@ -16,12 +16,10 @@ def _train(args) -> int:
 
 
 def register(sub) -> None:
-    from madpinn.cli import add_config_arg
+    from madpinn.cli import add_config_arg, add_job_args
 
     p = sub.add_parser("train-safemarl-nominal", help="train SafeMARL's nominal goal-reaching PPO policy")
     add_config_arg(p)
     p.add_argument("--out", required=True, help="checkpoint path (.pt)")
-    p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--no-progress", action="store_true")
-    p.add_argument("--no-track", action="store_true")
+    add_job_args(p)
     p.set_defaults(func=_train)
