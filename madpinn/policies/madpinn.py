@@ -27,6 +27,7 @@ from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.neighbours import STRATEGIES, make_selector
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
+from madpinn.value_functions.symmetry import symmetrize
 
 INF_UPDATE = "inf"
 
@@ -35,13 +36,15 @@ INF_UPDATE = "inf"
 class MadPinnSettings:
     """strategy: neighbour strategy; update_every: k in simulation steps (None = ∞);
     z_tolerance: bisection tolerance as a fraction of z_max; warm_start: start each row's
-    search from its previous z* (:func:`warm_budget_search`); pair_batch: V_s states per call."""
+    search from its previous z* (:func:`warm_budget_search`); pair_batch: V_s states per call;
+    symmetry: group V̂ is averaged over at inference (:mod:`madpinn.value_functions.symmetry`)."""
 
     strategy: str = "value"
     update_every: int | None = 5
     z_tolerance: float = 1e-3
     warm_start: bool = True
     pair_batch: int = 65536
+    symmetry: str = "none"
 
     @classmethod
     def from_method_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -54,7 +57,7 @@ class MadPinnSettings:
             raise ValueError(f"methods.madpinn.neighbours must be one of {STRATEGIES}, got '{strategy}'")
         return cls(strategy=strategy, update_every=update_every, z_tolerance=float(mcfg.get("z_tolerance", 1e-3)),
                    warm_start=bool(mcfg.get("warm_start", True)),
-                   pair_batch=int(mcfg.get("pair_batch", 65536)))
+                   pair_batch=int(mcfg.get("pair_batch", 65536)), symmetry=str(mcfg.get("symmetry", "none")))
 
 
 def bisection_steps(z_tolerance: float) -> int:
@@ -190,7 +193,7 @@ def model_path(ctx: PolicyContext, key: str) -> Path:
 @register_policy("madpinn")
 def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy:
     settings = MadPinnSettings.from_method_config(ctx.method_cfg)
-    vhat = load_vhat(model_path(ctx, "vhat_model"), device=ctx.device, dtype=ctx.dtype)
+    vhat = symmetrize(load_vhat(model_path(ctx, "vhat_model"), device=ctx.device, dtype=ctx.dtype), settings.symmetry)
     vs = load_vs(model_path(ctx, "vs_model"), device=ctx.device, dtype=ctx.dtype) if settings.strategy == "value" else None
     check_compatible(vhat, vs, ctx.obs_spec, ctx.dynamics.u_max, settings.strategy)
     gen = torch.Generator(device=ctx.device).manual_seed(int(ctx.seed))

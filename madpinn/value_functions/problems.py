@@ -20,6 +20,7 @@ import torch
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.observation import ObservationSpec
+from madpinn.value_functions.sampling import ConflictSampling, place_conflicts
 
 
 class PINNProblem:
@@ -55,7 +56,12 @@ class PINNProblem:
         return self.horizon - alpha * self.horizon * torch.rand(batch, generator=generator, dtype=dtype)
 
     def sample_states(self, batch: int, generator: torch.Generator, dtype) -> torch.Tensor:
+        """Uniform states ``[B, S]`` over the domain (held-out statistics, validation)."""
         raise NotImplementedError
+
+    def sample_training_states(self, batch: int, generator: torch.Generator, dtype) -> torch.Tensor:
+        """States ``[B, S]`` of the training distribution (uniform unless a problem refines it)."""
+        return self.sample_states(batch, generator, dtype)
 
     def boundary_and_grad(self, s: torch.Tensor):
         raise NotImplementedError
@@ -72,8 +78,9 @@ class EpigraphProblem(PINNProblem):
 
     kind = "vhat"
 
-    def __init__(self, system: EpigraphSystem):
+    def __init__(self, system: EpigraphSystem, conflict: ConflictSampling | None = None):
         self.system = system
+        self.conflict = conflict or ConflictSampling()
         self.horizon = system.horizon
         hw = system.half_widths()
         centre = torch.cat([torch.zeros_like(hw), torch.tensor([system.z_max / 2.0], dtype=torch.float64)])
@@ -83,6 +90,15 @@ class EpigraphProblem(PINNProblem):
     def sample_states(self, batch, generator, dtype):
         obs, z = self.system.sample(batch, generator, dtype)
         return torch.cat([obs, z[:, None]], dim=-1)
+
+    def sample_training_states(self, batch, generator, dtype):
+        """Uniform states with ``conflict.fraction`` of them on near-collision courses
+        (:mod:`madpinn.value_functions.sampling`)."""
+        s = self.sample_states(batch, generator, dtype)
+        sy = self.system
+        obs = place_conflicts(s[:, :-1], sy.spec.n_neighbours, sy.horizon, sy.spec.offset_range,
+                              self.conflict, generator)
+        return torch.cat([obs, s[:, -1:]], dim=-1)
 
     def boundary_and_grad(self, s):
         val, go, gz = self.system.terminal_value_and_grad(s[:, :-1], s[:, -1])

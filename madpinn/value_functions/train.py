@@ -87,7 +87,7 @@ def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale:
 def training_batch(problem: PINNProblem, settings: TrainSettings, iteration: int, device, dtype):
     """States ``[B, S]`` and times ``[B]`` of one iteration (pure function of seed and iteration)."""
     gen = batch_generator(settings.seed, iteration)
-    s = problem.sample_states(settings.batch_size, gen, dtype)
+    s = problem.sample_training_states(settings.batch_size, gen, dtype)
     t = problem.sample_times(settings.batch_size, curriculum_alpha(iteration, settings), gen, dtype)
     return s.to(device), t.to(device)
 

@@ -1,0 +1,91 @@
+"""Conflict-focused training distribution for V̂ (importance sampling of near-collisions).
+
+A uniform box over the ego-centric observation rarely puts two agents on a collision course
+within the short horizon T: for the default ranges (offsets ±2 m) fewer than 5 % of uniform
+samples have a pair that comes within 0.3 m during 0.2 s, yet these states carry the whole
+safety decision (the kink of ``max(φ_d − z, g_d)`` and the feasible/infeasible boundary in z).
+:func:`place_conflicts` rewrites the positions of a chosen fraction of a uniform batch so that one
+pair among the ``n + 1`` observed agents is on a near-collision course under constant velocity:
+
+    x_b − x_a = −(v_b − v_a)·τ + d,    τ ~ U[0, T],   d ~ U(disk of radius ρ),
+
+i.e. the pair's constant-velocity relative position reaches the disk of radius ρ around the
+origin at time τ. Velocities, goals, z and t stay uniform; the moved offset is clipped to the
+trained box, so every sample stays inside the domain. With ``fraction = 0`` the batch is the
+uniform batch unchanged (same generator draws), which keeps old configurations reproducible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import math
+
+import torch
+
+from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
+
+
+@dataclass(frozen=True)
+class ConflictSampling:
+    """fraction: share of each batch on a near-collision course; radius: ρ (m) of the disk the
+    pair's constant-velocity relative position reaches within the horizon."""
+
+    fraction: float = 0.0
+    radius: float = 0.3
+
+    def __post_init__(self):
+        if not 0.0 <= self.fraction <= 1.0:
+            raise ValueError(f"conflict sampling fraction must be in [0, 1], got {self.fraction}")
+        if self.radius <= 0.0:
+            raise ValueError(f"conflict sampling radius must be > 0 m, got {self.radius}")
+
+    @classmethod
+    def from_config(cls, vcfg: dict) -> "ConflictSampling":
+        c = vcfg.get("conflict_sampling") or {}
+        return cls(fraction=float(c.get("fraction", 0.0)), radius=float(c.get("radius", 0.3)))
+
+
+def _position_and_velocity(obs: torch.Tensor, agent: torch.Tensor):
+    """Position offset and velocity ``[B, 2]`` each of observed agent ``agent [B]`` (0 = ego)."""
+    b = obs.shape[0]
+    zero = torch.zeros(b, 2, dtype=obs.dtype, device=obs.device)
+    pos, vel = [zero], [obs[:, 0:2]]
+    n = (obs.shape[1] - EGO_DIM) // NEIGHBOUR_DIM
+    for j in range(n):
+        base = EGO_DIM + j * NEIGHBOUR_DIM
+        pos.append(obs[:, base:base + 2])
+        vel.append(obs[:, base + 2:base + 4])
+    pos, vel = torch.stack(pos, 1), torch.stack(vel, 1)      # [B, n+1, 2]
+    idx = agent[:, None, None].expand(b, 1, 2)
+    return pos.gather(1, idx)[:, 0], vel.gather(1, idx)[:, 0]
+
+
+def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset_range: float,
+                    sampling: ConflictSampling, generator: torch.Generator) -> torch.Tensor:
+    """Return ``obs [B, D]`` with the first ``round(fraction·B)`` rows moved onto a
+    near-collision course of one pair (uniform over the ``(n+1)n/2`` pairs; the moved agent is
+    always a neighbour, so the ego stays at the origin). Pure function of the generator state."""
+    b = obs.shape[0]
+    m = int(round(sampling.fraction * b))
+    if m == 0 or n_neighbours == 0:
+        return obs
+    dtype, device = obs.dtype, obs.device
+    pairs = [(a, c) for c in range(1, n_neighbours + 1) for a in range(c)]   # (a < c), c a neighbour
+    pick = torch.randint(len(pairs), (m,), generator=generator)
+    a = torch.tensor([p[0] for p in pairs])[pick].to(device)
+    c = torch.tensor([p[1] for p in pairs])[pick].to(device)
+    tau = horizon * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
+    head = obs[:m]
+    pa, va = _position_and_velocity(head, a)
+    _, vc = _position_and_velocity(head, c)
+    pc = (pa - (vc - va) * tau[:, None] + d).clamp(-offset_range, offset_range)
+    out = obs.clone()
+    cols = EGO_DIM + (c - 1) * NEIGHBOUR_DIM                   # position offset of neighbour c
+    rows = torch.arange(m, device=device)
+    out[rows, cols] = pc[:, 0]
+    out[rows, cols + 1] = pc[:, 1]
+    return out

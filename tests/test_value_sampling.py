@@ -1,0 +1,64 @@
+"""Conflict-focused V̂ training distribution: in the domain, on near-collision courses,
+unchanged with fraction 0, deterministic, validated."""
+
+import pytest
+import torch
+
+from conftest import REPO
+from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, validate_config
+from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
+from madpinn.value_functions.cli import problem_from_config
+from madpinn.value_functions.sampling import ConflictSampling
+
+
+def problem(fraction, radius=0.3):
+    cfg = load_config([REPO / "config.yaml"])
+    cfg["value_functions"]["vhat"]["conflict_sampling"] = {"fraction": fraction, "radius": radius}
+    return problem_from_config(cfg, "vhat")
+
+
+def closest_approach(obs, horizon):
+    """Smallest constant-velocity closest approach over [0, T] among the 3 pairs ``[B]`` (m)."""
+    pos = [torch.zeros(obs.shape[0], 2, dtype=obs.dtype)]
+    vel = [obs[:, 0:2]]
+    for j in range(2):
+        b = EGO_DIM + j * NEIGHBOUR_DIM
+        pos.append(obs[:, b:b + 2])
+        vel.append(obs[:, b + 2:b + 4])
+    out = []
+    for a, c in ((0, 1), (0, 2), (1, 2)):
+        x, v = pos[c] - pos[a], vel[c] - vel[a]
+        tau = (-(x * v).sum(1) / (v * v).sum(1).clamp_min(1e-12)).clamp(0.0, horizon)
+        out.append((x + v * tau[:, None]).norm(dim=1))
+    return torch.stack(out, 1).min(1).values
+
+
+def test_conflict_rows_are_on_near_collision_courses_inside_the_domain():
+    p = problem(0.5, radius=0.3)
+    s = p.sample_training_states(4000, torch.Generator().manual_seed(1), torch.float64)
+    obs, z = s[:, :-1], s[:, -1]
+    assert bool((obs.abs() <= p.system.half_widths() + 1e-12).all())
+    assert bool(((z >= 0) & (z <= p.system.z_max)).all())
+    ca = closest_approach(obs, p.horizon)
+    assert float((ca[:2000] <= 0.3 + 1e-9).double().mean()) > 0.97      # clipping at the box edge excepted
+    assert float((ca[2000:] <= 0.3).double().mean()) < 0.3               # the uniform half is not
+    assert torch.equal(obs[:, 0:4], p.sample_states(4000, torch.Generator().manual_seed(1), torch.float64)[:, 0:4])
+
+
+def test_fraction_zero_is_the_uniform_batch_and_sampling_is_deterministic():
+    uni = problem(0.0).sample_training_states(512, torch.Generator().manual_seed(7), torch.float32)
+    ref = problem(0.0).sample_states(512, torch.Generator().manual_seed(7), torch.float32)
+    assert torch.equal(uni, ref)
+    a = problem(0.5).sample_training_states(512, torch.Generator().manual_seed(7), torch.float32)
+    b = problem(0.5).sample_training_states(512, torch.Generator().manual_seed(7), torch.float32)
+    assert torch.equal(a, b) and not torch.equal(a, uni)
+
+
+def test_invalid_conflict_sampling_is_rejected():
+    with pytest.raises(ValueError, match="fraction"):
+        ConflictSampling(fraction=1.5)
+    with pytest.raises(ValueError, match="radius"):
+        ConflictSampling(fraction=0.5, radius=0.0)
+    cfg = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vhat": {"conflict_sampling": {"fraction": 2.0}}}})
+    with pytest.raises(ConfigError, match="conflict_sampling"):
+        validate_config(cfg)
