@@ -195,10 +195,14 @@ def test_episode_deterministic_per_seed_for_every_strategy(tmp_path):
 
 def test_evaluation_job_runs_madpinn_and_variants(tmp_path):
     cfg = tiny_cfg(tmp_path)
-    for run in ("madpinn", "madpinn-kinf"):
+    cfg["methods"]["madpinn"]["variants"]["sym"] = {"label": "point symmetry", "symmetry": "point"}
+    for run in ("madpinn", "madpinn-kinf", "madpinn-sym"):
         s = evaluate(cfg, "main", run, 3, 0, tmp_path / f"{run}.parquet", progress=False, track=False)
         assert s["method"] == "madpinn" and 0.0 <= s["safety_rate"] <= 1.0
-        assert json.loads((tmp_path / f"{run}.json").read_text())["n_agents"] == 3
+        saved = json.loads((tmp_path / f"{run}.json").read_text())
+        assert saved["n_agents"] == 3
+        ps = saved["policy_stats"]
+        assert 0.0 <= ps["infeasible_fraction"] <= 1.0 and 0.0 <= ps["z_star_mean"] and ps["neighbour_updates"] >= 1
 
 
 def test_clear_errors(tmp_path):

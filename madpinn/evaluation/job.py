@@ -56,7 +56,7 @@ def evaluate(
     obs_spec = ObservationSpec.from_config(cfg)
     models_dir = Path(cfg["paths"]["results"]) / "models"
 
-    frames, traj, timing = [], None, {"wall_s": 0.0, "policy_s": 0.0}
+    frames, traj, timing, policy_stats = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}
     total, batch = int(st["scenarios"]), int(cfg["sim"]["scenario_batch"])
     t0 = time.perf_counter()
     for b, first in enumerate(range(0, total, batch)):
@@ -75,6 +75,8 @@ def evaluate(
         )
         timing["wall_s"] += stats["wall_s"]
         timing["policy_s"] += stats["policy_s"]
+        for k, v in getattr(policy, "stats", {}).items():   # per-batch sums of the policy's own counters
+            policy_stats[k] = policy_stats.get(k, 0) + v
         frames.append(scenario_metrics(result, first_index=first))
         if first == 0:
             traj = result
@@ -96,6 +98,8 @@ def evaluate(
         "job_config_hash": config_hash(job_config(cfg, study, run)),
         "device": str(device),
     }
+    if policy_stats and hasattr(policy, "summarise_stats"):
+        summary["policy_stats"] = policy.summarise_stats(policy_stats)
     out.parent.mkdir(parents=True, exist_ok=True)
     df.to_parquet(out, index=False)
     json_path = out.with_suffix(".json")
@@ -114,7 +118,8 @@ def evaluate(
             wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
             params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][arena.name],
                     "scenarios": total, "sim": cfg["sim"], "observation": cfg["observation"]},
-            metrics={k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")},
+            metrics={**{k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")},
+                     **{f"policy_{k}": v for k, v in summary.get("policy_stats", {}).items()}},
             artifacts=[out, json_path, traj_path],
         )
     return summary

@@ -152,6 +152,14 @@ class MadPinnPolicy:
         self.stats = {"policy_steps": 0, "neighbour_updates": 0, "agent_steps": 0, "infeasible": 0, "z_sum": 0.0,
                       "warm_hits": 0}
 
+    @staticmethod
+    def summarise_stats(stats: dict) -> dict:
+        """Episode diagnostics from (summed) ``stats``: share of agent-steps in the infeasible
+        branch (z* = z_max), mean z*, warm-start hit rate, neighbour updates."""
+        n = max(1, stats["agent_steps"])
+        return {"infeasible_fraction": stats["infeasible"] / n, "z_star_mean": stats["z_sum"] / n,
+                "warm_hit_rate": stats["warm_hits"] / n, "neighbour_updates": int(stats["neighbour_updates"])}
+
     def _update_neighbours(self, state: torch.Tensor, sim_step: int) -> None:
         k = self.settings.update_every
         if self.neighbours is not None and (k is None or sim_step < self._next_update):

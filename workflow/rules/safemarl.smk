@@ -30,5 +30,6 @@ if "safemarl" in config["methods"]:
             "{PY} -m madpinn train-safemarl-nominal --config {RESOLVED} --out {output.model}"
             " --threads {threads} 2>&1 | tee {log}"
 
-    # `all` trains the nominal policy even when no study runs SafeMARL.
-    EXTRA_TARGETS.append(SAFEMARL_NOMINAL)
+    # `all` trains the nominal policy when a study runs SafeMARL (filtered or not).
+    if any(run.split("-")[0] == "safemarl" for st in config["studies"].values() for run in st["runs"]):
+        EXTRA_TARGETS.append(SAFEMARL_NOMINAL)
