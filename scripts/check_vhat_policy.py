@@ -2,7 +2,7 @@
 with the 2 nearest neighbours) drives a single agent to its goal and makes two agents on a
 head-on course avoid each other. A development check, not the MAD-PINN policy itself.
 
-    PYTHONPATH=$PWD python scripts/check_vhat_policy.py results/models/vhat.pt [--config config.yaml]
+    PYTHONPATH=$PWD python scripts/check_vhat_policy.py results/models/vhat.pt [--config config.yaml] [--symmetry point]
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import min_feasible_z
 from madpinn.value_functions.model import load_value_function
+from madpinn.value_functions.symmetry import GROUPS, symmetrize
 
 
 class GreedyVHatPolicy:
@@ -44,10 +45,11 @@ def main() -> None:
     ap.add_argument("model")
     ap.add_argument("--config", default="config.yaml")
     ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--symmetry", default="none", choices=GROUPS, help="average V̂ over this symmetry group")
     args = ap.parse_args()
     torch.set_num_threads(1)
     cfg = load_config([args.config])
-    vhat = load_value_function(args.model, "vhat")  # a final model or a training checkpoint
+    vhat = symmetrize(load_value_function(args.model, "vhat"), args.symmetry)  # a final model or a training checkpoint
     dyn = DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"])
     dt, r = cfg["sim"]["dt"], cfg["agents"]["collision_radius"]
     steps = int(round(args.seconds / dt))
