@@ -93,6 +93,16 @@ def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path, paper_cfg):
     assert not (tmp_path / "mlflow").exists()
 
 
+def test_ours_overlay_runs_our_rows_without_baseline_trainings(tmp_path):
+    ours = REPO / "workflow" / "configs" / "ours.yaml"
+    proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=(ours,))
+    out = proc.stdout + proc.stderr
+    m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
+    assert m and int(m.group(1)) == 2 * 4 * 5 + 2 * 3 + 3 + 8     # main, scaling, two ablations (seed 0)
+    assert "train_vhat" in out and "train_vs" in out
+    assert "train_safemarl_nominal" not in out and "train_defmarl" not in out and "/mppi/" not in out
+
+
 def test_invalid_config_fails_before_any_job(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("studies:\n  main:\n    scenarios: -3\n")
