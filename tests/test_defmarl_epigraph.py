@@ -95,6 +95,17 @@ def test_collision_constraint():
     assert ((h > 0) == torch.tensor([False, False, False, True, True])).all()  # h > 0 ⇔ separation < r
 
 
+def test_collision_constraint_margin_separates_contact_from_collision():
+    # public def-marl's cost margin: safe h in [−1, −m], a collision h > m, graded in between
+    sep = torch.tensor([math.inf, 0.3, 0.2, 0.1, 0.0999, 0.05, 0.0])
+    h = collision_constraint(sep, radius=0.1, h_clip=0.2, margin=0.5)
+    assert torch.allclose(h, torch.tensor([-1.0, -1.0, -0.75, -0.5, 0.50025, 0.625, 0.75]), atol=1e-5)
+    assert h[4] - h[3] > 0.99  # a grazing collision is a full unit above contact
+    assert ((h > 0) == (sep < 0.1)).all()
+    with pytest.raises(ValueError):
+        EpigraphConfig(h_margin=1.0)
+
+
 def test_root_finder_smallest_safe_z_and_fallbacks():
     # synthetic monotone critics V_h(z) = c·(a − z): safe from z = a on
     a = torch.tensor([-0.5, 0.3, 1.7, -5.0, 9.0, 0.0])

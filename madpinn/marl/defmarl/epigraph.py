@@ -7,9 +7,12 @@ along a rollout ``z_{t+1} = z_t − l_t`` (clipped to the training range).
 
 - ``l_t`` (team cost per period) is the mean over agents of the negated goal-reaching reward
   of :mod:`madpinn.marl.env` without its collision term (collisions are the constraint).
-- ``h_i = max(r − s_i, −h_clip) / h_clip`` with ``s_i`` the agent's smallest separation over
-  the period (m), r the collision radius: ``h_i > 0`` ⇔ collision. Dimensionless, in
-  ``[−1, r/h_clip]``.
+- ``h_i`` from the agent's smallest separation ``s_i`` over the period (m) and the collision
+  radius r: the graded margin ``g = (r − s_i)/h_clip·(1 − m)`` shifted away from 0 by the
+  margin m — ``h = max(g − m, −1)`` when safe (``s_i ≥ r``: −m at contact, −1 from
+  ``r + h_clip`` on), ``h = g + m`` on a collision. ``h_i > 0`` ⇔ collision; the jump of 2m at
+  the collision boundary (m = 0.5, as the public implementation's cost margin) makes a grazing
+  collision as visible to the discounted-max target as a deep one.
 """
 
 from __future__ import annotations
@@ -23,23 +26,25 @@ import torch
 class EpigraphConfig:
     """z_min, z_max: training range of the budget z (team cost units); end_mass: probability
     that an episode starts exactly at z_min or z_max (half each), the rest uniform; h_clip:
-    separation margin (m) below which h saturates at −1; cost_lr: Adam step of the cost critic."""
+    separation margin (m) beyond which h saturates at −1; h_margin: the jump ±m of h at the
+    collision boundary (0 ≤ m < 1); cost_lr: Adam step of the cost critic."""
 
     z_min: float = -2.0
     z_max: float = 3.0
     end_mass: float = 0.2
     h_clip: float = 0.2
     cost_lr: float = 1e-3
+    h_margin: float = 0.5
 
     def __post_init__(self):
         if not self.z_min < self.z_max:
             raise ValueError(f"z_min must be < z_max, got {self.z_min}, {self.z_max}")
-        if not 0.0 <= self.end_mass <= 1.0 or self.h_clip <= 0 or self.cost_lr <= 0:
-            raise ValueError(f"need 0 ≤ end_mass ≤ 1, h_clip > 0, cost_lr > 0 (got {self})")
+        if not 0.0 <= self.end_mass <= 1.0 or self.h_clip <= 0 or self.cost_lr <= 0 or not 0.0 <= self.h_margin < 1.0:
+            raise ValueError(f"need 0 ≤ end_mass ≤ 1, h_clip > 0, cost_lr > 0, 0 ≤ h_margin < 1 (got {self})")
 
     @classmethod
     def from_dict(cls, d: dict) -> "EpigraphConfig":
-        return cls(**{k: float(d[k]) for k in ("z_min", "z_max", "end_mass", "h_clip", "cost_lr")})
+        return cls(**{k: float(d[k]) for k in ("z_min", "z_max", "end_mass", "h_clip", "cost_lr", "h_margin")})
 
 
 def sample_z(n: int, cfg: EpigraphConfig, generator: torch.Generator, dtype=torch.float32) -> torch.Tensor:
@@ -57,9 +62,13 @@ def update_z(z: torch.Tensor, cost: torch.Tensor, cfg: EpigraphConfig) -> torch.
     return (z - cost).clamp(cfg.z_min, cfg.z_max)
 
 
-def collision_constraint(min_sep: torch.Tensor, radius: float, h_clip: float) -> torch.Tensor:
-    """h ``[E, N]`` from the smallest separation over the period (m); inf (alone) → −1."""
-    return (radius - min_sep).clamp_min(-h_clip) / h_clip
+def collision_constraint(min_sep: torch.Tensor, radius: float, h_clip: float, margin: float = 0.0) -> torch.Tensor:
+    """h ``[E, N]`` from the smallest separation over the period (m); inf (alone) → −1.
+
+    ``g = (r − s)/h_clip·(1 − margin)``; ``h = g + margin`` on a collision (s < r), else
+    ``max(g − margin, −1)``: in ``[−1, −margin]`` when safe, ``> margin`` when not."""
+    g = (radius - min_sep) / h_clip * (1.0 - margin)
+    return torch.where(min_sep < radius, g + margin, (g - margin).clamp_min(-1.0))
 
 
 def epigraph_value(vh: torch.Tensor, vl: torch.Tensor, z: torch.Tensor) -> torch.Tensor:

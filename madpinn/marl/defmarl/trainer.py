@@ -81,7 +81,7 @@ class DefMarlTrainer(PPOTrainer):
     def record(self, info: StepInfo) -> None:
         cost = -self._last_reward.mean(-1)  # team cost l [E]
         self._z.append(self.z)
-        self._h.append(collision_constraint(info.min_sep, self.radius, self.epi.h_clip))
+        self._h.append(collision_constraint(info.min_sep, self.radius, self.epi.h_clip, self.epi.h_margin))
         self._cost.append(cost)
         self.z = update_z(self.z, cost, self.epi)
 
