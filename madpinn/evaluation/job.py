@@ -75,8 +75,9 @@ def evaluate(
         )
         timing["wall_s"] += stats["wall_s"]
         timing["policy_s"] += stats["policy_s"]
-        for k, v in getattr(policy, "stats", {}).items():   # per-batch sums of the policy's own counters
-            policy_stats[k] = policy_stats.get(k, 0) + v
+        if hasattr(policy, "summarise_stats"):   # policies with summable counters (dict) report them
+            for k, v in policy.stats.items():
+                policy_stats[k] = policy_stats.get(k, 0) + v
         frames.append(scenario_metrics(result, first_index=first))
         if first == 0:
             traj = result
