@@ -6,7 +6,7 @@ import torch
 
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, validate_config
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
+from madpinn.observation import split_observation
 from madpinn.value_functions.cli import problem_from_config
 from madpinn.value_functions.sampling import ConflictSampling
 
@@ -19,15 +19,10 @@ def problem(fraction, radius=0.3):
 
 def closest_approach(obs, horizon):
     """Smallest constant-velocity closest approach over [0, T] among the 3 pairs ``[B]`` (m)."""
-    pos = [torch.zeros(obs.shape[0], 2, dtype=obs.dtype)]
-    vel = [obs[:, 0:2]]
-    for j in range(2):
-        b = EGO_DIM + j * NEIGHBOUR_DIM
-        pos.append(obs[:, b:b + 2])
-        vel.append(obs[:, b + 2:b + 4])
+    pos, vel, _ = split_observation(obs, 2)
     out = []
     for a, c in ((0, 1), (0, 2), (1, 2)):
-        x, v = pos[c] - pos[a], vel[c] - vel[a]
+        x, v = pos[:, c] - pos[:, a], vel[:, c] - vel[:, a]
         tau = (-(x * v).sum(1) / (v * v).sum(1).clamp_min(1e-12)).clamp(0.0, horizon)
         out.append((x + v * tau[:, None]).norm(dim=1))
     return torch.stack(out, 1).min(1).values

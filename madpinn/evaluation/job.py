@@ -99,7 +99,7 @@ def evaluate(
         "job_config_hash": config_hash(job_config(cfg, study, run)),
         "device": str(device),
     }
-    if policy_stats and hasattr(policy, "summarise_stats"):
+    if policy_stats:   # only collected from policies with summarise_stats
         summary["policy_stats"] = policy.summarise_stats(policy_stats)
     out.parent.mkdir(parents=True, exist_ok=True)
     df.to_parquet(out, index=False)

@@ -17,13 +17,12 @@ uniform batch unchanged (same generator draws), which keeps old configurations r
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import torch
 
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
+from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, split_observation
 
 
 @dataclass(frozen=True)
@@ -46,21 +45,6 @@ class ConflictSampling:
         return cls(fraction=float(c.get("fraction", 0.0)), radius=float(c.get("radius", 0.3)))
 
 
-def _position_and_velocity(obs: torch.Tensor, agent: torch.Tensor):
-    """Position offset and velocity ``[B, 2]`` each of observed agent ``agent [B]`` (0 = ego)."""
-    b = obs.shape[0]
-    zero = torch.zeros(b, 2, dtype=obs.dtype, device=obs.device)
-    pos, vel = [zero], [obs[:, 0:2]]
-    n = (obs.shape[1] - EGO_DIM) // NEIGHBOUR_DIM
-    for j in range(n):
-        base = EGO_DIM + j * NEIGHBOUR_DIM
-        pos.append(obs[:, base:base + 2])
-        vel.append(obs[:, base + 2:base + 4])
-    pos, vel = torch.stack(pos, 1), torch.stack(vel, 1)      # [B, n+1, 2]
-    idx = agent[:, None, None].expand(b, 1, 2)
-    return pos.gather(1, idx)[:, 0], vel.gather(1, idx)[:, 0]
-
-
 def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset_range: float,
                     sampling: ConflictSampling, generator: torch.Generator) -> torch.Tensor:
     """Return ``obs [B, D]`` with the first ``round(fraction·B)`` rows moved onto a
@@ -79,13 +63,12 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
     angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
     d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
-    head = obs[:m]
-    pa, va = _position_and_velocity(head, a)
-    _, vc = _position_and_velocity(head, c)
+    pos, vel, _ = split_observation(obs[:m], n_neighbours)      # [m, n+1, 2], ego first
+    rows = torch.arange(m, device=device)
+    pa, va, vc = pos[rows, a], vel[rows, a], vel[rows, c]
     pc = (pa - (vc - va) * tau[:, None] + d).clamp(-offset_range, offset_range)
     out = obs.clone()
     cols = EGO_DIM + (c - 1) * NEIGHBOUR_DIM                   # position offset of neighbour c
-    rows = torch.arange(m, device=device)
     out[rows, cols] = pc[:, 0]
     out[rows, cols + 1] = pc[:, 1]
     return out

@@ -33,7 +33,7 @@ GROUPS = ("none", "point", "d4", "full")
 
 def _planar_group(name: str) -> list[torch.Tensor]:
     eye = torch.eye(2, dtype=torch.float64)
-    if name in ("none",):
+    if name == "none":
         return [eye]
     if name == "point":
         return [eye, -eye]
@@ -73,10 +73,6 @@ class SymmetrizedVHat:
 
     def __getattr__(self, name):
         return getattr(self.base, name)
-
-    @property
-    def size(self) -> int:
-        return self._g.shape[0]
 
     def _expand(self, obs, z, t):
         g = self._g.to(obs.dtype)
