@@ -66,3 +66,28 @@ def test_curriculum_and_schedule():
     x2, _ = training_batch(problem, s, 9, "cpu", torch.float32)
     assert torch.equal(x1, x2)
     assert math.isclose(learning_rate(50, settings(lr=2e-5, lr_final=2e-5)), 2e-5)
+
+
+def test_fine_tuning_starts_from_the_model_and_continues_its_batch_stream(tmp_path):
+    from madpinn.value_functions.model import CheckpointError, model_payload, save_atomic
+
+    torch.set_num_threads(1)
+    problem = PairProblem(PairSystem())
+    base, info = train(problem, settings(iterations=10), tmp_path / "base.ckpt", "h", progress=False)
+    save_atomic(model_payload(problem, base, 1.0, {"iterations": info["iterations"]}), tmp_path / "base.pt")
+    frozen = settings(iterations=1, lr=0.0, lr_final=0.0, init_from=str(tmp_path / "base.pt"))
+    tuned, ft = train(problem, frozen, tmp_path / "ft.ckpt", "ft", progress=False)
+    assert ft["batch_offset"] == 10
+    for p, q in zip(base.parameters(), tuned.parameters()):  # lr 0: the loaded weights, unchanged
+        assert torch.equal(p, q)
+    # its first batch is the base run's 11th, not a replay of the base run's first
+    s0, _ = training_batch(problem, settings(), 0, "cpu", torch.float32)
+    s10, _ = training_batch(problem, settings(), 10, "cpu", torch.float32)
+    s_ft, _ = training_batch(problem, frozen, 0, "cpu", torch.float32)
+    assert torch.equal(s_ft, s10) and not torch.equal(s_ft, s0)
+    with pytest.raises(CheckpointError, match="network"):
+        train(problem, settings(iterations=1, init_from=str(tmp_path / "base.pt"), network={**NET, "hidden": 16}),
+              tmp_path / "bad.ckpt", "bad", progress=False)
+    with pytest.raises(CheckpointError, match="not found"):
+        train(problem, settings(iterations=1, init_from=str(tmp_path / "missing.pt")), tmp_path / "m.ckpt", "m",
+              progress=False)

@@ -81,6 +81,8 @@ def _train(args) -> int:
     problem = problem_from_config(cfg, kind)
     vcfg = cfg["value_functions"][kind]
     settings = TrainSettings.from_config(vcfg, cfg["value_functions"]["seed"])
+    if settings.init_from and not Path(settings.init_from).is_absolute():
+        settings.init_from = str(Path(cfg["paths"]["results"]) / settings.init_from)
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{kind}.ckpt.pt"
     chash = training_hash(cfg, kind)
@@ -91,6 +93,7 @@ def _train(args) -> int:
         return 0
     history = info["history"]
     meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
+            "init_from": settings.init_from, "batch_offset": info["batch_offset"],
             "final_loss": float(np.mean(history[-100:])), "settings": {**vcfg, "seed": settings.seed}}
     model = model_from_payload(model_payload(problem, net, settings.output_scale, meta), device=device, dtype=dtype)
     val = vcfg.get("validation", {})

@@ -5,6 +5,10 @@ Each iteration draws a fresh uniform batch of states and curriculum times (DeepR
 iterations), evaluates the single HJB residual loss (paper eq. ``loss`` / ``HJI-VI``) with the
 fused exact derivatives of :class:`~madpinn.value_functions.siren.Siren`, and takes an Adam step.
 
+Fine-tuning: ``init_from`` starts from a trained model's weights with a fresh Adam state and a
+fresh learning-rate/curriculum schedule; its batches continue the original run's stream (batch
+index = the initial model's iterations + k), so no batch is replayed.
+
 Robustness: the batch of iteration ``k`` is a pure function of ``(seed, k)``, so a run resumed
 from a periodic checkpoint (network, Adam state, loss history) ends with the same weights as an
 uninterrupted one; a non-finite loss or gradient stops training with :class:`TrainingDiverged`.
@@ -42,6 +46,8 @@ class TrainSettings:
     output_scale: float = 1.0
     network: dict = field(default_factory=lambda: {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0})
     seed: int = 0
+    init_from: str | None = None
+    batch_offset: int = 0
 
     @classmethod
     def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":
@@ -50,6 +56,7 @@ class TrainSettings:
             lr_final=float(vcfg.get("lr_final", vcfg["lr"])), curriculum_fraction=float(vcfg["curriculum_fraction"]),
             checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg.get("loss", "l1")),
             output_scale=float(vcfg["output_scale"]), network=dict(vcfg["network"]), seed=int(seed),
+            init_from=vcfg.get("init_from"),
         )
 
 
@@ -86,7 +93,7 @@ def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale:
 
 def training_batch(problem: PINNProblem, settings: TrainSettings, iteration: int, device, dtype):
     """States ``[B, S]`` and times ``[B]`` of one iteration (pure function of seed and iteration)."""
-    gen = batch_generator(settings.seed, iteration)
+    gen = batch_generator(settings.seed, settings.batch_offset + iteration)
     s = problem.sample_training_states(settings.batch_size, gen, dtype)
     t = problem.sample_times(settings.batch_size, curriculum_alpha(iteration, settings), gen, dtype)
     return s.to(device), t.to(device)
@@ -128,6 +135,20 @@ def residual_stats(problem: PINNProblem, model, samples: int, seed: int, chunk: 
             "residual_p99": float(q[2]), "residual_max": float(r.max()), "residual_samples": int(r.numel())}
 
 
+def load_initial_weights(problem: PINNProblem, settings: TrainSettings, net: torch.nn.Module) -> int:
+    """Load ``settings.init_from`` into ``net`` (same problem and network required); return the
+    iterations it was trained for (the batch-stream offset of the fine-tuning run)."""
+    data = read_checkpoint(settings.init_from, problem.kind)
+    if data["problem"] != problem.describe():
+        raise CheckpointError(f"init_from {settings.init_from} was trained on a different {problem.kind} problem "
+                              f"({data['problem']} vs {problem.describe()})")
+    if dict(data["network"]) != dict(settings.network) or float(data["output_scale"]) != settings.output_scale:
+        raise CheckpointError(f"init_from {settings.init_from} has network {data['network']} (output_scale "
+                              f"{data['output_scale']}), the config asks for {settings.network} ({settings.output_scale})")
+    net.load_state_dict(data["state_dict"])
+    return int(data["meta"].get("iterations", 0)) + int(data["meta"].get("batch_offset", 0))
+
+
 def train(
     problem: PINNProblem, settings: TrainSettings, checkpoint: str | Path, config_hash: str,
     device=torch.device("cpu"), dtype=torch.float32, progress: bool = True, stop_after: int | None = None,
@@ -150,14 +171,19 @@ def train(
                 start = int(train_state["iteration"])
                 history = train_state["history"].tolist()
                 wall = float(train_state["wall_s"])
+                settings.batch_offset = int(train_state.get("batch_offset", 0))
                 print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
             else:
                 print(f"{problem.kind}: ignoring {checkpoint} (different configuration)")
         except CheckpointError as exc:
             print(f"{problem.kind}: ignoring unusable checkpoint: {exc}")
+    if settings.init_from and start == 0:
+        settings.batch_offset = load_initial_weights(problem, settings, net)
+        print(f"{problem.kind}: fine-tuning from {settings.init_from} (batches from index {settings.batch_offset})")
 
     def save(iteration: int) -> None:
         meta = {"train_state": {"config_hash": config_hash, "iteration": iteration, "optimizer": opt.state_dict(),
+                                "batch_offset": settings.batch_offset,
                                 "history": torch.tensor(history, dtype=torch.float64), "wall_s": wall}}
         save_atomic(model_payload(problem, net, settings.output_scale, meta), checkpoint)
 
@@ -176,4 +202,5 @@ def train(
     wall += time.perf_counter() - t0
     if end < settings.iterations:
         save(end)
-    return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations}
+    return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations,
+                 "batch_offset": settings.batch_offset}

@@ -1,13 +1,24 @@
 # Value functions (issue 3): train V̂ and V_s, validate them, and draw their figures.
 # Other rule files depend on VHAT_MODEL / VS_MODEL (e.g. METHOD_INPUTS["madpinn"] = [VHAT_MODEL, VS_MODEL]).
+import os
+
 VHAT_MODEL = f"{RESULTS}/models/vhat.pt"
 VS_MODEL = f"{RESULTS}/models/vs.pt"
 VF_THREADS = int(config["value_functions"]["threads"])
 
 
+def init_model(kind):
+    """The model a ``value_functions.<kind>.init_from`` fine-tuning run starts from (or nothing)."""
+    path = config["value_functions"][kind].get("init_from")
+    if not path:
+        return []
+    return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
+
+
 rule train_vhat:
     input:
         tracking=TRACKING,
+        init=init_model("vhat"),
     output:
         model=VHAT_MODEL,
         loss=f"{RESULTS}/models/vhat_loss.csv",
@@ -22,6 +33,7 @@ rule train_vhat:
 rule train_vs:
     input:
         tracking=TRACKING,
+        init=init_model("vs"),
     output:
         model=VS_MODEL,
         loss=f"{RESULTS}/models/vs_loss.csv",
