@@ -217,6 +217,38 @@ def test_clear_errors(tmp_path):
     with pytest.raises(ValueError, match="goal_range"):
         make_policy(method, ctx)
     base = load_yaml(REPO / "config.yaml")
-    for bad in ({"update_every": 0}, {"update_every": "never"}, {"neighbours": "closest"}, {"z_tolerance": 0}, {"unknown": 1}):
+    for bad in ({"update_every": 0}, {"update_every": "never"}, {"neighbours": "closest"}, {"z_tolerance": 0}, {"unknown": 1},
+                {"safety_filter": {"cbvf_gamma": 3.0}}, {"safety_filter": {"cbvf_gamma": -1.0, "critical_neighbours": 2,
+                                                                          "candidates": 4, "threshold": 0.0}}):
         with pytest.raises(ConfigError, match="methods.madpinn"):
             validate_config(deep_merge(base, {"methods": {"madpinn": bad}}))
+
+
+def test_filtered_variant_keeps_far_controls_and_enforces_the_cbvf_rows(tmp_path):
+    """``madpinn-filtered`` (extension): the MAD-PINN control where no agent is within the sensing
+    radius; elsewhere a control in the box that satisfies every active CBVF row, or the V_s fallback."""
+    from madpinn.policies.madpinn import FilteredMadPinnPolicy
+
+    cfg = tiny_cfg(tmp_path)
+    method, ctx = context(cfg, "madpinn-filtered")
+    pol = make_policy(method, ctx)
+    assert isinstance(pol, FilteredMadPinnPolicy)
+    method, ctx = context(cfg, "madpinn")
+    plain = make_policy(method, ctx)
+    state, goals = scenario(S=2, N=6, seed=5)
+    state[0, :, 0:2] = torch.tensor([[-0.9, -0.9], [0.9, 0.9], [-0.9, 0.9], [0.9, -0.9], [0.0, 0.0], [0.0, -0.9]]) * 2.5
+    state[1, 1] = state[1, 0] + torch.tensor([0.15, 0.0, -3.0, 0.0])   # 1 closing on 0 at 3 m/s, 15 cm apart
+    for p in (pol, plain):
+        p.reset(state, goals)
+    u, u_plain = pol.act(state, goals, 0.0), plain.act(state, goals, 0.0)
+    assert torch.equal(u[0], u_plain[0])               # nobody within 1 m in scenario 0
+    assert u.abs().max() <= 4.0 + 1e-6
+    a, b, active, V, _ = pol.filter.constraint_rows(state)
+    slack = (a * u.unsqueeze(2)).sum(-1) - b
+    fallback = torch.isclose(u.abs(), torch.tensor(4.0)).all(-1)
+    assert (((slack >= -1e-4) | ~active).all(-1) | fallback).all()
+    assert not torch.equal(u[1, 0], u_plain[1, 0]) or not torch.equal(u[1, 1], u_plain[1, 1])
+    stats = pol.summarise_stats(pol.stats)
+    assert stats["filter_active_fraction"] > 0 and 0.0 <= stats["infeasible_fraction"] <= 1.0
+    s = evaluate(cfg, "main", "madpinn-filtered", 3, 0, tmp_path / "f.parquet", progress=False, track=False)
+    assert 0.0 <= s["policy_stats"]["filter_active_fraction"] <= 1.0 and "z_star_mean" in s["policy_stats"]

@@ -13,6 +13,10 @@ For all agents of all scenarios at once, at every policy step (simulation step `
 4. ego control ``u = −u_max·sign(∂V̂/∂v_ego)`` at ``(t = 0, ô* = [o, z*])``.
 
 Each agent's control depends only on its own observation; the batch is a computational device.
+
+Extension, not in the paper: ``safety_filter`` passes the MAD-PINN control through the CBVF QP on
+V_s (:mod:`madpinn.policies.safety_filter`, the filter SafeMARL uses), which changes it only
+where a pair's V_s would fall too fast. Off by default; run ``madpinn-filtered`` in config.yaml.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import torch
 from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.neighbours import STRATEGIES, make_selector
+from madpinn.policies.safety_filter import CBVFFilter, SafetyFilteredPolicy, make_cbvf_filter
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.symmetry import symmetrize
 
@@ -37,7 +42,8 @@ class MadPinnSettings:
     """strategy: neighbour strategy; update_every: k in simulation steps (None = ∞);
     z_tolerance: bisection tolerance as a fraction of z_max; warm_start: start each row's
     search from its previous z* (:func:`warm_budget_search`); pair_batch: V_s states per call;
-    symmetry: group V̂ is averaged over at inference (:mod:`madpinn.value_functions.symmetry`)."""
+    symmetry: group V̂ is averaged over at inference (:mod:`madpinn.value_functions.symmetry`);
+    safety_filter: CBVF filter parameters (None: the paper's policy, unfiltered)."""
 
     strategy: str = "value"
     update_every: int | None = 5
@@ -45,6 +51,7 @@ class MadPinnSettings:
     warm_start: bool = True
     pair_batch: int = 65536
     symmetry: str = "none"
+    safety_filter: dict | None = None
 
     @classmethod
     def from_method_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -57,7 +64,8 @@ class MadPinnSettings:
             raise ValueError(f"methods.madpinn.neighbours must be one of {STRATEGIES}, got '{strategy}'")
         return cls(strategy=strategy, update_every=update_every, z_tolerance=float(mcfg.get("z_tolerance", 1e-3)),
                    warm_start=bool(mcfg.get("warm_start", True)),
-                   pair_batch=int(mcfg.get("pair_batch", 65536)), symmetry=str(mcfg.get("symmetry", "none")))
+                   pair_batch=int(mcfg.get("pair_batch", 65536)), symmetry=str(mcfg.get("symmetry", "none")),
+                   safety_filter=dict(mcfg["safety_filter"]) if mcfg.get("safety_filter") else None)
 
 
 def bisection_steps(z_tolerance: float) -> int:
@@ -112,7 +120,7 @@ def warm_budget_search(vhat, obs: torch.Tensor, z_prev: torch.Tensor, steps: int
     return z, feasible, hit | unsafe
 
 
-def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float, strategy: str) -> None:
+def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float) -> None:
     """Fail early when the trained models do not match the deployment configuration."""
     m = vhat.obs_spec
     for name in ("n_neighbours", "goal_range", "offset_range", "collision_radius"):
@@ -121,7 +129,7 @@ def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float, strategy: st
                              f"{getattr(spec, name)}; retrain V̂ or fix the config")
     if abs(vhat.system.u_max - u_max) > 1e-9:
         raise ValueError(f"V̂ was trained with u_max = {vhat.system.u_max}, config agents.u_max = {u_max}")
-    if strategy == "value" and abs(vs.collision_radius - spec.collision_radius) > 1e-9:
+    if vs is not None and abs(vs.collision_radius - spec.collision_radius) > 1e-9:
         raise ValueError(f"V_s was trained with collision radius {vs.collision_radius}, config has {spec.collision_radius}")
 
 
@@ -198,13 +206,39 @@ def model_path(ctx: PolicyContext, key: str) -> Path:
     return p if p.is_absolute() else Path(ctx.cfg["paths"]["results"]) / p
 
 
+class FilteredMadPinnPolicy(SafetyFilteredPolicy):
+    """:class:`MadPinnPolicy` followed by a :class:`CBVFFilter` (extension, see module docstring);
+    ``stats`` adds the filter's counts to the policy's."""
+
+    def __init__(self, nominal: MadPinnPolicy, safety_filter: CBVFFilter):
+        super().__init__(nominal, safety_filter)
+
+    @property
+    def stats(self) -> dict:
+        f = self.filter.stats
+        return {**self.nominal.stats, "filter_steps": f.steps, "filter_active": f.active, "filter_fallback": f.fallback}
+
+    @staticmethod
+    def summarise_stats(stats: dict) -> dict:
+        """:meth:`MadPinnPolicy.summarise_stats` plus the share of agent-steps whose control the
+        filter changed and the share that took the V_s-optimal fallback."""
+        n = max(1, stats["filter_steps"])
+        return {**MadPinnPolicy.summarise_stats(stats), "filter_active_fraction": stats["filter_active"] / n,
+                "filter_fallback_fraction": stats["filter_fallback"] / n}
+
+
 @register_policy("madpinn")
-def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy:
+def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy | FilteredMadPinnPolicy:
     settings = MadPinnSettings.from_method_config(ctx.method_cfg)
     vhat = symmetrize(load_vhat(model_path(ctx, "vhat_model"), device=ctx.device, dtype=ctx.dtype), settings.symmetry)
-    vs = load_vs(model_path(ctx, "vs_model"), device=ctx.device, dtype=ctx.dtype) if settings.strategy == "value" else None
-    check_compatible(vhat, vs, ctx.obs_spec, ctx.dynamics.u_max, settings.strategy)
+    needs_vs = settings.strategy == "value" or settings.safety_filter is not None
+    vs = load_vs(model_path(ctx, "vs_model"), device=ctx.device, dtype=ctx.dtype) if needs_vs else None
+    check_compatible(vhat, vs, ctx.obs_spec, ctx.dynamics.u_max)
     gen = torch.Generator(device=ctx.device).manual_seed(int(ctx.seed))
     selector = make_selector(settings.strategy, ctx.obs_spec.n_neighbours, vs=vs, radius=ctx.obs_spec.sensing_radius,
                              generator=gen, chunk=settings.pair_batch)
-    return MadPinnPolicy(vhat, selector, ctx.obs_spec, settings, ctx.sim_dt)
+    policy = MadPinnPolicy(vhat, selector, ctx.obs_spec, settings, ctx.sim_dt)
+    if settings.safety_filter is None:
+        return policy
+    flt = make_cbvf_filter(vs, settings.safety_filter, ctx.dynamics.u_max, ctx.obs_spec.sensing_radius)
+    return FilteredMadPinnPolicy(policy, flt)

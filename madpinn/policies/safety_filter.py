@@ -1,0 +1,117 @@
+"""Control-barrier value-function (CBVF) safety filter on the learned pairwise safety value V_s.
+
+Per agent i, every policy step:
+
+1. Candidates: the ``candidates`` nearest agents inside the sensing radius; their relative
+   states ``x_ij = [p_i − p_j, v_i − v_j]`` and ``V_s(x_ij)`` (m, larger = safer).
+2. The ``critical_neighbours`` lowest-V_s candidates give one constraint row each,
+   ``∇V_s·f(x_ij, u_i) + γ·V_s ≥ 0`` with the relative dynamics ``f = [v_i − v_j, u_i − u_j]`` in
+   which the neighbour's control is taken as ``u_j = 0`` (agent i cannot know it; each agent of a
+   pair filters its own control, so both contribute): ``∇_v V_s·u_i ≥ −γ·V_s − ∇_p V_s·(v_i − v_j)``.
+3. ``u_i = argmin ‖u − u_nom‖²`` over the control box subject to those rows — solved exactly by
+   :func:`madpinn.policies.cbvf_qp.solve_box_qp`, all agents in one batch.
+4. If the QP is infeasible, or the smallest V_s is below ``threshold``, the V_s-optimal (safest)
+   control against the most critical neighbour: ``u_max·sign(∂V_s/∂v)`` per axis.
+
+Without neighbours in the sensing radius the nominal control passes unchanged. Used by SafeMARL
+(:mod:`madpinn.policies.safemarl`, nominal = MARL actor) and by the ``safety_filter`` option of
+MAD-PINN (:mod:`madpinn.policies.madpinn`, nominal = the MAD-PINN policy; not in the paper).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from madpinn.observation import _gather_agents, nearest_neighbours
+from madpinn.policies.base import Policy
+from madpinn.policies.cbvf_qp import solve_box_qp
+
+
+@dataclass
+class FilterStats:
+    """Counts over all agent-steps: filtered (QP changed u), fallback (safest control)."""
+
+    steps: int = 0
+    active: int = 0
+    fallback: int = 0
+
+
+class CBVFFilter:
+    """Batched per-agent CBVF safety filter on a pairwise value ``vs`` with ``value(x [B,4]) -> [B]``
+    and ``value_and_grad(x [B,4]) -> (V [B], dV/dx [B,4])``."""
+
+    def __init__(self, vs, u_max: float, gamma: float, critical: int, candidates: int, threshold: float, sensing_radius: float):
+        if critical > candidates:
+            raise ValueError(f"critical_neighbours ({critical}) must not exceed candidates ({candidates})")
+        self.vs = vs
+        self.u_max = float(u_max)
+        self.gamma = float(gamma)
+        self.critical = int(critical)
+        self.candidates = int(candidates)
+        self.threshold = float(threshold)
+        self.sensing_radius = float(sensing_radius)
+        self.stats = FilterStats()
+
+    def constraint_rows(self, state: torch.Tensor):
+        """-> ``a [S, N, k, 2]``, ``b [S, N, k]``, ``active [S, N, k]``, ``V [S, N, k]``, ``dV/dv [S, N, k, 2]``,
+        rows sorted by increasing V_s (most critical first)."""
+        S, N, _ = state.shape
+        idx = nearest_neighbours(state, self.candidates, radius=self.sensing_radius)  # [S, N, C]
+        real = idx >= 0
+        x_rel = state.unsqueeze(2) - _gather_agents(state, idx.clamp_min(0))  # [S, N, C, 4]
+        C = idx.shape[-1]
+        v_all = self.vs.value(x_rel.reshape(-1, 4), t=0.0).reshape(S, N, C)
+        v_all = v_all.masked_fill(~real, float("inf"))
+        k = min(self.critical, C)
+        _, order = torch.topk(v_all, k, dim=-1, largest=False)  # [S, N, k]
+        active = torch.gather(real, 2, order)
+        x_k = torch.gather(x_rel, 2, order.unsqueeze(-1).expand(S, N, k, 4))
+        V, dV = self.vs.value_and_grad(x_k.reshape(-1, 4), t=0.0)
+        V = V.reshape(S, N, k).to(state.dtype)
+        dV = dV.reshape(S, N, k, 4).to(state.dtype)
+        a = dV[..., 2:4]
+        b = -self.gamma * V - (dV[..., 0:2] * x_k[..., 2:4]).sum(-1)
+        return a, b, active, V, a
+
+    def __call__(self, state: torch.Tensor, u_nom: torch.Tensor) -> torch.Tensor:
+        """state ``[S, N, 4]``, nominal controls ``[S, N, 2]`` -> filtered controls ``[S, N, 2]`` (in the box)."""
+        S, N, _ = state.shape
+        u_nom = u_nom.clamp(-self.u_max, self.u_max)
+        if N < 2:
+            return u_nom
+        a, b, active, V, grad_v = self.constraint_rows(state)
+        k = a.shape[2]
+        u, feasible = solve_box_qp(u_nom.reshape(-1, 2), a.reshape(-1, k, 2), b.reshape(-1, k), self.u_max, active.reshape(-1, k))
+        u, feasible = u.reshape(S, N, 2), feasible.reshape(S, N)
+        any_nbr = active[..., 0]
+        safest = self.u_max * torch.sign(grad_v[..., 0, :])
+        fallback = any_nbr & (~feasible | (V[..., 0] < self.threshold))
+        u = torch.where(fallback.unsqueeze(-1), safest, u)
+        self.stats.steps += S * N
+        self.stats.active += int(((u - u_nom).abs().amax(-1) > 1e-6).sum())
+        self.stats.fallback += int(fallback.sum())
+        return u
+
+
+class SafetyFilteredPolicy:
+    """Any nominal :class:`Policy` followed by a :class:`CBVFFilter` (``None``: unfiltered)."""
+
+    def __init__(self, nominal: Policy, safety_filter: CBVFFilter | None):
+        self.nominal = nominal
+        self.filter = safety_filter
+
+    def reset(self, state: torch.Tensor, goals: torch.Tensor) -> None:
+        self.nominal.reset(state, goals)
+
+    def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
+        u = self.nominal.act(state, goals, t)
+        return u if self.filter is None else self.filter(state, u)
+
+
+def make_cbvf_filter(vs, params: dict, u_max: float, sensing_radius: float) -> CBVFFilter:
+    """A :class:`CBVFFilter` from a config block with ``cbvf_gamma``, ``critical_neighbours``,
+    ``candidates`` and ``threshold``."""
+    return CBVFFilter(vs, u_max=u_max, gamma=params["cbvf_gamma"], critical=params["critical_neighbours"],
+                      candidates=params["candidates"], threshold=params["threshold"], sensing_radius=sensing_radius)
