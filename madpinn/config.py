@@ -132,11 +132,16 @@ def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
     return method, deep_merge(base, variants[variant])
 
 
+FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
+
+
 def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
-    """The part of the config an evaluation job depends on (hashed to trigger re-runs)."""
+    """The part of the config an evaluation job depends on (hashed to trigger re-runs). The study's
+    fan-out (``runs``, ``agent_counts``, ``seeds``) is left out: adding a run or a seed to a study
+    does not change the cells already computed."""
     method, mcfg = method_config(cfg, run)
     return {
-        "study": cfg["studies"][study],
+        "study": {k: v for k, v in cfg["studies"][study].items() if k not in FAN_OUT_KEYS},
         "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
         "agents": cfg["agents"],
         "sim": cfg["sim"],

@@ -57,12 +57,13 @@ class CollisionProbe:
         d = rel.norm(dim=-1)
         S, N, _ = d.shape
         eye = torch.eye(N, dtype=torch.bool)
-        infeasible = (self.policy._z_prev >= self.policy.vhat.z_max * (1 - 1e-9)).reshape(S, N)
+        mad = getattr(self.policy, "nominal", self.policy)   # madpinn-filtered wraps the MAD-PINN policy
+        infeasible = (mad._z_prev >= mad.vhat.z_max * (1 - 1e-9)).reshape(S, N)
         self.infeasible_since = torch.where(infeasible, torch.where(self.infeasible_since < 0, t, self.infeasible_since),
                                             torch.full_like(self.infeasible_since, -1.0))
         touch = (d <= self.r) & ~eye
         onset = touch & ~self.touching & torch.triu(torch.ones(N, N, dtype=torch.bool), 1)
-        nb = self.policy.neighbours
+        nb = mad.neighbours
         for s, i, j in onset.nonzero().tolist():
             i_sees_j = bool((nb[s, i] == j).any())
             j_sees_i = bool((nb[s, j] == i).any())

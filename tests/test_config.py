@@ -68,3 +68,20 @@ def test_trajectory_figure_cell_must_exist(paper_cfg):
     cfg = deep_merge(paper_cfg, {"figures": {"trajectories": {"study": "main", "n_agents": 5, "seed": 0}}})
     with pytest.raises(ConfigError, match="'figures.trajectories.n_agents'"):
         validate_config(cfg)
+
+
+def test_job_hash_ignores_the_study_fan_out_but_not_the_cell_settings():
+    import copy
+
+    from madpinn.config import config_hash, job_config
+
+    cfg = load_config([REPO / "config.yaml"])
+    base = config_hash(job_config(cfg, "main", "nominal"))
+    more = copy.deepcopy(cfg)
+    more["studies"]["main"]["runs"].append("madpinn-nearest")
+    more["studies"]["main"]["seeds"].append(7)
+    assert config_hash(job_config(more, "main", "nominal")) == base
+    fewer = copy.deepcopy(cfg)
+    fewer["studies"]["main"]["scenarios"] = 40
+    assert config_hash(job_config(fewer, "main", "nominal")) != base
+    assert config_hash(job_config(cfg, "main", "madpinn")) != config_hash(job_config(cfg, "main", "madpinn-filtered"))

@@ -77,10 +77,11 @@ def test_cli_train_validate_figures(tmp_path):
         assert main(["train-value", "--config", *CONFIGS, "--kind", kind, "--out", str(out / f"{kind}.pt"),
                      "--no-track", "--no-progress"]) == 0
     vhat, vs = load_vhat(out / "vhat.pt"), load_vs(out / "vs.pt")
-    for m in (vhat, vs):
-        assert m.meta["iterations"] == 30 and len(m.meta["config_hash"]) == 12
+    for m, iterations in ((vhat, 30 + 10), (vs, 30)):   # smoke V̂: 30 iterations + a 10-iteration fine_tune stage
+        assert m.meta["iterations"] == iterations and len(m.meta["config_hash"]) == 12
         assert m.meta["residual"]["residual_mean"] > 0 and m.meta["git_commit"]
-    assert (out / "vhat_loss.csv").read_text().count("\n") == 31
+    assert (out / "vhat_loss.csv").read_text().count("\n") == 41
+    assert load_vhat(out / "vhat_stage1.pt").meta["iterations"] == 30
     assert main(["validate-vs", "--config", *CONFIGS, "--model", str(out / "vs.pt"), "--out", str(tmp_path / "vs.json"),
                  "--fig-stem", str(tmp_path / "slices"), "--no-track"]) == 0
     report = json.loads((tmp_path / "vs.json").read_text())
@@ -92,3 +93,24 @@ def test_cli_train_validate_figures(tmp_path):
                  "--out-stem", str(tmp_path / "heat"), "--no-track"]) == 0
     for name in ("slices", "heat"):
         assert (tmp_path / f"{name}.pdf").stat().st_size > 1000 and (tmp_path / f"{name}.png").stat().st_size > 1000
+
+
+def test_fine_tune_stage_equals_training_from_the_first_stage_model(tmp_path):
+    """``fine_tune`` in one job gives the weights of two jobs: the first stage, then ``init_from``
+    it with the stage's schedule (how results/models/vhat.pt was produced, docs/value_functions.md)."""
+    two = tmp_path / "two"
+    assert main(["train-value", "--config", *CONFIGS, "--kind", "vhat", "--out", str(two / "vhat.pt"),
+                 "--no-track", "--no-progress"]) == 0
+    first = tmp_path / "first.yaml"
+    first.write_text("value_functions:\n  vhat:\n    fine_tune: null\n")
+    assert main(["train-value", "--config", *CONFIGS, str(first), "--kind", "vhat", "--out", str(tmp_path / "a" / "vhat.pt"),
+                 "--no-track", "--no-progress"]) == 0
+    second = tmp_path / "second.yaml"
+    second.write_text(f"value_functions:\n  vhat:\n    fine_tune: null\n    init_from: {tmp_path / 'a' / 'vhat.pt'}\n"
+                      "    iterations: 10\n    lr: 3.0e-5\n    lr_final: 1.0e-6\n    curriculum_fraction: 0.0\n")
+    assert main(["train-value", "--config", *CONFIGS, str(second), "--kind", "vhat", "--out", str(tmp_path / "b" / "vhat.pt"),
+                 "--no-track", "--no-progress"]) == 0
+    a, b = load_vhat(two / "vhat.pt"), load_vhat(tmp_path / "b" / "vhat.pt")
+    assert b.meta["batch_offset"] == 30
+    for p, q in zip(a.net.parameters(), b.net.parameters()):
+        assert torch.equal(p, q)

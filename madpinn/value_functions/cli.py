@@ -91,6 +91,10 @@ def _train(args) -> int:
     if not info["completed"]:
         print(f"{kind}: stopped after {info['iterations']} of {settings.iterations} iterations; checkpoint {ckpt}")
         return 0
+    if vcfg.get("fine_tune"):
+        net, info = _fine_tune(problem, settings, net, info, vcfg["fine_tune"], out, ckpt, chash, device, dtype, args)
+        if not info["completed"]:
+            return 0
     history = info["history"]
     meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
             "init_from": settings.init_from, "batch_offset": info["batch_offset"],
@@ -115,6 +119,31 @@ def _train(args) -> int:
                 artifacts=artifacts, step_metrics={"loss": decimate(history)})
     print(json.dumps(summary))
     return 0
+
+
+def _fine_tune(problem, settings, net, info, ft: dict, out: Path, ckpt: Path, chash: str, device, dtype, args):
+    """Second stage of ``value_functions.<kind>.fine_tune``: save the first stage's model next to
+    ``out`` (``<kind>_stage1.pt``), then train from it with a fresh optimizer and schedule
+    (:func:`madpinn.value_functions.train.load_initial_weights`; no curriculum, its batches
+    continue the first stage's stream). Returns ``(network, info)`` over both stages."""
+    from dataclasses import replace
+
+    from madpinn.value_functions.model import model_payload, save_atomic
+    from madpinn.value_functions.train import train
+
+    stage1 = out.with_name(f"{out.stem}_stage1.pt")
+    save_atomic(model_payload(problem, net, settings.output_scale,
+                              {"config_hash": chash, "iterations": info["iterations"], "batch_offset": info["batch_offset"],
+                               "wall_s": info["wall_s"]}), stage1)
+    s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
+                 curriculum_fraction=0.0, init_from=str(stage1), batch_offset=0)
+    net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
+                        device=device, dtype=dtype, progress=not args.no_progress, stop_after=args.stop_after)
+    if not info2["completed"]:
+        print(f"{problem.kind}: fine-tuning stopped after {info2['iterations']} of {s2.iterations} iterations")
+    return net2, {"history": info["history"] + info2["history"], "iterations": info["iterations"] + info2["iterations"],
+                  "wall_s": info["wall_s"] + info2["wall_s"], "completed": info2["completed"],
+                  "batch_offset": info["batch_offset"]}
 
 
 def _validate_vs(args) -> int:
