@@ -1,7 +1,8 @@
 """Where do MAD-PINN's collisions come from? Classifies every collision onset of a job.
 
-Runs the configured ``madpinn`` run on the double-integrator backend exactly as
-``python -m madpinn evaluate`` does (same scenarios, same policy), and at each collision onset
+Runs the configured ``madpinn`` run on the double-integrator backend as
+``python -m madpinn evaluate`` runs its first scenario batch (same scenarios, same policy
+context; at most ``sim.scenario_batch`` scenarios), and at each collision onset
 (pair distance first ≤ r) of agents i, j records:
 
 - ``observed``: j was among i's selected neighbours and i among j's (``both``), one way
@@ -27,10 +28,8 @@ import numpy as np
 import torch
 
 from madpinn.config import load_config, method_config
-from madpinn.dynamics import DoubleIntegrator
-from madpinn.evaluation.job import episode_steps
-from madpinn.observation import ObservationSpec
-from madpinn.policies.base import PolicyContext, make_policy
+from madpinn.evaluation.job import episode_steps, policy_context, policy_period
+from madpinn.policies.base import make_policy
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import make_backend
@@ -94,16 +93,14 @@ def main() -> None:
     st = cfg["studies"][args.study]
     method, mcfg = method_config(cfg, args.run)
     arena = Arena.from_config(cfg, st["arena"])
+    if args.scenarios > int(cfg["sim"]["scenario_batch"]):
+        raise SystemExit(f"--scenarios must be ≤ sim.scenario_batch ({cfg['sim']['scenario_batch']}): one batch, as evaluate's first")
     r, dt = float(cfg["agents"]["collision_radius"]), float(cfg["sim"]["dt"])
-    starts, goals = generate_scenarios(arena, args.n_agents, args.seed, args.scenarios, r, torch.device("cpu"),
-                                       torch.float32)
-    ctx = PolicyContext(cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"]),
-                        obs_spec=ObservationSpec.from_config(cfg), device=torch.device("cpu"), dtype=torch.float32,
-                        seed=args.seed * 1_000_003, sim_dt=dt, policy_period=1,
-                        models_dir=Path(cfg["paths"]["results"]) / "models")
-    probe = CollisionProbe(make_policy(method, ctx), r, dt)
-    result, _ = run_episode(make_backend("double_integrator", cfg, torch.device("cpu"), torch.float32), probe, starts,
-                            goals, episode_steps(cfg, arena), r, progress=True)
+    cpu, f32 = torch.device("cpu"), torch.float32
+    starts, goals = generate_scenarios(arena, args.n_agents, args.seed, args.scenarios, r, cpu, f32)
+    probe = CollisionProbe(make_policy(method, policy_context(cfg, mcfg, args.seed, 0, cpu, f32)), r, dt)
+    result, _ = run_episode(make_backend("double_integrator", cfg, cpu, f32), probe, starts, goals,
+                            episode_steps(cfg, arena), r, policy_period=policy_period(cfg, mcfg), progress=True)
     ev = probe.events
     lead = np.array([e["infeasible_lead_s"] for e in ev])
     summary = {

@@ -9,7 +9,7 @@ import torch
 from madpinn.dynamics.pair import PairSystem
 from madpinn.value_functions.problems import PairProblem
 from madpinn.value_functions.train import (
-    TrainingDiverged, TrainSettings, curriculum_alpha, learning_rate, train, training_batch,
+    TrainingDiverged, TrainSettings, curriculum_alpha, learning_rate, train, train_step, training_batch,
 )
 
 NET = {"hidden": 32, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
@@ -83,8 +83,12 @@ def test_fine_tuning_starts_from_the_model_and_continues_its_batch_stream(tmp_pa
     # its first batch is the base run's 11th, not a replay of the base run's first
     s0, _ = training_batch(problem, settings(), 0, "cpu", torch.float32)
     s10, _ = training_batch(problem, settings(), 10, "cpu", torch.float32)
-    s_ft, _ = training_batch(problem, frozen, 0, "cpu", torch.float32)
+    s_ft, _ = training_batch(problem, frozen, 0, "cpu", torch.float32, ft["batch_offset"])
     assert torch.equal(s_ft, s10) and not torch.equal(s_ft, s0)
+    # ... and train() used it: the first fine-tuning loss is the loaded model's loss on that batch
+    opt = torch.optim.Adam(tuned.parameters())
+    on = {k: train_step(problem, tuned, opt, frozen, 0, "cpu", torch.float32, k) for k in (0, 10)}
+    assert ft["history"][0] == pytest.approx(on[10], rel=1e-6) and ft["history"][0] != pytest.approx(on[0], rel=1e-6)
     with pytest.raises(CheckpointError, match="network"):
         train(problem, settings(iterations=1, init_from=str(tmp_path / "base.pt"), network={**NET, "hidden": 16}),
               tmp_path / "bad.ckpt", "bad", progress=False)

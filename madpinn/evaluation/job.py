@@ -27,6 +27,21 @@ def episode_steps(cfg: dict, arena: Arena) -> int:
     return int(round(arena.episode_s / cfg["sim"]["dt"]))
 
 
+def policy_period(cfg: dict, mcfg: dict) -> int:
+    """Simulation steps between policy queries: the method's own setting, else ``sim``'s."""
+    return int(mcfg.get("policy_period_steps", cfg["sim"]["policy_period_steps"]))
+
+
+def policy_context(cfg: dict, mcfg: dict, seed: int, batch_index: int, device, dtype) -> PolicyContext:
+    """Context of the policy that runs scenario batch ``batch_index`` of a job with ``seed``
+    (the policy's own seed is a pure function of both)."""
+    return PolicyContext(
+        cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"]),
+        obs_spec=ObservationSpec.from_config(cfg), device=device, dtype=dtype, seed=int(seed) * 1_000_003 + batch_index,
+        sim_dt=cfg["sim"]["dt"], policy_period=policy_period(cfg, mcfg), models_dir=Path(cfg["paths"]["results"]) / "models",
+    )
+
+
 def evaluate(
     cfg: dict,
     study: str,
@@ -51,10 +66,7 @@ def evaluate(
     seed_everything(seed, threads)
     r = float(cfg["agents"]["collision_radius"])
     n_steps = episode_steps(cfg, arena)
-    period = int(mcfg.get("policy_period_steps", cfg["sim"]["policy_period_steps"]))
-    dynamics = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
-    obs_spec = ObservationSpec.from_config(cfg)
-    models_dir = Path(cfg["paths"]["results"]) / "models"
+    period = policy_period(cfg, mcfg)
 
     frames, traj, timing, policy_stats = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}
     total, batch = int(st["scenarios"]), int(cfg["sim"]["scenario_batch"])
@@ -62,11 +74,7 @@ def evaluate(
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
         starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
-        ctx = PolicyContext(
-            cfg=cfg, method_cfg=mcfg, dynamics=dynamics, obs_spec=obs_spec, device=device, dtype=dtype,
-            seed=int(seed) * 1_000_003 + b, sim_dt=cfg["sim"]["dt"], policy_period=period, models_dir=models_dir,
-        )
-        policy = make_policy(method, ctx)
+        policy = make_policy(method, policy_context(cfg, mcfg, seed, b, device, dtype))
         sim = make_backend(backend, cfg, device, dtype)
         result, stats = run_episode(
             sim, policy, starts, goals, n_steps, r, policy_period=period,

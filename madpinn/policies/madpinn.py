@@ -210,8 +210,8 @@ class FilteredMadPinnPolicy(SafetyFilteredPolicy):
     """:class:`MadPinnPolicy` followed by a :class:`CBVFFilter` (extension, see module docstring);
     ``stats`` adds the filter's counts to the policy's."""
 
-    def __init__(self, nominal: MadPinnPolicy, safety_filter: CBVFFilter):
-        super().__init__(nominal, safety_filter)
+    nominal: MadPinnPolicy
+    filter: CBVFFilter
 
     @property
     def stats(self) -> dict:

@@ -136,7 +136,7 @@ def _fine_tune(problem, settings, net, info, ft: dict, out: Path, ckpt: Path, ch
                               {"config_hash": chash, "iterations": info["iterations"], "batch_offset": info["batch_offset"],
                                "wall_s": info["wall_s"]}), stage1)
     s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
-                 curriculum_fraction=0.0, init_from=str(stage1), batch_offset=0)
+                 curriculum_fraction=0.0, init_from=str(stage1))
     net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
                         device=device, dtype=dtype, progress=not args.no_progress, stop_after=args.stop_after)
     if not info2["completed"]:

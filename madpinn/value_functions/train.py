@@ -47,7 +47,6 @@ class TrainSettings:
     network: dict = field(default_factory=lambda: {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0})
     seed: int = 0
     init_from: str | None = None
-    batch_offset: int = 0
 
     @classmethod
     def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":
@@ -91,16 +90,17 @@ def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale:
     return head
 
 
-def training_batch(problem: PINNProblem, settings: TrainSettings, iteration: int, device, dtype):
-    """States ``[B, S]`` and times ``[B]`` of one iteration (pure function of seed and iteration)."""
-    gen = batch_generator(settings.seed, settings.batch_offset + iteration)
+def training_batch(problem: PINNProblem, settings: TrainSettings, iteration: int, device, dtype, batch_offset: int = 0):
+    """States ``[B, S]`` and times ``[B]`` of one iteration: a pure function of the seed and the
+    batch index ``batch_offset + iteration`` (the offset is non-zero when fine-tuning)."""
+    gen = batch_generator(settings.seed, batch_offset + iteration)
     s = problem.sample_training_states(settings.batch_size, gen, dtype)
     t = problem.sample_times(settings.batch_size, curriculum_alpha(iteration, settings), gen, dtype)
     return s.to(device), t.to(device)
 
 
-def train_step(problem, net, opt, settings, iteration, device, dtype) -> float:
-    s, t = training_batch(problem, settings, iteration, device, dtype)
+def train_step(problem, net, opt, settings, iteration, device, dtype, batch_offset: int = 0) -> float:
+    s, t = training_batch(problem, settings, iteration, device, dtype, batch_offset)
     b, gb = problem.boundary_and_grad(s)
     head = make_head(problem, s, t, b, gb, settings.output_scale, settings.loss)
     for group in opt.param_groups:
@@ -159,7 +159,7 @@ def train(
     torch.manual_seed(settings.seed)
     net = build_network(problem, settings.network).to(device=device, dtype=dtype)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
-    start, history, wall = 0, [], 0.0
+    start, history, wall, offset = 0, [], 0.0, 0
     checkpoint = Path(checkpoint)
     if checkpoint.is_file():
         try:
@@ -171,19 +171,19 @@ def train(
                 start = int(train_state["iteration"])
                 history = train_state["history"].tolist()
                 wall = float(train_state["wall_s"])
-                settings.batch_offset = int(train_state.get("batch_offset", 0))
+                offset = int(train_state.get("batch_offset", 0))
                 print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
             else:
                 print(f"{problem.kind}: ignoring {checkpoint} (different configuration)")
         except CheckpointError as exc:
             print(f"{problem.kind}: ignoring unusable checkpoint: {exc}")
     if settings.init_from and start == 0:
-        settings.batch_offset = load_initial_weights(problem, settings, net)
-        print(f"{problem.kind}: fine-tuning from {settings.init_from} (batches from index {settings.batch_offset})")
+        offset = load_initial_weights(problem, settings, net)
+        print(f"{problem.kind}: fine-tuning from {settings.init_from} (batches from index {offset})")
 
     def save(iteration: int) -> None:
         meta = {"train_state": {"config_hash": config_hash, "iteration": iteration, "optimizer": opt.state_dict(),
-                                "batch_offset": settings.batch_offset,
+                                "batch_offset": offset,
                                 "history": torch.tensor(history, dtype=torch.float64), "wall_s": wall}}
         save_atomic(model_payload(problem, net, settings.output_scale, meta), checkpoint)
 
@@ -192,7 +192,7 @@ def train(
                disable=not progress, mininterval=5.0)
     t0 = time.perf_counter()
     for it in bar:
-        history.append(train_step(problem, net, opt, settings, it, device, dtype))
+        history.append(train_step(problem, net, opt, settings, it, device, dtype, offset))
         if (it + 1) % 50 == 0:
             bar.set_postfix(loss=f"{sum(history[-50:]) / 50:.4g}", refresh=False)
         if (it + 1) % settings.checkpoint_every == 0 and it + 1 < settings.iterations:
@@ -203,4 +203,4 @@ def train(
     if end < settings.iterations:
         save(end)
     return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations,
-                 "batch_offset": settings.batch_offset}
+                 "batch_offset": offset}
