@@ -17,7 +17,7 @@ import torch
 
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.marl.defmarl.deploy import DefMarlPolicy
-from madpinn.marl.defmarl.jobs import build_defmarl_trainer
+from madpinn.marl.defmarl.build import build_defmarl_trainer
 from madpinn.observation import ObservationSpec
 from timing import best_of  # benchmarks/timing.py
 

@@ -12,7 +12,8 @@ import time
 from pathlib import Path
 
 from madpinn.config import REPO_ROOT, load_config
-from madpinn.evaluation.job import evaluate
+from madpinn.commands.args import parse_models
+from madpinn.commands.evaluate import evaluate
 
 
 def main() -> None:
@@ -23,6 +24,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
+                    help="trained files of the run, e.g. --model vhat=results/models/vhat.pt --model vs=results/models/vs.pt")
     args = ap.parse_args()
     cfg = load_config([REPO_ROOT / "config.yaml"])
     best = float("inf")
@@ -30,7 +33,7 @@ def main() -> None:
         for _ in range(args.repeats):
             t0 = time.perf_counter()
             s = evaluate(cfg, args.study, args.run, args.n_agents, args.seed, Path(tmp) / "x.parquet",
-                         threads=args.threads, progress=False, track=False)
+                         models=parse_models(args.model), threads=args.threads, progress=False, track=False)
             best = min(best, time.perf_counter() - t0)
     scen = cfg["studies"][args.study]["scenarios"]
     agent_steps = scen * args.n_agents * s["n_steps"]

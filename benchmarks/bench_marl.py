@@ -17,7 +17,7 @@ import torch
 
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.marl.deploy import ActorPolicy
-from madpinn.marl.jobs import build_trainer
+from madpinn.marl.build import build_trainer
 from madpinn.marl.ppo import PPOBatch, ppo_update
 from madpinn.observation import ObservationSpec
 from madpinn.policies.cbvf_qp import solve_box_qp

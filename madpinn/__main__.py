@@ -1,4 +1,4 @@
-from madpinn.cli import main
+from madpinn.commands import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

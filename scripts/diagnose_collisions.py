@@ -28,7 +28,8 @@ import numpy as np
 import torch
 
 from madpinn.config import load_config, method_config
-from madpinn.evaluation.job import episode_steps, policy_context, policy_period
+from madpinn.commands.args import parse_models
+from madpinn.evaluation.cell import episode_steps, policy_context, policy_period
 from madpinn.policies.base import make_policy
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import run_episode
@@ -87,6 +88,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--scenarios", type=int, default=40)
     ap.add_argument("--out")
+    ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
+                    help="trained files, e.g. --model vhat=results/models/vhat.pt --model vs=results/models/vs.pt")
     args = ap.parse_args()
     torch.set_num_threads(1)
     cfg = load_config(args.config)
@@ -98,7 +101,7 @@ def main() -> None:
     r, dt = float(cfg["agents"]["collision_radius"]), float(cfg["sim"]["dt"])
     cpu, f32 = torch.device("cpu"), torch.float32
     starts, goals = generate_scenarios(arena, args.n_agents, args.seed, args.scenarios, r, cpu, f32)
-    probe = CollisionProbe(make_policy(method, policy_context(cfg, mcfg, args.seed, 0, cpu, f32)), r, dt)
+    probe = CollisionProbe(make_policy(method, policy_context(cfg, mcfg, args.seed, 0, cpu, f32, parse_models(args.model))), r, dt)
     result, _ = run_episode(make_backend("double_integrator", cfg, cpu, f32), probe, starts, goals,
                             episode_steps(cfg, arena), r, policy_period=policy_period(cfg, mcfg), progress=True)
     ev = probe.events

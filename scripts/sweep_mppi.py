@@ -26,7 +26,7 @@ import pandas as pd
 import torch
 
 from madpinn.config import load_config
-from madpinn.evaluation.job import evaluate
+from madpinn.commands.evaluate import evaluate
 
 
 def parse_value(text: str):

@@ -12,7 +12,7 @@ import torch
 from conftest import REPO, SMOKE
 from madpinn.config import load_config
 from madpinn.value_functions import load_vhat, load_vs
-from madpinn.value_functions.cli import problem_from_config, training_hash
+from madpinn.value_functions.build import problem_from_config, training_hash
 from madpinn.value_functions.model import model_payload, save_atomic
 from madpinn.value_functions.train import TrainSettings, train
 

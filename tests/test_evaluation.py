@@ -7,7 +7,7 @@ import torch
 
 from madpinn.config import deep_merge, validate_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.evaluation.job import evaluate
+from madpinn.commands.evaluate import evaluate
 from madpinn.policies.nominal import NominalPD
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import DoubleIntegratorBackend, run_episode

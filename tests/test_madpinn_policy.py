@@ -3,14 +3,15 @@ control, neighbour update schedule (k, k = ∞), decentralization, determinism, 
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 import torch
 
 from conftest import REPO, SMOKE
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
+from madpinn.commands.evaluate import evaluate
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.evaluation.job import evaluate
 from madpinn.observation import ObservationSpec, build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy
 from madpinn.policies.madpinn import (
@@ -162,11 +163,17 @@ def test_control_is_decentralized():
     assert torch.equal(u1[0, 0], u2[0, 0])
 
 
+def models_of(cfg):
+    """The trained files of a MAD-PINN run (``--model vhat=… --model vs=…`` of the evaluate job)."""
+    d = Path(cfg["paths"]["results"]) / "models"
+    return {"vhat": d / "vhat.pt", "vs": d / "vs.pt"}
+
+
 def context(cfg, run, seed=0):
     method, mcfg = method_config(cfg, run)
     return method, PolicyContext(cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(), obs_spec=SPEC,
                                  device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=0.0025,
-                                 policy_period=1)
+                                 policy_period=1, models=models_of(cfg))
 
 
 def tiny_cfg(tmp_path):
@@ -197,7 +204,8 @@ def test_evaluation_job_runs_madpinn_and_variants(tmp_path):
     cfg = tiny_cfg(tmp_path)
     cfg["methods"]["madpinn"]["variants"]["sym"] = {"label": "point symmetry", "symmetry": "point"}
     for run in ("madpinn", "madpinn-kinf", "madpinn-sym"):
-        s = evaluate(cfg, "main", run, 3, 0, tmp_path / f"{run}.parquet", progress=False, track=False)
+        s = evaluate(cfg, "main", run, 3, 0, tmp_path / f"{run}.parquet", models=models_of(cfg), progress=False,
+                     track=False)
         assert s["method"] == "madpinn" and 0.0 <= s["safety_rate"] <= 1.0
         saved = json.loads((tmp_path / f"{run}.json").read_text())
         assert saved["n_agents"] == 3
@@ -207,8 +215,8 @@ def test_evaluation_job_runs_madpinn_and_variants(tmp_path):
 
 def test_clear_errors(tmp_path):
     cfg = tiny_cfg(tmp_path)
-    cfg["methods"]["madpinn"]["vhat_model"] = str(tmp_path / "missing.pt")
     method, ctx = context(cfg, "madpinn")
+    ctx.models["vhat"] = tmp_path / "missing.pt"
     with pytest.raises(CheckpointError, match="not found"):
         make_policy(method, ctx)
     cfg = tiny_cfg(tmp_path / "b")
@@ -250,5 +258,6 @@ def test_filtered_variant_keeps_far_controls_and_enforces_the_cbvf_rows(tmp_path
     assert not torch.equal(u[1, 0], u_plain[1, 0]) or not torch.equal(u[1, 1], u_plain[1, 1])
     stats = pol.summarise_stats(pol.stats)
     assert stats["filter_active_fraction"] > 0 and 0.0 <= stats["infeasible_fraction"] <= 1.0
-    s = evaluate(cfg, "main", "madpinn-filtered", 3, 0, tmp_path / "f.parquet", progress=False, track=False)
+    s = evaluate(cfg, "main", "madpinn-filtered", 3, 0, tmp_path / "f.parquet", models=models_of(cfg), progress=False,
+                 track=False)
     assert 0.0 <= s["policy_stats"]["filter_active_fraction"] <= 1.0 and "z_star_mean" in s["policy_stats"]

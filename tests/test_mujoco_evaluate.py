@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from madpinn.config import REPO_ROOT, deep_merge, load_yaml, validate_config
-from madpinn.evaluation.job import evaluate
+from madpinn.commands.evaluate import evaluate
 
 
 @pytest.fixture

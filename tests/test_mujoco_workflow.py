@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import yaml
 
-from madpinn.cli import main
+from madpinn.commands import main
 from madpinn.config import REPO_ROOT
 from madpinn.simulation.mujoco.render import gl_context_available
 

@@ -133,7 +133,7 @@ def _tiny_model(models_dir: Path):
 
 
 def test_unfiltered_variant_evaluates_end_to_end_and_missing_model_errors(tmp_path):
-    from madpinn.evaluation.job import evaluate
+    from madpinn.commands.evaluate import evaluate
 
     root = Path(__file__).resolve().parents[1]
     cfg = yaml.safe_load((root / "config.yaml").read_text())
@@ -143,9 +143,10 @@ def test_unfiltered_variant_evaluates_end_to_end_and_missing_model_errors(tmp_pa
     validate_config(cfg)
     ctx = PolicyContext(cfg=cfg, method_cfg=cfg["methods"]["safemarl"], dynamics=DYN, obs_spec=ObservationSpec(),
                         device=torch.device("cpu"), dtype=torch.float32, seed=0, sim_dt=0.0025, policy_period=1,
-                        models_dir=tmp_path / "models")
+                        models={"nominal": tmp_path / "models" / "safemarl_nominal.pt"})
     with pytest.raises(CheckpointError, match="not found"):
         make_policy("safemarl", ctx)
     _tiny_model(tmp_path / "models")
-    summary = evaluate(cfg, "main", "safemarl-unfiltered", 3, 0, tmp_path / "out.parquet", progress=False, track=False)
+    summary = evaluate(cfg, "main", "safemarl-unfiltered", 3, 0, tmp_path / "out.parquet", models=ctx.models,
+                       progress=False, track=False)
     assert summary["n_scenarios"] == cfg["studies"]["main"]["scenarios"] and 0.0 <= summary["safety_rate"] <= 1.0

@@ -65,7 +65,7 @@ def test_head_on_agents_do_not_collide_with_the_learned_vs(models, offset):
 
 
 def test_safemarl_method_evaluates_end_to_end(models, tmp_path):
-    from madpinn.evaluation.job import evaluate
+    from madpinn.commands.evaluate import evaluate
 
     root = Path(__file__).resolve().parents[1]
     cfg = deep_merge(yaml.safe_load((root / "config.yaml").read_text()), yaml.safe_load((root / "workflow/configs/smoke.yaml").read_text()))
@@ -73,5 +73,6 @@ def test_safemarl_method_evaluates_end_to_end(models, tmp_path):
     cfg["tracking"]["enabled"] = False
     cfg["sim"]["backend"] = "double_integrator"
     validate_config(cfg)
-    summary = evaluate(cfg, "main", "safemarl", 3, 0, tmp_path / "out.parquet", progress=False, track=False)
+    summary = evaluate(cfg, "main", "safemarl", 3, 0, tmp_path / "out.parquet", progress=False, track=False,
+                       models={"nominal": models / "safemarl_nominal.pt", "vs": models / "vs.pt"})
     assert summary["method"] == "safemarl" and 0.0 <= summary["safety_rate"] <= 1.0

@@ -5,7 +5,7 @@ from mlflow.entities import ViewType
 from mlflow.tracking import MlflowClient
 
 from madpinn.config import deep_merge
-from madpinn.evaluation.job import evaluate
+from madpinn.commands.evaluate import evaluate
 from madpinn.tracking import TrackingError, init_store, log_job
 
 

@@ -7,7 +7,7 @@ import torch
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, validate_config
 from madpinn.observation import split_observation
-from madpinn.value_functions.cli import problem_from_config
+from madpinn.value_functions.build import problem_from_config
 from madpinn.value_functions.sampling import ConflictSampling
 
 

@@ -6,7 +6,7 @@ import json
 import pytest
 import torch
 
-from madpinn.cli import main
+from madpinn.commands import main
 from madpinn.config import ConfigError, REPO_ROOT, load_config, validate_config
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem

@@ -16,10 +16,11 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Callable, Mapping, Protocol
 
 import torch
 
+from madpinn.config import ConfigError
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec
 
@@ -43,7 +44,15 @@ class PolicyContext:
     seed: int
     sim_dt: float
     policy_period: int
-    models_dir: Path = field(default_factory=lambda: Path("results/models"))
+    models: Mapping[str, Path] = field(default_factory=dict)
+    """trained files the policy loads, by name (``--model NAME=PATH`` of the evaluate command)"""
+
+    def model(self, name: str, method: str) -> Path:
+        """The trained file ``name`` of ``method``; a clear error when the job was not given it."""
+        if name not in self.models:
+            raise ConfigError(f"method '{method}' loads a trained '{name}' model: pass --model {name}=PATH "
+                              f"(the workflow's evaluate rule does; given: {sorted(self.models) or 'none'})")
+        return Path(self.models[name])
 
 
 PolicyFactory = Callable[[PolicyContext], Policy]

@@ -200,12 +200,6 @@ class MadPinnPolicy:
         return u.reshape(S, N, 2).to(device=state.device, dtype=state.dtype)
 
 
-def model_path(ctx: PolicyContext, key: str) -> Path:
-    """``methods.madpinn.<key>``: absolute, or relative to ``paths.results``."""
-    p = Path(ctx.method_cfg[key])
-    return p if p.is_absolute() else Path(ctx.cfg["paths"]["results"]) / p
-
-
 class FilteredMadPinnPolicy(SafetyFilteredPolicy):
     """:class:`MadPinnPolicy` followed by a :class:`CBVFFilter` (extension, see module docstring);
     ``stats`` adds the filter's counts to the policy's."""
@@ -230,9 +224,9 @@ class FilteredMadPinnPolicy(SafetyFilteredPolicy):
 @register_policy("madpinn")
 def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy | FilteredMadPinnPolicy:
     settings = MadPinnSettings.from_method_config(ctx.method_cfg)
-    vhat = symmetrize(load_vhat(model_path(ctx, "vhat_model"), device=ctx.device, dtype=ctx.dtype), settings.symmetry)
+    vhat = symmetrize(load_vhat(ctx.model("vhat", "madpinn"), device=ctx.device, dtype=ctx.dtype), settings.symmetry)
     needs_vs = settings.strategy == "value" or settings.safety_filter is not None
-    vs = load_vs(model_path(ctx, "vs_model"), device=ctx.device, dtype=ctx.dtype) if needs_vs else None
+    vs = load_vs(ctx.model("vs", "madpinn"), device=ctx.device, dtype=ctx.dtype) if needs_vs else None
     check_compatible(vhat, vs, ctx.obs_spec, ctx.dynamics.u_max)
     gen = torch.Generator(device=ctx.device).manual_seed(int(ctx.seed))
     selector = make_selector(settings.strategy, ctx.obs_spec.n_neighbours, vs=vs, radius=ctx.obs_spec.sensing_radius,

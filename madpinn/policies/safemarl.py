@@ -12,11 +12,9 @@ from madpinn.marl.checkpoint import load_actor
 from madpinn.marl.deploy import ActorPolicy
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.safety_filter import CBVFFilter, SafetyFilteredPolicy, make_cbvf_filter
+from madpinn.value_functions import load_vs
 
-__all__ = ["CBVFFilter", "SafetyFilteredPolicy", "load_nominal", "load_safety_value", "make_safemarl"]
-
-NOMINAL_MODEL = "safemarl_nominal.pt"
-VS_MODEL = "vs.pt"
+__all__ = ["CBVFFilter", "SafetyFilteredPolicy", "load_nominal", "make_safemarl"]
 
 
 def load_nominal(path, ctx: PolicyContext) -> ActorPolicy:
@@ -32,22 +30,11 @@ def load_nominal(path, ctx: PolicyContext) -> ActorPolicy:
     return ActorPolicy(actor, norm, obs_spec, meta["neighbours"], ctx.dynamics.u_max)
 
 
-def load_safety_value(path, ctx: PolicyContext):
-    try:
-        from madpinn.value_functions import load_vs
-    except ImportError as exc:
-        raise RuntimeError(
-            "SafeMARL's filter needs the learned pairwise safety value V_s (madpinn.value_functions, issue 3), "
-            f"which is not available in this checkout: {exc}"
-        ) from exc
-    return load_vs(path, device=ctx.device, dtype=ctx.dtype)
-
-
 @register_policy("safemarl")
 def make_safemarl(ctx: PolicyContext) -> SafetyFilteredPolicy:
     m = ctx.method_cfg
-    nominal = load_nominal(ctx.models_dir / NOMINAL_MODEL, ctx)
+    nominal = load_nominal(ctx.model("nominal", "safemarl"), ctx)
     if not m.get("filter", True):
         return SafetyFilteredPolicy(nominal, None)
-    vs = load_safety_value(ctx.models_dir / VS_MODEL, ctx)
+    vs = load_vs(ctx.model("vs", "safemarl"), device=ctx.device, dtype=ctx.dtype)
     return SafetyFilteredPolicy(nominal, make_cbvf_filter(vs, m, ctx.dynamics.u_max, ctx.obs_spec.sensing_radius))

@@ -82,3 +82,15 @@ def vs_slices_figure(axis, values, velocities, collision_radius: float, stem: Pa
     axes[0][0].set_ylabel("p_y rel (m)")
     fig.colorbar(im, ax=axes[0].tolist(), label=r"$V_s(x, 0)$ (m); black: $V_s = 0$")
     return _save(fig, stem)
+
+
+def validation_figure(model, kind: str, half_width: float, slice_velocities, stem: Path) -> list[Path]:
+    """The figure of a trained model: V̂ heatmap over an arena of ``half_width`` (m), or V_s
+    slices at ``slice_velocities`` (m/s); ``.pdf`` and ``.png`` at ``stem``."""
+    from madpinn.value_functions import validation
+
+    if kind == "vhat":
+        axis, z_star, feasible, _ = validation.heatmap_values(model, half_width)
+        return value_heatmap(axis, z_star, feasible, stem)
+    axis, values = validation.vs_slices(model, slice_velocities)
+    return vs_slices_figure(axis, values, slice_velocities, model.collision_radius, stem)

@@ -204,3 +204,27 @@ def train(
         save(end)
     return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations,
                  "batch_offset": offset}
+
+
+def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage1: Path, ckpt: Path, chash: str,
+              device, dtype, progress: bool = True, stop_after: int | None = None):
+    """Second stage of ``value_functions.<kind>.fine_tune``: save the first stage's model at
+    ``stage1``, then train from it with a fresh optimizer and schedule (:func:`load_initial_weights`;
+    no curriculum, its batches continue the first stage's stream). Returns ``(network, info)``
+    over both stages."""
+    from dataclasses import replace
+
+    from madpinn.value_functions.model import model_payload, save_atomic
+
+    save_atomic(model_payload(problem, net, settings.output_scale,
+                              {"config_hash": chash, "iterations": info["iterations"], "batch_offset": info["batch_offset"],
+                               "wall_s": info["wall_s"]}), stage1)
+    s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
+                 curriculum_fraction=0.0, init_from=str(stage1))
+    net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
+                        device=device, dtype=dtype, progress=progress, stop_after=stop_after)
+    if not info2["completed"]:
+        print(f"{problem.kind}: fine-tuning stopped after {info2['iterations']} of {s2.iterations} iterations")
+    return net2, {"history": info["history"] + info2["history"], "iterations": info["iterations"] + info2["iterations"],
+                  "wall_s": info["wall_s"] + info2["wall_s"], "completed": info2["completed"],
+                  "batch_offset": info["batch_offset"]}

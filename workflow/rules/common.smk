@@ -15,8 +15,11 @@ write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
 
 TRACKING = f"{RESULTS}/tracking/store.json"
 
-# method -> files its policy loads (trained models); rule files of each method add theirs.
-METHOD_INPUTS = {}
+# Trained files a run's policy loads: run name (`method-variant`, looked up first) or method ->
+# function(wildcards) -> {name: path}, written with the training rules' outputs
+# (`rules.train_vs.output.model`); each rule file of a method registers its own. The evaluate
+# rule depends on these files and passes them as `--model NAME=PATH`.
+METHOD_MODELS = {}
 
 # table name -> (study, kind); a table is built when its study is configured.
 TABLES = {
@@ -41,9 +44,17 @@ def study_results(study):
     return [eval_path(study, run, n, seed) for run in st["runs"] for n in st["agent_counts"] for seed in st["seeds"]]
 
 
-def method_inputs(wildcards):
-    """Files a run's policy loads: registered by full run name first, then by method."""
-    return METHOD_INPUTS.get(wildcards.run, METHOD_INPUTS.get(wildcards.run.split("-")[0], []))
+def run_models(wildcards):
+    """{name: path} of the trained files run ``wildcards.run`` loads (full run name first, then method)."""
+    models = METHOD_MODELS.get(wildcards.run, METHOD_MODELS.get(wildcards.run.split("-")[0]))
+    return models(wildcards) if models else {}
+
+
+def model_args(wildcards):
+    """``--model NAME=PATH`` options of the run's trained files."""
+    import shlex
+
+    return " ".join(f"--model {shlex.quote(f'{k}={v}')}" for k, v in run_models(wildcards).items())
 
 
 def job_hash(wildcards):

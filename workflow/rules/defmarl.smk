@@ -5,10 +5,6 @@
 from madpinn.config import config_hash, method_config
 
 
-def _defmarl_model(variant):
-    return f"{RESULTS}/models/" + method_config(config, f"defmarl-{variant}")[1]["model"]
-
-
 def _defmarl_train_hash(wildcards):
     _, m = method_config(config, f"defmarl-{wildcards.variant}")
     return config_hash({"training": m["training"], "epigraph": m["epigraph"], "agents": config["agents"],
@@ -18,9 +14,9 @@ def _defmarl_train_hash(wildcards):
 if "defmarl" in config["methods"]:
     DEFMARL_VARIANTS = sorted(config["methods"]["defmarl"]["variants"])
     for _v in DEFMARL_VARIANTS:
-        if not _defmarl_model(_v).endswith(f"/defmarl_{_v}.pt"):
-            raise ValueError(f"methods.defmarl.variants.{_v}.model must be defmarl_{_v}.pt (the training rule's output)")
-        METHOD_INPUTS[f"defmarl-{_v}"] = [_defmarl_model(_v)]
+        METHOD_MODELS[f"defmarl-{_v}"] = lambda wildcards: {
+            "policy": expand(rules.train_defmarl.output.model, variant=wildcards.run.partition("-")[2])[0]
+        }
 
     rule train_defmarl:
         input:

@@ -2,8 +2,6 @@
 # `safemarl` method (and its `safemarl-unfiltered` variant) depend on it and on the learned V_s.
 from madpinn.config import config_hash
 
-SAFEMARL_NOMINAL = f"{RESULTS}/models/safemarl_nominal.pt"
-
 
 def _safemarl_train_hash():
     m = config["methods"]["safemarl"]
@@ -12,13 +10,14 @@ def _safemarl_train_hash():
 
 
 if "safemarl" in config["methods"]:
-    METHOD_INPUTS["safemarl"] = [SAFEMARL_NOMINAL, VS_MODEL]  # VS_MODEL: workflow/rules/train.smk
+    METHOD_MODELS["safemarl"] = lambda wildcards: {"nominal": rules.train_safemarl_nominal.output.model,
+                                                   "vs": rules.train_vs.output.model}
 
     rule train_safemarl_nominal:
         input:
             tracking=TRACKING,
         output:
-            model=SAFEMARL_NOMINAL,
+            model=f"{RESULTS}/models/safemarl_nominal.pt",
             history=f"{RESULTS}/models/safemarl_nominal_history.csv",
             summary=f"{RESULTS}/models/safemarl_nominal.json",
         params:
@@ -32,4 +31,4 @@ if "safemarl" in config["methods"]:
 
     # `all` trains the nominal policy when a study runs SafeMARL (filtered or not).
     if any(run.split("-")[0] == "safemarl" for st in config["studies"].values() for run in st["runs"]):
-        EXTRA_TARGETS.append(SAFEMARL_NOMINAL)
+        EXTRA_TARGETS.append(rules.train_safemarl_nominal.output.model)

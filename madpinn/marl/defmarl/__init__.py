@@ -8,5 +8,5 @@ Public anchor: MIT-REALM/def-marl (Zhang et al. 2025). See ``docs/defmarl.md``.
 - :mod:`trainer` — :class:`DefMarlTrainer`, a :class:`madpinn.marl.trainer.PPOTrainer` subclass.
 - :mod:`root` — the distributed deployment-time z root finder (bisection, with fallbacks).
 - :mod:`deploy` — a trained model as a :class:`madpinn.policies.Policy`.
-- :mod:`jobs`, :mod:`cli` — the workflow training job ``train-defmarl``.
+- :mod:`build` — the trainer of a variant (the ``train-defmarl`` job is in :mod:`madpinn.commands.defmarl`).
 """

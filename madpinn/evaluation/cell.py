@@ -1,26 +1,29 @@
-"""One evaluation job: a (study, run, N, seed) cell -> per-scenario Parquet + JSON summary.
+"""One evaluation cell: a (study, run, N, seed) -> per-scenario metrics, summary, trajectory.
 
 Scenarios are simulated in batches of ``sim.scenario_batch``; all agents of a batch are
-computed together. Files are written first; MLflow logging comes after and cannot lose them.
+computed together. :func:`run_cell` computes, :func:`write_cell` writes the result files
+(the ``evaluate`` command then logs them to MLflow).
 """
 
 from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 import pandas as pd
 
-from madpinn.config import config_hash, job_config, method_config
+from madpinn.config import ConfigError, config_hash, job_config, method_config
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSpec
 from madpinn.policies import PolicyContext, make_policy
 from madpinn.scenarios import Arena, generate_scenarios
-from madpinn.simulation import make_backend, run_episode
+from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
 
 def episode_steps(cfg: dict, arena: Arena) -> int:
@@ -32,34 +35,50 @@ def policy_period(cfg: dict, mcfg: dict) -> int:
     return int(mcfg.get("policy_period_steps", cfg["sim"]["policy_period_steps"]))
 
 
-def policy_context(cfg: dict, mcfg: dict, seed: int, batch_index: int, device, dtype) -> PolicyContext:
+def policy_context(cfg: dict, mcfg: dict, seed: int, batch_index: int, device, dtype,
+                   models: Mapping[str, Path] | None = None) -> PolicyContext:
     """Context of the policy that runs scenario batch ``batch_index`` of a job with ``seed``
-    (the policy's own seed is a pure function of both)."""
+    (the policy's own seed is a pure function of both); ``models`` names the trained files it loads."""
     return PolicyContext(
         cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"]),
         obs_spec=ObservationSpec.from_config(cfg), device=device, dtype=dtype, seed=int(seed) * 1_000_003 + batch_index,
-        sim_dt=cfg["sim"]["dt"], policy_period=policy_period(cfg, mcfg), models_dir=Path(cfg["paths"]["results"]) / "models",
+        sim_dt=cfg["sim"]["dt"], policy_period=policy_period(cfg, mcfg), models=dict(models or {}),
     )
 
 
-def evaluate(
+@dataclass
+class Cell:
+    """Result of one evaluation cell."""
+
+    frame: pd.DataFrame
+    """one row per scenario (SPEC §3 metrics, with study/run/method/backend/arena/seed columns)"""
+    summary: dict
+    """seed-level summary (safety rate, cost, timings, config hash)"""
+    trajectory: EpisodeResult
+    """the first scenario batch's recorded episode"""
+    collision_radius: float
+    """agent collision radius r (m)"""
+    half_width: float
+    """arena half width (m)"""
+
+
+def run_cell(
     cfg: dict,
     study: str,
     run: str,
     n_agents: int,
     seed: int,
-    out: str | Path,
+    models: Mapping[str, str | Path] | None = None,
     backend: str | None = None,
     threads: int = 1,
     progress: bool = True,
-    track: bool = True,
-) -> dict:
-    """Run one evaluation cell and write ``out`` (.parquet), ``out``.json and ``out``_traj.npz."""
-    out = Path(out)
+) -> Cell:
+    """Simulate every scenario of one cell; ``models`` names the trained files the run's policy loads."""
     if study not in cfg["studies"]:
-        raise ValueError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
+        raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
     st = cfg["studies"][study]
     method, mcfg = method_config(cfg, run)
+    models = {k: Path(v) for k, v in (models or {}).items()}
     backend = backend or cfg["sim"]["backend"]
     arena = Arena.from_config(cfg, st["arena"])
     device, dtype = resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
@@ -74,7 +93,7 @@ def evaluate(
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
         starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
-        policy = make_policy(method, policy_context(cfg, mcfg, seed, b, device, dtype))
+        policy = make_policy(method, policy_context(cfg, mcfg, seed, b, device, dtype, models))
         sim = make_backend(backend, cfg, device, dtype)
         result, stats = run_episode(
             sim, policy, starts, goals, n_steps, r, policy_period=period,
@@ -109,26 +128,25 @@ def evaluate(
     }
     if policy_stats:   # only collected from policies with summarise_stats
         summary["policy_stats"] = policy.summarise_stats(policy_stats)
+    return Cell(df, summary, traj, r, arena.half_width)
+
+
+def cell_paths(out: str | Path) -> tuple[Path, Path, Path]:
+    """``(parquet, json, trajectory npz)`` of a cell whose Parquet file is ``out``."""
+    out = Path(out)
+    return out, out.with_suffix(".json"), out.with_name(out.stem + "_traj.npz")
+
+
+def write_cell(cell: Cell, out: str | Path) -> list[Path]:
+    """Write ``out`` (.parquet), ``out``.json and ``out``_traj.npz; return the three paths."""
+    out, json_path, traj_path = cell_paths(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    df.to_parquet(out, index=False)
-    json_path = out.with_suffix(".json")
-    json_path.write_text(json.dumps(summary, indent=2))
-    traj_path = out.with_name(out.stem + "_traj.npz")
+    cell.frame.to_parquet(out, index=False)
+    json_path.write_text(json.dumps(cell.summary, indent=2))
+    traj = cell.trajectory
     np.savez_compressed(
         traj_path, times=traj.times, positions=traj.positions[:, 0], goals=traj.goals[0],
         collided=traj.collided[0], first_collision_step=traj.first_collision_step[0], dt=traj.dt,
-        collision_radius=r, half_width=arena.half_width,
+        collision_radius=cell.collision_radius, half_width=cell.half_width,
     )
-    if track:
-        from madpinn.tracking import log_job
-
-        log_job(
-            cfg, job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
-            wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
-            params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][arena.name],
-                    "scenarios": total, "sim": cfg["sim"], "observation": cfg["observation"]},
-            metrics={**{k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")},
-                     **{f"policy_{k}": v for k, v in summary.get("policy_stats", {}).items()}},
-            artifacts=[out, json_path, traj_path],
-        )
-    return summary
+    return [out, json_path, traj_path]

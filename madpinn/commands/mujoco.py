@@ -1,4 +1,4 @@
-"""CLI: ``python -m madpinn render-clip`` — optional GIF of a MuJoCo episode, logged to MLflow.
+"""``render-clip``: optional GIF of a MuJoCo episode, logged to MLflow.
 
 Without an offscreen GL context the command succeeds, writes its status JSON with
 ``rendered: false`` and the reason, and logs nothing.
@@ -9,13 +9,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from madpinn.commands.args import add_config_arg, config_of
+from madpinn.commands.finish import JobRecord, finish, write_json
+
 
 def _render_clip(args) -> int:
-    from madpinn.config import load_config
     from madpinn.simulation.mujoco.render import gl_context_available, render_clip
     from madpinn.simulation.mujoco.settings import MujocoSettings
 
-    cfg = load_config(args.config)
+    cfg = config_of(args)
     traj = Path(args.traj)
     if not traj.is_file():
         raise FileNotFoundError(f"trajectory file not found: {traj}")
@@ -24,23 +26,16 @@ def _render_clip(args) -> int:
     ok, detail = gl_context_available()
     status = {"traj": str(traj), "rendered": ok, "detail": detail}
     if ok:
-        altitude = MujocoSettings.from_config(cfg["sim"].get("mujoco")).altitude
-        render_clip(traj, clip, altitude=altitude)
+        render_clip(traj, clip, altitude=MujocoSettings.from_config(cfg["sim"].get("mujoco")).altitude)
         status["clip"] = str(clip)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(status, indent=2))
+    write_json(out, status)
     print(json.dumps(status))
-    if ok and not args.no_track:
-        from madpinn.tracking import log_job
-
-        log_job(cfg, job_key=f"render_clip/{args.key or traj.stem}", rule="render_clip",
-                wildcards={"traj": str(traj)}, params={"traj": str(traj)}, artifacts=[clip, out])
-    return 0
+    return finish(cfg, JobRecord(job_key=f"render_clip/{args.key or traj.stem}", rule="render_clip",
+                                 artifacts=[clip, out] if ok else [out],
+                                 wildcards={"traj": str(traj)}, params={"traj": str(traj)}), ok and not args.no_track)
 
 
 def register(sub) -> None:
-    from madpinn.cli import add_config_arg
-
     p = sub.add_parser("render-clip", help="render a MuJoCo episode (*_traj.npz) to a GIF where offscreen GL exists")
     add_config_arg(p)
     p.add_argument("--traj", required=True, help="an evaluation job's *_traj.npz")

@@ -1,0 +1,45 @@
+"""Command layer: ``python -m madpinn <command>`` (also ``madpinn <command>``).
+
+The only part of the package that knows the command line and the raw config dict's journey
+to jobs. Each module in :data:`COMMAND_MODULES` is one job family and exposes
+``register(subparsers)``, adding sub-commands with ``func=handler(args) -> int``. Every job
+validates its config first, calls the library with paths and settings, writes its result
+files, and ends with :func:`madpinn.commands.finish.finish` (files first, then MLflow).
+Expected errors print one line (see :mod:`madpinn.commands.errors`); ``--debug`` shows the
+traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+from madpinn.commands.errors import debug_requested, run_reporting
+
+COMMAND_MODULES = [
+    "madpinn.commands.setup",  # validate-config, tracking-init
+    "madpinn.commands.evaluate",  # evaluate
+    "madpinn.commands.outputs",  # table, figure
+    "madpinn.commands.value_functions",  # train-value, validate-vs, validate-vhat, fig-value-heatmap
+    "madpinn.commands.mujoco",  # render-clip
+    "madpinn.commands.safemarl",  # train-safemarl-nominal
+    "madpinn.commands.defmarl",  # train-defmarl
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="madpinn", description=__doc__.splitlines()[0])
+    parser.add_argument("--debug", action="store_true", help="show the traceback of expected errors (also MADPINN_DEBUG=1)")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    import sys
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = debug_requested(argv)
+    args = build_parser().parse_args([a for a in argv if a != "--debug"])
+    return run_reporting(lambda: args.func(args), debug)

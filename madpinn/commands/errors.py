@@ -1,0 +1,66 @@
+"""Expected errors -> one line naming the problem and the fix (issue 18 item 7).
+
+Every expected failure of a job (bad config, infeasible scenario, missing or mismatched
+checkpoint, diverged training or physics, tracking store, unknown study or run) is printed as
+
+    madpinn: <problem> — fix: <what to do>
+
+with a non-zero exit code; ``--debug`` or ``MADPINN_DEBUG=1`` re-raises it with its traceback.
+Anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Callable
+
+
+def _expected() -> list[tuple[type[BaseException], str, int]]:
+    """(exception type, fix, exit code), most specific first. Imported lazily: the CLI's
+    start-up stays light."""
+    from madpinn.config import ConfigError
+    from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
+    from madpinn.scenarios import ScenarioInfeasibleError
+    from madpinn.simulation.mujoco.backend import PhysicsDivergedError
+    from madpinn.tracking import TrackingError
+    from madpinn.value_functions.model import CheckpointError as ValueCheckpointError
+    from madpinn.value_functions.train import TrainingDiverged
+
+    retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
+    return [
+        (ConfigError, "correct the named key(s) (schema: workflow/schemas/config.schema.yaml)", 2),
+        (ScenarioInfeasibleError, "use fewer agents or a larger arena (arenas.<name>.half_width) for this study", 3),
+        (ValueCheckpointError, retrain, 4),
+        (MarlCheckpointError, retrain, 4),
+        (PhysicsDivergedError, "lower sim.dt or sim.mujoco.timestep, or check the controller gains (sim.mujoco)", 5),
+        (TrainingDiverged, "training diverged: lower value_functions.<kind>.lr (or output_scale) and rerun", 5),
+        (FloatingPointError, "training diverged: lower the learning rate of the named training block and rerun", 5),
+        (TrackingError, "start the tracking server named by tracking.uri, or set tracking.enabled: false", 6),
+    ]
+
+
+def debug_requested(argv: list[str]) -> bool:
+    return "--debug" in argv or os.environ.get("MADPINN_DEBUG", "").strip() not in ("", "0", "false", "no")
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line (multi-line config reports joined by '; ')."""
+    parts = [p.strip().lstrip("- ").strip() for p in str(exc).splitlines() if p.strip()]
+    if len(parts) > 1 and parts[0].endswith(":"):
+        return parts[0] + " " + "; ".join(parts[1:])
+    return "; ".join(parts) or type(exc).__name__
+
+
+def run_reporting(func: Callable[[], int], debug: bool) -> int:
+    """Run ``func``; turn an expected error into one line on stderr and its exit code."""
+    try:
+        return int(func() or 0)
+    except Exception as exc:  # noqa: BLE001 - filtered below; unexpected errors re-raise
+        for kind, fix, code in _expected():
+            if isinstance(exc, kind):
+                if debug:
+                    raise
+                print(f"madpinn: {one_line(exc)} — fix: {fix}", file=sys.stderr)
+                return code
+        raise

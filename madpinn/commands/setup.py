@@ -1,0 +1,37 @@
+"""``validate-config`` and ``tracking-init``: the checks and the store made once before the fan-out."""
+
+from __future__ import annotations
+
+import json
+
+from madpinn.commands.args import add_config_arg, config_of
+from madpinn.commands.finish import write_json
+
+
+def _validate(args) -> int:
+    config_of(args)
+    print("config OK")
+    return 0
+
+
+def _tracking_init(args) -> int:
+    from madpinn.tracking import init_store
+
+    cfg = config_of(args)
+    info = {"enabled": bool(cfg["tracking"]["enabled"])}
+    if info["enabled"]:
+        info.update(init_store(cfg))
+    write_json(args.out, info)
+    print(json.dumps(info))
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("validate-config", help="validate config file(s) against the schema")
+    add_config_arg(p)
+    p.set_defaults(func=_validate)
+
+    p = sub.add_parser("tracking-init", help="create the MLflow store and experiment once")
+    add_config_arg(p)
+    p.add_argument("--out", required=True, help="marker JSON written on success")
+    p.set_defaults(func=_tracking_init)

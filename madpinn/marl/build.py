@@ -1,0 +1,43 @@
+"""Build a PPO trainer from the config's training block (``methods.<m>.nominal`` layout)."""
+
+from __future__ import annotations
+
+from madpinn.device import resolve_device, resolve_dtype
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
+from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.trainer import PPOTrainer
+from madpinn.observation import ObservationSpec
+from madpinn.scenarios import Arena
+
+CURVES = ("episode_return", "final_distance", "reached_rate", "collision_rate", "loss_policy", "loss_value",
+          "entropy", "approx_kl", "clip_frac")
+"""per-iteration learning curves logged as MLflow step metrics"""
+
+
+def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dtype=None) -> PPOTrainer:
+    """A trainer from the global config and a training block (``methods.<m>.nominal`` layout)."""
+    device = device or resolve_device(cfg["device"])
+    dtype = dtype or resolve_dtype(cfg["dtype"])
+    dynamics = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
+    env = GoalReachingEnv(
+        dynamics, Arena.from_config(cfg, tcfg["arena"]), ObservationSpec.from_config(cfg),
+        EnvConfig.from_dict(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
+    )
+    return trainer_cls(
+        env, PPOConfig.from_dict(tcfg["ppo"]), RewardConfig.from_dict(tcfg["reward"]),
+        tcfg["agent_counts"], hidden=int(tcfg["network"]["hidden"]), seed=int(tcfg["seed"]),
+    )
+
+
+def training_summary(history: list[dict], wall: float, first_keys, last_keys, extra: dict | None = None) -> dict:
+    """Summary of a training history: first iteration and mean of the last 10 iterations."""
+    tail = history[-min(10, len(history)):]
+    return {
+        **(extra or {}),
+        "iterations": len(history),
+        "wall_s": wall,
+        "samples": int(sum(h["samples"] for h in history)),
+        **{f"first_{k}": history[0][k] for k in first_keys},
+        **{f"last10_{k}": sum(h[k] for h in tail) / len(tail) for k in last_keys},
+    }

@@ -1,0 +1,25 @@
+"""The PINN problem of ``value_functions.<kind>`` and the hash its trained weights depend on."""
+
+from __future__ import annotations
+
+from madpinn.config import config_hash
+
+
+def problem_from_config(cfg: dict, kind: str):
+    """The PINN problem of V̂ (``kind="vhat"``, epigraph system) or V_s (``"vs"``, pair system)."""
+    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.value_functions.problems import EpigraphProblem, PairProblem
+    from madpinn.value_functions.sampling import ConflictSampling
+
+    if kind == "vhat":
+        return EpigraphProblem(EpigraphSystem.from_config(cfg),
+                               ConflictSampling.from_config(cfg["value_functions"]["vhat"]))
+    return PairProblem(PairSystem.from_config(cfg))
+
+
+def training_hash(cfg: dict, kind: str) -> str:
+    """Hash of everything the trained weights depend on (not validation settings)."""
+    vcfg = {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
+    return config_hash({"kind": kind, "agents": cfg["agents"], "observation": cfg["observation"], "vf": vcfg,
+                        "seed": cfg["value_functions"]["seed"], "dtype": cfg["dtype"]})
