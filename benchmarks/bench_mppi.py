@@ -17,16 +17,16 @@ import torch
 
 from madpinn.config import load_config, method_config
 from madpinn.device import resolve_device, resolve_dtype
-from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec, build_observation, nearest_neighbours, split_observation
-from madpinn.policies import PolicyContext, make_policy
+from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.settings import AgentLimits
 
 
 def build(cfg, device, dtype, seed=0):
     _, mcfg = method_config(cfg, "mppi")
     ctx = PolicyContext(
-        cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"]),
+        method=policy_settings("mppi", mcfg), dynamics=AgentLimits.from_config(cfg).dynamics(),
         obs_spec=ObservationSpec.from_config(cfg), device=device, dtype=dtype, seed=seed,
         sim_dt=cfg["sim"]["dt"], policy_period=int(mcfg.get("policy_period_steps", 1)),
     )

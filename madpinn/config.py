@@ -153,11 +153,9 @@ def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
 
 def write_if_changed(path: str | Path, text: str) -> Path:
     """Write ``text`` only if the file content differs (keeps mtimes stable for Snakemake)."""
+    from madpinn.atomic import atomic_write
+
     path = Path(path)
     if path.is_file() and path.read_text() == text:
         return path
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-    return path
+    return atomic_write(path, lambda tmp: tmp.write_text(text))

@@ -81,7 +81,7 @@ def phantom_offsets(n_neighbours: int, offset_range: float) -> torch.Tensor:
     return shrink_to_box(ray, offset_range)
 
 
-def _gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
+def gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
     """x ``[S, N, F]``, idx ``[S, N, n]`` (values in 0..N-1) -> ``[S, N, n, F]``."""
     S, N, F = x.shape
     n = idx.shape[-1]
@@ -103,9 +103,9 @@ def build_observation(
     p, v = state[..., 0:2], state[..., 2:4]
     phantom = neighbours < 0
     idx = neighbours.clamp_min(0)
-    p_j = _gather_agents(p, idx) - p.unsqueeze(2)
-    v_j = _gather_agents(v, idx)
-    g_j = _gather_agents(goals, idx) - p.unsqueeze(2)
+    p_j = gather_agents(p, idx) - p.unsqueeze(2)
+    v_j = gather_agents(v, idx)
+    g_j = gather_agents(goals, idx) - p.unsqueeze(2)
     p_j = shrink_to_box(p_j, spec.offset_range)
     g_j = shrink_to_box(g_j, spec.goal_range)
     slot = phantom_offsets(spec.n_neighbours, spec.offset_range).to(p_j)

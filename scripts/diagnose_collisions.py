@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from madpinn.config import load_config, method_config
+from madpinn.config import load_config
 from madpinn.commands.args import parse_models
-from madpinn.evaluation.cell import episode_steps, policy_context, policy_period
+from madpinn.evaluation.cell import CellSettings, policy_context
 from madpinn.policies.base import make_policy
-from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.scenarios import generate_scenarios
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import make_backend
 
@@ -93,17 +93,16 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(1)
     cfg = load_config(args.config)
-    st = cfg["studies"][args.study]
-    method, mcfg = method_config(cfg, args.run)
-    arena = Arena.from_config(cfg, st["arena"])
+    cs = CellSettings.from_config(cfg, args.study, args.run)
+    arena = cs.arena
     if args.scenarios > int(cfg["sim"]["scenario_batch"]):
         raise SystemExit(f"--scenarios must be ≤ sim.scenario_batch ({cfg['sim']['scenario_batch']}): one batch, as evaluate's first")
     r, dt = float(cfg["agents"]["collision_radius"]), float(cfg["sim"]["dt"])
     cpu, f32 = torch.device("cpu"), torch.float32
     starts, goals = generate_scenarios(arena, args.n_agents, args.seed, args.scenarios, r, cpu, f32)
-    probe = CollisionProbe(make_policy(method, policy_context(cfg, mcfg, args.seed, 0, cpu, f32, parse_models(args.model))), r, dt)
-    result, _ = run_episode(make_backend("double_integrator", cfg, cpu, f32), probe, starts, goals,
-                            episode_steps(cfg, arena), r, policy_period=policy_period(cfg, mcfg), progress=True)
+    probe = CollisionProbe(make_policy(cs.method, policy_context(cs, args.seed, 0, cpu, f32, parse_models(args.model))), r, dt)
+    result, _ = run_episode(make_backend("double_integrator", cs.sim, cs.limits, cpu, f32), probe, starts, goals,
+                            cs.episode_steps, r, policy_period=cs.policy_period, progress=True)
     ev = probe.events
     lead = np.array([e["infeasible_lead_s"] for e in ev])
     summary = {

@@ -9,11 +9,11 @@ import pytest
 import torch
 
 from conftest import REPO, SMOKE
-from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
 from madpinn.commands.evaluate import evaluate
+from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec, build_observation, constraint
-from madpinn.policies import PolicyContext, make_policy
+from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.madpinn import (
     MadPinnPolicy,
     MadPinnSettings,
@@ -22,6 +22,7 @@ from madpinn.policies.madpinn import (
     warm_budget_search,
 )
 from madpinn.policies.neighbours import make_selector
+from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.value_functions import CheckpointError
 from policy_models import tiny_model_dir, tiny_models
@@ -171,7 +172,7 @@ def models_of(cfg):
 
 def context(cfg, run, seed=0):
     method, mcfg = method_config(cfg, run)
-    return method, PolicyContext(cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(), obs_spec=SPEC,
+    return method, PolicyContext(method=policy_settings(method, mcfg), dynamics=DoubleIntegrator(), obs_spec=SPEC,
                                  device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=0.0025,
                                  policy_period=1, models=models_of(cfg))
 
@@ -192,7 +193,8 @@ def test_episode_deterministic_per_seed_for_every_strategy(tmp_path):
         outs = []
         for seed in (0, 0, 1):
             method, ctx = context(cfg, run, seed)
-            backend = make_backend("double_integrator", cfg, ctx.device, ctx.dtype)
+            backend = make_backend("double_integrator", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
+                                   ctx.device, ctx.dtype)
             res, _ = run_episode(backend, make_policy(method, ctx), state[..., 0:2], goals, 40, 0.1, progress=False)
             outs.append(res.cost)
         assert (outs[0] == outs[1]).all()

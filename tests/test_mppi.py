@@ -11,7 +11,7 @@ import torch
 from madpinn.config import ConfigError, load_config, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec
-from madpinn.policies import PolicyContext, make_policy
+from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.mppi import MPPIParams, segment_distance
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
@@ -30,7 +30,7 @@ def make(cfg, seed=0, period=2, **overrides):
     _, mcfg = method_config(cfg, "mppi")
     mcfg = {**mcfg, **FAST, **overrides}
     ctx = PolicyContext(
-        cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(), obs_spec=ObservationSpec.from_config(cfg),
+        method=policy_settings("mppi", mcfg), dynamics=DoubleIntegrator(), obs_spec=ObservationSpec.from_config(cfg),
         device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=SIM_DT, policy_period=period,
     )
     return make_policy("mppi", ctx)

@@ -21,7 +21,7 @@ from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
 from madpinn.marl.ppo import PPOConfig
 from madpinn.marl.trainer import PPOTrainer
 from madpinn.observation import ObservationSpec
-from madpinn.policies import PolicyContext, make_policy
+from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.nominal import NominalPD
 from madpinn.policies.safemarl import CBVFFilter, SafetyFilteredPolicy
 from madpinn.scenarios import Arena
@@ -141,7 +141,7 @@ def test_unfiltered_variant_evaluates_end_to_end_and_missing_model_errors(tmp_pa
     cfg["paths"] = {"results": str(tmp_path), "figures": str(tmp_path / "figs")}
     cfg["tracking"]["enabled"] = False
     validate_config(cfg)
-    ctx = PolicyContext(cfg=cfg, method_cfg=cfg["methods"]["safemarl"], dynamics=DYN, obs_spec=ObservationSpec(),
+    ctx = PolicyContext(method=policy_settings("safemarl", cfg["methods"]["safemarl"]), dynamics=DYN, obs_spec=ObservationSpec(),
                         device=torch.device("cpu"), dtype=torch.float32, seed=0, sim_dt=0.0025, policy_period=1,
                         models={"nominal": tmp_path / "models" / "safemarl_nominal.pt"})
     with pytest.raises(CheckpointError, match="not found"):

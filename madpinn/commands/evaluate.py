@@ -28,9 +28,10 @@ def evaluate(
 ) -> dict:
     """Run one cell, write its files, log them; return the summary."""
     from madpinn.config import method_config
-    from madpinn.evaluation.cell import run_cell, write_cell
+    from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
-    cell = run_cell(cfg, study, run, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
+    cs = CellSettings.from_config(cfg, study, run)
+    cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
     files = write_cell(cell, out)
     s = cell.summary
     method, mcfg = method_config(cfg, run)
@@ -39,7 +40,7 @@ def evaluate(
         job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate", artifacts=files,
         wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
         params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][s["arena"]],
-                "scenarios": int(cfg["studies"][study]["scenarios"]), "sim": cfg["sim"], "observation": cfg["observation"]},
+                "scenarios": cs.scenarios, "sim": cfg["sim"], "observation": cfg["observation"]},
         metrics={**{k: s[k] for k in LOGGED}, **{f"policy_{k}": v for k, v in s.get("policy_stats", {}).items()}},
     ), track, echo={k: s[k] for k in ECHO} if echo else None)
     return s

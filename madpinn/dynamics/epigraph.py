@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics.system import BoxControlSystem
 from madpinn.observation import (
     EGO_DIM,
     NEIGHBOUR_DIM,
@@ -41,7 +42,7 @@ from madpinn.observation import (
 
 
 @dataclass(frozen=True)
-class EpigraphSystem:
+class EpigraphSystem(BoxControlSystem):
     """The augmented (n+1)-agent system of SPEC §4 and its box-control Hamiltonian.
 
     spec: observation layout and trained ranges; u_max, v_max: per-axis control (m/s²) and
@@ -53,6 +54,13 @@ class EpigraphSystem:
     v_max: float = 4.0
     horizon: float = 0.2
     z_max: float = 20.0
+
+    control_mode = "min"   # the agents minimise the epigraph value (cost)
+    control_ndim = 2       # one control per observed agent: [..., n+1, 2]
+
+    @property
+    def control_bound(self) -> float:
+        return self.u_max
 
     # ---- layout -------------------------------------------------------------------------
     @property
@@ -142,14 +150,13 @@ class EpigraphSystem:
         idx = self.velocity_index().to(dv_dobs.device)
         return dv_dobs[..., idx]
 
-    def hamiltonian(self, obs: torch.Tensor, dv_dobs: torch.Tensor, dv_dz: torch.Tensor) -> torch.Tensor:
-        """``min_u ⟨∇V, f̂(ô, u)⟩`` ``[B]`` in closed form for box controls."""
-        drift = (dv_dobs * self.transport(obs)).sum(-1) - dv_dz * self.running_cost(obs)
-        return drift - self.u_max * self.velocity_grad(dv_dobs).abs().sum((-1, -2))
+    control_grad = velocity_grad   # the controls enter the observed agents' velocities
 
-    def optimal_control(self, dv_dobs: torch.Tensor) -> torch.Tensor:
-        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, 2]``."""
-        return -self.u_max * torch.sign(self.velocity_grad(dv_dobs))
+    def hamiltonian(self, obs: torch.Tensor, dv_dobs: torch.Tensor, dv_dz: torch.Tensor) -> torch.Tensor:
+        """``min_u ⟨∇V, f̂(ô, u)⟩`` ``[B]`` in closed form for box controls; the optimal control
+        ``−u_max·sign(∂V/∂v_a)`` ``[B, n+1, 2]`` is :meth:`optimal_control` (from the box)."""
+        drift = (dv_dobs * self.transport(obs)).sum(-1) - dv_dz * self.running_cost(obs)
+        return self.hamiltonian_from(drift, dv_dobs)
 
     def hjb_residual(self, obs, z, value, dv_dt, dv_dobs, dv_dz) -> torch.Tensor:
         """Paper eq. (loss): ``min(−∂_t V − H, V − g_d(o))`` ``[B]``."""

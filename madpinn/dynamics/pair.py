@@ -15,16 +15,28 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics.system import BoxControlSystem
+
 STATE_DIM = 4
 
 
 @dataclass(frozen=True)
-class PairSystem:
+class PairSystem(BoxControlSystem):
     u_max: float = 4.0
     collision_radius: float = 0.1
     horizon: float = 1.0
     p_range: float = 2.0
     v_range: float = 8.0
+
+    control_mode = "max"   # the pair maximises its safety margin
+
+    @property
+    def control_bound(self) -> float:
+        return self.u_rel_max
+
+    def control_grad(self, dv_dx: torch.Tensor) -> torch.Tensor:
+        """``∂V/∂v`` ``[..., 2]``: the relative control enters the relative velocity."""
+        return dv_dx[..., 2:4]
 
     @property
     def state_dim(self) -> int:
@@ -58,12 +70,9 @@ class PairSystem:
         return torch.cat([x[..., 2:4], u.clamp(-self.u_rel_max, self.u_rel_max)], dim=-1)
 
     def hamiltonian(self, x: torch.Tensor, dv_dx: torch.Tensor) -> torch.Tensor:
-        """``max_u ⟨∇V, f(x, u)⟩`` ``[B]``."""
-        return (dv_dx[..., 0:2] * x[..., 2:4]).sum(-1) + self.u_rel_max * dv_dx[..., 2:4].abs().sum(-1)
-
-    def optimal_control(self, dv_dx: torch.Tensor) -> torch.Tensor:
-        """Maximising (safest) relative control ``2u_max·sign(∂V/∂v)`` ``[B, 2]``."""
-        return self.u_rel_max * torch.sign(dv_dx[..., 2:4])
+        """``max_u ⟨∇V, f(x, u)⟩`` ``[B]``; the maximising (safest) relative control
+        ``2u_max·sign(∂V/∂v)`` ``[B, 2]`` is :meth:`optimal_control` (from the box)."""
+        return self.hamiltonian_from((dv_dx[..., 0:2] * x[..., 2:4]).sum(-1), dv_dx)
 
     def hjb_residual(self, x, value, dv_dt, dv_dx) -> torch.Tensor:
         """Paper eq. (HJI-VI): ``min{∂_t V + H_s, ψ − V}`` ``[B]``."""

@@ -11,38 +11,81 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 import pandas as pd
 
 from madpinn.config import ConfigError, config_hash, job_config, method_config
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
-from madpinn.dynamics import DoubleIntegrator
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSpec
-from madpinn.policies import PolicyContext, make_policy
+from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
 
-def episode_steps(cfg: dict, arena: Arena) -> int:
-    return int(round(arena.episode_s / cfg["sim"]["dt"]))
+@dataclass(frozen=True)
+class CellSettings:
+    """Everything an evaluation cell of (study, run) depends on, parsed once from the config."""
+
+    study: str
+    """study name (``studies.<study>``)"""
+    run: str
+    """run name ``method[-variant]``"""
+    method: str
+    """policy registry name"""
+    method_settings: Any
+    """the method's settings object (variant merged)"""
+    arena: Arena
+    """the study's arena"""
+    scenarios: int
+    """scenarios per (N, seed) cell"""
+    limits: AgentLimits
+    """agents' size and control limits"""
+    sim: SimSettings
+    """simulation settings"""
+    observation: ObservationSpec
+    """decentralized observation layout"""
+    policy_period: int
+    """simulation steps between policy queries (the method's own setting, else ``sim``'s)"""
+    device: str
+    """``device`` setting (auto | cpu | cuda)"""
+    dtype: str
+    """``dtype`` setting"""
+    job_config_hash: str
+    """hash of the config part the cell depends on (:func:`madpinn.config.job_config`)"""
+
+    @classmethod
+    def from_config(cls, cfg: Mapping, study: str, run: str) -> "CellSettings":
+        if study not in cfg["studies"]:
+            raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
+        st = cfg["studies"][study]
+        method, mcfg = method_config(cfg, run)
+        sim = SimSettings.from_config(cfg)
+        return cls(
+            study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
+            arena=Arena.from_config(cfg, st["arena"]), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),
+            sim=sim, observation=ObservationSpec.from_config(cfg),
+            policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
+            device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),
+        )
+
+    @property
+    def episode_steps(self) -> int:
+        """Simulation steps of one episode."""
+        return int(round(self.arena.episode_s / self.sim.dt))
 
 
-def policy_period(cfg: dict, mcfg: dict) -> int:
-    """Simulation steps between policy queries: the method's own setting, else ``sim``'s."""
-    return int(mcfg.get("policy_period_steps", cfg["sim"]["policy_period_steps"]))
-
-
-def policy_context(cfg: dict, mcfg: dict, seed: int, batch_index: int, device, dtype,
+def policy_context(cs: CellSettings, seed: int, batch_index: int, device, dtype,
                    models: Mapping[str, Path] | None = None) -> PolicyContext:
     """Context of the policy that runs scenario batch ``batch_index`` of a job with ``seed``
     (the policy's own seed is a pure function of both); ``models`` names the trained files it loads."""
     return PolicyContext(
-        cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"]),
-        obs_spec=ObservationSpec.from_config(cfg), device=device, dtype=dtype, seed=int(seed) * 1_000_003 + batch_index,
-        sim_dt=cfg["sim"]["dt"], policy_period=policy_period(cfg, mcfg), models=dict(models or {}),
+        method=cs.method_settings, dynamics=cs.limits.dynamics(), obs_spec=cs.observation, device=device, dtype=dtype,
+        seed=int(seed) * 1_000_003 + batch_index, sim_dt=cs.sim.dt, policy_period=cs.policy_period,
+        models=dict(models or {}),
     )
 
 
@@ -63,9 +106,7 @@ class Cell:
 
 
 def run_cell(
-    cfg: dict,
-    study: str,
-    run: str,
+    cs: CellSettings,
     n_agents: int,
     seed: int,
     models: Mapping[str, str | Path] | None = None,
@@ -74,31 +115,27 @@ def run_cell(
     progress: bool = True,
 ) -> Cell:
     """Simulate every scenario of one cell; ``models`` names the trained files the run's policy loads."""
-    if study not in cfg["studies"]:
-        raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
-    st = cfg["studies"][study]
-    method, mcfg = method_config(cfg, run)
     models = {k: Path(v) for k, v in (models or {}).items()}
-    backend = backend or cfg["sim"]["backend"]
-    arena = Arena.from_config(cfg, st["arena"])
-    device, dtype = resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
+    backend = backend or cs.sim.backend
+    arena = cs.arena
+    device, dtype = resolve_device(cs.device), resolve_dtype(cs.dtype)
     seed_everything(seed, threads)
-    r = float(cfg["agents"]["collision_radius"])
-    n_steps = episode_steps(cfg, arena)
-    period = policy_period(cfg, mcfg)
+    r = cs.limits.collision_radius
+    n_steps = cs.episode_steps
+    period = cs.policy_period
 
     frames, traj, timing, policy_stats = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}
-    total, batch = int(st["scenarios"]), int(cfg["sim"]["scenario_batch"])
+    total, batch = cs.scenarios, cs.sim.scenario_batch
     t0 = time.perf_counter()
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
         starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
-        policy = make_policy(method, policy_context(cfg, mcfg, seed, b, device, dtype, models))
-        sim = make_backend(backend, cfg, device, dtype)
+        policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
+        sim = make_backend(backend, cs.sim, cs.limits, device, dtype)
         result, stats = run_episode(
             sim, policy, starts, goals, n_steps, r, policy_period=period,
-            record_every=int(cfg["sim"]["record_every"]) if first == 0 else 0,
-            progress=progress, desc=f"{run} N={n_agents} seed={seed} [{first}:{first + count}]",
+            record_every=cs.sim.record_every if first == 0 else 0,
+            progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
         )
         timing["wall_s"] += stats["wall_s"]
         timing["policy_s"] += stats["policy_s"]
@@ -109,7 +146,7 @@ def run_cell(
         if first == 0:
             traj = result
     df = pd.concat(frames, ignore_index=True)
-    meta = {"study": study, "run": run, "method": method, "backend": backend, "arena": arena.name, "seed": int(seed)}
+    meta = {"study": cs.study, "run": cs.run, "method": cs.method, "backend": backend, "arena": arena.name, "seed": int(seed)}
     for k, v in meta.items():
         df.insert(0, k, v)
 
@@ -118,12 +155,12 @@ def run_cell(
         "n_agents": int(n_agents),
         **seed_summary(df),
         "n_steps": n_steps,
-        "dt": cfg["sim"]["dt"],
+        "dt": cs.sim.dt,
         "elapsed_s": time.perf_counter() - t0,
         "sim_wall_s": timing["wall_s"],
         "policy_s": timing["policy_s"],
         "policy_us_per_agent_step": 1e6 * timing["policy_s"] / max(1, total * n_agents * (n_steps // period)),
-        "job_config_hash": config_hash(job_config(cfg, study, run)),
+        "job_config_hash": cs.job_config_hash,
         "device": str(device),
     }
     if policy_stats:   # only collected from policies with summarise_stats

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from madpinn.device import resolve_device, resolve_dtype
-from madpinn.dynamics import DoubleIntegrator
 from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
 from madpinn.marl.ppo import PPOConfig
 from madpinn.marl.trainer import PPOTrainer
 from madpinn.observation import ObservationSpec
 from madpinn.scenarios import Arena
+from madpinn.settings import AgentLimits
 
 CURVES = ("episode_return", "final_distance", "reached_rate", "collision_rate", "loss_policy", "loss_value",
           "entropy", "approx_kl", "clip_frac")
@@ -19,13 +19,12 @@ def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dt
     """A trainer from the global config and a training block (``methods.<m>.nominal`` layout)."""
     device = device or resolve_device(cfg["device"])
     dtype = dtype or resolve_dtype(cfg["dtype"])
-    dynamics = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
     env = GoalReachingEnv(
-        dynamics, Arena.from_config(cfg, tcfg["arena"]), ObservationSpec.from_config(cfg),
-        EnvConfig.from_dict(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
+        AgentLimits.from_config(cfg).dynamics(), Arena.from_config(cfg, tcfg["arena"]), ObservationSpec.from_config(cfg),
+        EnvConfig.from_config(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
     )
     return trainer_cls(
-        env, PPOConfig.from_dict(tcfg["ppo"]), RewardConfig.from_dict(tcfg["reward"]),
+        env, PPOConfig.from_config(tcfg["ppo"]), RewardConfig.from_config(tcfg["reward"]),
         tcfg["agent_counts"], hidden=int(tcfg["network"]["hidden"]), seed=int(tcfg["seed"]),
     )
 

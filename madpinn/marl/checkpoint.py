@@ -7,6 +7,7 @@ from pathlib import Path
 
 import torch
 
+from madpinn.atomic import save_torch
 from madpinn.marl.networks import GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
 
@@ -47,11 +48,7 @@ def save_checkpoint(path: str | Path, trainer, meta: dict | None = None) -> Path
             **(meta or {}),
         },
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(payload, tmp)
-    tmp.replace(path)
-    return path
+    return save_torch(payload, path)
 
 
 def load_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> dict:

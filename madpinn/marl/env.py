@@ -37,7 +37,7 @@ class EnvConfig:
     neighbours: int = 4
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EnvConfig":
+    def from_config(cls, d: dict) -> "EnvConfig":
         return cls(train_dt=float(d["train_dt"]), substeps=int(d["substeps"]), neighbours=int(d["neighbours"]))
 
 
@@ -52,7 +52,7 @@ class RewardConfig:
     collision: float = 3.0
 
     @classmethod
-    def from_dict(cls, d: dict) -> "RewardConfig":
+    def from_config(cls, d: dict) -> "RewardConfig":
         return cls(**{k: float(d[k]) for k in ("progress", "distance", "control", "collision")})
 
 

@@ -32,7 +32,7 @@ class PPOConfig:
     init_log_std: float = -0.5
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PPOConfig":
+    def from_config(cls, d: dict) -> "PPOConfig":
         """All fields required (the schema enforces them); ints stay ints."""
         return cls(**{f.name: type(f.default)(d[f.name]) for f in fields(cls)})
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Protocol
+from typing import Any, Callable, Mapping, Protocol
 
 import torch
 
@@ -35,15 +35,20 @@ class Policy(Protocol):
 class PolicyContext:
     """Everything a policy factory may need."""
 
-    cfg: dict
-    method_cfg: dict
+    method: Any
+    """the method's settings (its registered settings class, built by :func:`policy_settings`)"""
     dynamics: DoubleIntegrator
+    """the agents' double integrator (control bound ``u_max``)"""
     obs_spec: ObservationSpec
+    """decentralized observation layout and ranges"""
     device: torch.device
     dtype: torch.dtype
     seed: int
+    """the policy's own seed (sampling, random neighbours)"""
     sim_dt: float
+    """simulation step (s)"""
     policy_period: int
+    """simulation steps between policy queries"""
     models: Mapping[str, Path] = field(default_factory=dict)
     """trained files the policy loads, by name (``--model NAME=PATH`` of the evaluate command)"""
 
@@ -57,6 +62,7 @@ class PolicyContext:
 
 PolicyFactory = Callable[[PolicyContext], Policy]
 _REGISTRY: dict[str, PolicyFactory] = {}
+_SETTINGS: dict[str, type] = {}
 
 # Methods implemented in their own modules; imported lazily so that a method's heavy
 # dependencies load only when it is used.
@@ -69,17 +75,32 @@ _MODULES = {
 }
 
 
-def register_policy(name: str):
+def register_policy(name: str, settings: type):
+    """Register ``factory(ctx) -> Policy`` under method ``name``; ``settings`` is the method's
+    frozen settings class, built from ``methods.<name>`` (merged with a variant) by its
+    ``from_config``."""
+
     def deco(factory: PolicyFactory) -> PolicyFactory:
         _REGISTRY[name] = factory
+        _SETTINGS[name] = settings
         return factory
 
     return deco
 
 
-def make_policy(name: str, ctx: PolicyContext) -> Policy:
+def _load(name: str) -> None:
     if name not in _REGISTRY and name in _MODULES:
         importlib.import_module(_MODULES[name])
     if name not in _REGISTRY:
         raise ValueError(f"unknown method '{name}' (available: {sorted(set(_REGISTRY) | set(_MODULES))})")
+
+
+def policy_settings(name: str, method_config: Mapping) -> Any:
+    """The settings object of method ``name`` from its (variant-merged) config section."""
+    _load(name)
+    return _SETTINGS[name].from_config(method_config)
+
+
+def make_policy(name: str, ctx: PolicyContext) -> Policy:
+    _load(name)
     return _REGISTRY[name](ctx)

@@ -7,14 +7,34 @@ its constraint critic, the team uses the maximum, and the actor ``π(a | o_i, z)
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Mapping
+
 from madpinn.marl.defmarl.deploy import DefMarlPolicy, load_defmarl
 from madpinn.policies.base import PolicyContext, register_policy
 
 
-@register_policy("defmarl")
+@dataclass(frozen=True)
+class DefMarlSettings:
+    """``methods.defmarl`` at deployment (merged with a variant)."""
+
+    root_iterations: int
+    """bisection steps of each agent's smallest-safe-z search"""
+    safe_level: float
+    """agent i's z is safe when V_h(o_i, z) ≤ safe_level"""
+    root_period_steps: int
+    """policy steps between z searches (z held in between)"""
+
+    @classmethod
+    def from_config(cls, m: Mapping) -> "DefMarlSettings":
+        return cls(root_iterations=int(m["root_iterations"]), safe_level=float(m["safe_level"]),
+                   root_period_steps=int(m["root_period_steps"]))
+
+
+@register_policy("defmarl", DefMarlSettings)
 def make_defmarl(ctx: PolicyContext) -> DefMarlPolicy:
-    m = ctx.method_cfg
+    m = ctx.method
     return load_defmarl(
         ctx.model("policy", "defmarl"), ctx.obs_spec, ctx.dynamics.u_max, ctx.obs_spec.collision_radius, ctx.device, ctx.dtype,
-        iterations=int(m["root_iterations"]), level=float(m["safe_level"]), root_period=int(m["root_period_steps"]),
+        iterations=m.root_iterations, level=m.safe_level, root_period=m.root_period_steps,
     )

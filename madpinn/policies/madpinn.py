@@ -30,7 +30,7 @@ import torch
 from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.neighbours import STRATEGIES, make_selector
-from madpinn.policies.safety_filter import CBVFFilter, SafetyFilteredPolicy, make_cbvf_filter
+from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.symmetry import symmetrize
 
@@ -51,21 +51,20 @@ class MadPinnSettings:
     warm_start: bool = True
     pair_batch: int = 65536
     symmetry: str = "none"
-    safety_filter: dict | None = None
+    safety_filter: CBVFSettings | None = None
 
     @classmethod
-    def from_method_config(cls, mcfg: dict) -> "MadPinnSettings":
-        k = mcfg.get("update_every", 5)
+    def from_config(cls, mcfg: dict) -> "MadPinnSettings":
+        k = mcfg["update_every"]
         update_every = None if k == INF_UPDATE else int(k)
         if update_every is not None and update_every < 1:
             raise ValueError(f"methods.madpinn.update_every must be ≥ 1 or '{INF_UPDATE}', got {k}")
-        strategy = str(mcfg.get("neighbours", "value"))
+        strategy = str(mcfg["neighbours"])
         if strategy not in STRATEGIES:
             raise ValueError(f"methods.madpinn.neighbours must be one of {STRATEGIES}, got '{strategy}'")
-        return cls(strategy=strategy, update_every=update_every, z_tolerance=float(mcfg.get("z_tolerance", 1e-3)),
-                   warm_start=bool(mcfg.get("warm_start", True)),
-                   pair_batch=int(mcfg.get("pair_batch", 65536)), symmetry=str(mcfg.get("symmetry", "none")),
-                   safety_filter=dict(mcfg["safety_filter"]) if mcfg.get("safety_filter") else None)
+        return cls(strategy=strategy, update_every=update_every, z_tolerance=float(mcfg["z_tolerance"]),
+                   warm_start=bool(mcfg["warm_start"]), pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
+                   safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None)
 
 
 def bisection_steps(z_tolerance: float) -> int:
@@ -221,9 +220,9 @@ class FilteredMadPinnPolicy(SafetyFilteredPolicy):
                 "filter_fallback_fraction": stats["filter_fallback"] / n}
 
 
-@register_policy("madpinn")
+@register_policy("madpinn", MadPinnSettings)
 def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy | FilteredMadPinnPolicy:
-    settings = MadPinnSettings.from_method_config(ctx.method_cfg)
+    settings = ctx.method
     vhat = symmetrize(load_vhat(ctx.model("vhat", "madpinn"), device=ctx.device, dtype=ctx.dtype), settings.symmetry)
     needs_vs = settings.strategy == "value" or settings.safety_filter is not None
     vs = load_vs(ctx.model("vs", "madpinn"), device=ctx.device, dtype=ctx.dtype) if needs_vs else None

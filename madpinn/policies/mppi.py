@@ -69,7 +69,7 @@ class MPPIParams:
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MPPIParams":
-        dual = mcfg.get("dual_ascent", {}) or {}
+        dual = mcfg["dual_ascent"]
         return cls(
             samples=int(mcfg["samples"]),
             horizon=int(mcfg["horizon"]),
@@ -78,9 +78,9 @@ class MPPIParams:
             temperature=float(mcfg["temperature"]),
             penalty_weight=float(mcfg["penalty_weight"]),
             margin=float(mcfg["margin"]),
-            terminal_weight=float(mcfg.get("terminal_weight", 1.0)),
-            dual_lr=float(dual.get("lr", 0.0)),
-            penalty_max=float(dual.get("max", 1.0e4)),
+            terminal_weight=float(mcfg["terminal_weight"]),
+            dual_lr=float(dual["lr"]),
+            penalty_max=float(dual["max"]),
         )
 
 
@@ -208,8 +208,8 @@ def make_generator(device, seed: int) -> torch.Generator:
     return gen
 
 
-@register_policy("mppi")
+@register_policy("mppi", MPPIParams)
 def make_mppi(ctx: PolicyContext) -> MPPIPolicy:
-    params = MPPIParams.from_config(ctx.method_cfg)
+    params = ctx.method
     planner = MPPIPlanner(params, ctx.dynamics, ctx.obs_spec.collision_radius, make_generator(ctx.device, ctx.seed))
     return MPPIPolicy(planner, ctx.obs_spec, ctx.dynamics)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Mapping
+
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
@@ -24,6 +27,20 @@ class NominalPD:
         return self.dynamics.clip_control(u)
 
 
-@register_policy("nominal")
+@dataclass(frozen=True)
+class NominalSettings:
+    """``methods.nominal``."""
+
+    kp: float
+    """position gain (1/s²)"""
+    kd: float
+    """velocity gain (1/s)"""
+
+    @classmethod
+    def from_config(cls, m: Mapping) -> "NominalSettings":
+        return cls(kp=float(m["kp"]), kd=float(m["kd"]))
+
+
+@register_policy("nominal", NominalSettings)
 def make_nominal(ctx: PolicyContext) -> NominalPD:
-    return NominalPD(ctx.dynamics, kp=ctx.method_cfg["kp"], kd=ctx.method_cfg["kd"])
+    return NominalPD(ctx.dynamics, kp=ctx.method.kp, kd=ctx.method.kd)

@@ -6,15 +6,30 @@ value-function (CBVF) QP on the learned pairwise safety value V_s
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from typing import Mapping
 
 from madpinn.marl.checkpoint import load_actor
 from madpinn.marl.deploy import ActorPolicy
 from madpinn.policies.base import PolicyContext, register_policy
-from madpinn.policies.safety_filter import CBVFFilter, SafetyFilteredPolicy, make_cbvf_filter
+from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
 from madpinn.value_functions import load_vs
 
-__all__ = ["CBVFFilter", "SafetyFilteredPolicy", "load_nominal", "make_safemarl"]
+__all__ = ["CBVFFilter", "SafeMarlSettings", "SafetyFilteredPolicy", "load_nominal", "make_safemarl"]
+
+
+@dataclass(frozen=True)
+class SafeMarlSettings:
+    """``methods.safemarl`` at deployment (its ``nominal`` block trains the actor)."""
+
+    filter: bool
+    """filter the nominal actor through the CBVF QP (false: variant ``unfiltered``)"""
+    cbvf: CBVFSettings
+    """the CBVF filter (``cbvf_gamma``, ``critical_neighbours``, ``candidates``, ``threshold``)"""
+
+    @classmethod
+    def from_config(cls, m: Mapping) -> "SafeMarlSettings":
+        return cls(filter=bool(m["filter"]), cbvf=CBVFSettings.from_config(m))
 
 
 def load_nominal(path, ctx: PolicyContext) -> ActorPolicy:
@@ -30,11 +45,11 @@ def load_nominal(path, ctx: PolicyContext) -> ActorPolicy:
     return ActorPolicy(actor, norm, obs_spec, meta["neighbours"], ctx.dynamics.u_max)
 
 
-@register_policy("safemarl")
+@register_policy("safemarl", SafeMarlSettings)
 def make_safemarl(ctx: PolicyContext) -> SafetyFilteredPolicy:
-    m = ctx.method_cfg
+    m = ctx.method
     nominal = load_nominal(ctx.model("nominal", "safemarl"), ctx)
-    if not m.get("filter", True):
+    if not m.filter:
         return SafetyFilteredPolicy(nominal, None)
     vs = load_vs(ctx.model("vs", "safemarl"), device=ctx.device, dtype=ctx.dtype)
-    return SafetyFilteredPolicy(nominal, make_cbvf_filter(vs, m, ctx.dynamics.u_max, ctx.obs_spec.sensing_radius))
+    return SafetyFilteredPolicy(nominal, make_cbvf_filter(vs, m.cbvf, ctx.dynamics.u_max, ctx.obs_spec.sensing_radius))

@@ -21,10 +21,11 @@ MAD-PINN (:mod:`madpinn.policies.madpinn`, nominal = the MAD-PINN policy; not in
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping
 
 import torch
 
-from madpinn.observation import _gather_agents, nearest_neighbours
+from madpinn.observation import gather_agents, nearest_neighbours
 from madpinn.policies.base import Policy
 from madpinn.policies.cbvf_qp import solve_box_qp
 
@@ -60,7 +61,7 @@ class CBVFFilter:
         S, N, _ = state.shape
         idx = nearest_neighbours(state, self.candidates, radius=self.sensing_radius)  # [S, N, C]
         real = idx >= 0
-        x_rel = state.unsqueeze(2) - _gather_agents(state, idx.clamp_min(0))  # [S, N, C, 4]
+        x_rel = state.unsqueeze(2) - gather_agents(state, idx.clamp_min(0))  # [S, N, C, 4]
         C = idx.shape[-1]
         v_all = self.vs.value(x_rel.reshape(-1, 4), t=0.0).reshape(S, N, C)
         v_all = v_all.masked_fill(~real, float("inf"))
@@ -110,8 +111,26 @@ class SafetyFilteredPolicy:
         return u if self.filter is None else self.filter(state, u)
 
 
-def make_cbvf_filter(vs, params: dict, u_max: float, sensing_radius: float) -> CBVFFilter:
-    """A :class:`CBVFFilter` from a config block with ``cbvf_gamma``, ``critical_neighbours``,
-    ``candidates`` and ``threshold``."""
-    return CBVFFilter(vs, u_max=u_max, gamma=params["cbvf_gamma"], critical=params["critical_neighbours"],
-                      candidates=params["candidates"], threshold=params["threshold"], sensing_radius=sensing_radius)
+@dataclass(frozen=True)
+class CBVFSettings:
+    """A CBVF filter block (``methods.safemarl``, ``methods.madpinn.safety_filter``)."""
+
+    gamma: float
+    """γ (1/s) in ∇V_s·f + γ·V_s ≥ 0 (``cbvf_gamma``)"""
+    critical_neighbours: int
+    """QP rows: the neighbours with the lowest V_s"""
+    candidates: int
+    """nearest neighbours inside the sensing radius whose V_s is evaluated"""
+    threshold: float
+    """V_s below it (m): the V_s-optimal (safest) control instead of the QP"""
+
+    @classmethod
+    def from_config(cls, block: Mapping) -> "CBVFSettings":
+        return cls(gamma=float(block["cbvf_gamma"]), critical_neighbours=int(block["critical_neighbours"]),
+                   candidates=int(block["candidates"]), threshold=float(block["threshold"]))
+
+
+def make_cbvf_filter(vs, params: CBVFSettings, u_max: float, sensing_radius: float) -> CBVFFilter:
+    """A :class:`CBVFFilter` on ``vs`` from its settings."""
+    return CBVFFilter(vs, u_max=u_max, gamma=params.gamma, critical=params.critical_neighbours,
+                      candidates=params.candidates, threshold=params.threshold, sensing_radius=sensing_radius)

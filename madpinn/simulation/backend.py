@@ -13,6 +13,7 @@ from typing import Protocol
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
+from madpinn.settings import AgentLimits, SimSettings
 
 
 class SimBackend(Protocol):
@@ -57,7 +58,8 @@ _BACKENDS = {}
 
 
 def register_backend(name: str):
-    """Decorator: register a backend factory ``factory(cfg, device, dtype) -> SimBackend``."""
+    """Decorator: register a backend factory ``factory(sim, limits, device, dtype) -> SimBackend``
+    taking :class:`~madpinn.settings.SimSettings` and :class:`~madpinn.settings.AgentLimits`."""
 
     def deco(factory):
         _BACKENDS[name] = factory
@@ -67,17 +69,17 @@ def register_backend(name: str):
 
 
 @register_backend("double_integrator")
-def _make_double_integrator(cfg: dict, device, dtype):
-    dyn = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
-    return DoubleIntegratorBackend(dyn, dt=cfg["sim"]["dt"])
+def _make_double_integrator(sim: SimSettings, limits: AgentLimits, device, dtype):
+    return DoubleIntegratorBackend(limits.dynamics(), dt=sim.dt)
 
 
-def make_backend(name: str, cfg: dict, device, dtype) -> SimBackend:
+def make_backend(name: str, sim: SimSettings, limits: AgentLimits, device, dtype) -> SimBackend:
+    """The backend ``name`` (``sim.backend`` or an override) for ``sim`` and the agents' ``limits``."""
     if name not in _BACKENDS:
         _load_optional_backends()
     if name not in _BACKENDS:
         raise ValueError(f"unknown simulation backend '{name}' (available: {sorted(_BACKENDS)})")
-    return _BACKENDS[name](cfg, device, dtype)
+    return _BACKENDS[name](sim, limits, device, dtype)
 
 
 def _load_optional_backends() -> None:

@@ -10,11 +10,11 @@ Checkpoints are plain dicts of tensors and primitives, written atomically and re
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import torch
 
+from madpinn.atomic import save_torch
 from madpinn.value_functions.problems import PROBLEMS, PINNProblem, as_time, assemble
 from madpinn.value_functions.siren import Siren
 
@@ -141,12 +141,8 @@ def model_payload(problem: PINNProblem, net: Siren, output_scale: float, meta: d
 
 
 def save_atomic(payload: dict, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-    torch.save(payload, tmp)
-    tmp.replace(path)
-    return path
+    """Write a value-function payload atomically (:func:`madpinn.atomic.save_torch`)."""
+    return save_torch(payload, path)
 
 
 def read_checkpoint(path: str | Path, kind: str | None = None) -> dict:

@@ -18,5 +18,5 @@ SUMMARY_KEYS = ("episode_return", "final_distance", "reached_rate", "collision_r
 def build_defmarl_trainer(cfg: dict, run: str) -> tuple[DefMarlTrainer, dict]:
     """The trainer of run ``defmarl-<variant>`` and its merged method config."""
     _, mcfg = method_config(cfg, run)
-    epi = EpigraphConfig.from_dict(mcfg["epigraph"])
+    epi = EpigraphConfig.from_config(mcfg["epigraph"])
     return build_trainer(cfg, mcfg["training"], trainer_cls=partial(DefMarlTrainer, epigraph=epi)), mcfg

@@ -43,7 +43,7 @@ class EpigraphConfig:
             raise ValueError(f"need 0 ≤ end_mass ≤ 1, h_clip > 0, cost_lr > 0, 0 ≤ h_margin < 1 (got {self})")
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EpigraphConfig":
+    def from_config(cls, d: dict) -> "EpigraphConfig":
         return cls(**{k: float(d[k]) for k in ("z_min", "z_max", "end_mass", "h_clip", "cost_lr", "h_margin")})
 
 

@@ -3,7 +3,7 @@
 Modules: ``model`` (MJCF of the drone and of many-drone worlds), ``controller`` (cascaded
 position → attitude controller), ``forces`` (rotor thrusts → MuJoCo forces), ``settings``
 (``sim.mujoco`` config), ``backend`` (the :class:`MujocoBackend`), ``render`` (optional clip),
-``commands`` (CLI ``render-clip``).
+and the command ``render-clip`` in :mod:`madpinn.commands.mujoco`.
 
 Importing this package selects MuJoCo's headless EGL context for offscreen rendering when
 ``MUJOCO_GL`` is unset and an EGL library exists (MuJoCo reads ``MUJOCO_GL`` once, at its first
@@ -17,7 +17,6 @@ import sys
 if "mujoco" not in sys.modules and "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
     os.environ["MUJOCO_GL"] = "egl"
 
-from madpinn.dynamics import DoubleIntegrator
 from madpinn.simulation.backend import register_backend
 from madpinn.simulation.mujoco.backend import MujocoBackend, PhysicsDivergedError
 from madpinn.simulation.mujoco.controller import CascadedController, ControllerGains
@@ -26,10 +25,11 @@ from madpinn.simulation.mujoco.settings import MujocoSettings
 
 
 @register_backend("mujoco")
-def make_mujoco_backend(cfg: dict, device, dtype) -> MujocoBackend:
-    dyn = DoubleIntegrator(u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"])
-    settings = MujocoSettings.from_config(cfg["sim"].get("mujoco"))
-    return MujocoBackend(dyn, dt=cfg["sim"]["dt"], settings=settings, device=device, dtype=dtype)
+def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
+    """The MuJoCo backend for :class:`~madpinn.settings.SimSettings` ``sim`` (its ``mujoco``
+    section; absent: the defaults) and :class:`~madpinn.settings.AgentLimits` ``limits``."""
+    settings = sim.mujoco if sim.mujoco is not None else MujocoSettings.from_config(None)
+    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=settings, device=device, dtype=dtype)
 
 
 __all__ = [

@@ -1,0 +1,28 @@
+"""Atomic file writes: a reader (or a job killed mid-write) never sees a half-written file."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``path`` (unique per process), then rename
+    it onto ``path``; parents are created, the temporary file never outlives the call."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
+    try:
+        write(tmp)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def save_torch(payload: Any, path: str | Path) -> Path:
+    """``torch.save(payload)`` to ``path`` atomically (load back with ``weights_only=True``)."""
+    import torch
+
+    return atomic_write(path, lambda tmp: torch.save(payload, tmp))

@@ -1,0 +1,64 @@
+"""Settings parsed once from the validated config into small frozen dataclasses.
+
+Defaults live in one place — ``config.yaml`` checked by ``workflow/schemas/config.schema.yaml``
+— so these classes have no defaults of their own: ``from_config`` reads every field from the
+validated config. Method settings live beside their method (``MadPinnSettings``,
+``MPPIParams``, …); backends and policies receive these objects, never the raw config dict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+from madpinn.dynamics import DoubleIntegrator
+
+
+@dataclass(frozen=True)
+class AgentLimits:
+    """``agents``: the agents' size and control limits (SPEC §1)."""
+
+    collision_radius: float
+    """r (m): two agents collide when their centres are closer than 2r"""
+    u_max: float
+    """per-axis acceleration bound (m/s²)"""
+    v_max: float
+    """per-axis speed bound (m/s)"""
+
+    @classmethod
+    def from_config(cls, cfg: Mapping) -> "AgentLimits":
+        a = cfg["agents"]
+        return cls(collision_radius=float(a["collision_radius"]), u_max=float(a["u_max"]), v_max=float(a["v_max"]))
+
+    def dynamics(self) -> DoubleIntegrator:
+        """The agents' double integrator (the one place it is built from settings)."""
+        return DoubleIntegrator(u_max=self.u_max, v_max=self.v_max)
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """``sim``: how episodes are simulated."""
+
+    backend: str
+    """simulation backend name (``double_integrator`` | ``mujoco``)"""
+    dt: float
+    """simulation step (s)"""
+    policy_period_steps: int
+    """simulation steps between policy queries (a method may set its own)"""
+    scenario_batch: int
+    """scenarios simulated together in one batch"""
+    record_every: int
+    """trajectory recording period in simulation steps (first batch only)"""
+    mujoco: object | None = None
+    """``sim.mujoco`` as :class:`madpinn.simulation.mujoco.MujocoSettings` (None when absent)"""
+
+    @classmethod
+    def from_config(cls, cfg: Mapping) -> "SimSettings":
+        s = cfg["sim"]
+        mujoco = None
+        if s.get("mujoco") is not None:
+            from madpinn.simulation.mujoco.settings import MujocoSettings
+
+            mujoco = MujocoSettings.from_config(s["mujoco"])
+        return cls(backend=str(s["backend"]), dt=float(s["dt"]), policy_period_steps=int(s["policy_period_steps"]),
+                   scenario_batch=int(s["scenario_batch"]), record_every=int(s["record_every"]), mujoco=mujoco)
