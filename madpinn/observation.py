@@ -24,7 +24,7 @@ any radius-limited real neighbour and pairwise apart, so they add neither cost n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
@@ -32,6 +32,8 @@ EGO_DIM = 4
 NEIGHBOUR_DIM = 6
 PHANTOM = -1
 NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
+# ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
+DEPLOYMENT_ONLY_KEYS = ("carrot_margin", "neighbour_goal")
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,10 @@ class ObservationSpec:
             raise ValueError(f"observation.carrot_margin must be in [0, goal_range = {self.goal_range}), got {self.carrot_margin}")
         if self.neighbour_goal not in NEIGHBOUR_GOAL_MODES:
             raise ValueError(f"observation.neighbour_goal must be one of {NEIGHBOUR_GOAL_MODES}, got '{self.neighbour_goal}'")
+
+    def for_training(self) -> "ObservationSpec":
+        """This spec without the deployment-only settings (what value-function training sees)."""
+        return replace(self, carrot_margin=0.0, neighbour_goal="ego")
 
     @property
     def carrot_range(self) -> float:

@@ -193,3 +193,18 @@ def test_bad_carrot_margin_and_mode_fail_early():
         replace(SPEC, carrot_margin=2.0)
     with pytest.raises(ValueError, match="neighbour_goal"):
         replace(SPEC, neighbour_goal="sideways")
+
+
+def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_hash(paper_cfg):
+    import copy
+
+    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.value_functions.cli import training_hash
+
+    cfg = copy.deepcopy(paper_cfg)
+    cfg["observation"].update(carrot_margin=0.5, neighbour_goal="ego")
+    assert training_hash(cfg, "vhat") == training_hash(paper_cfg, "vhat")
+    spec = EpigraphSystem.from_config(cfg).spec
+    assert spec.carrot_margin == 0.0 and spec.neighbour_goal == "ego"
+    cfg["value_functions"]["vhat"]["velocity_saturation"] = True      # this one does retrain
+    assert training_hash(cfg, "vhat") != training_hash(paper_cfg, "vhat")
