@@ -68,8 +68,10 @@ class ObservationSpec:
         if self.neighbour_goal not in NEIGHBOUR_GOAL_MODES:
             raise ValueError(f"observation.neighbour_goal must be one of {NEIGHBOUR_GOAL_MODES}, got '{self.neighbour_goal}'")
 
-    def for_training(self) -> "ObservationSpec":
-        """This spec without the deployment-only settings (what value-function training sees)."""
+    def base_mapping(self) -> "ObservationSpec":
+        """This spec with the deployment-only settings at the old mapping: what value-function
+        training sees, and what the baselines (MPPI, MARL features) keep using (the fixes are
+        about V̂'s trained box)."""
         return replace(self, carrot_margin=0.0, neighbour_goal="ego")
 
     @property

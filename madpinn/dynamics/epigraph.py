@@ -185,7 +185,7 @@ class EpigraphSystem:
 
     @classmethod
     def from_config(cls, cfg: dict) -> "EpigraphSystem":
-        spec = ObservationSpec.from_config(cfg).for_training()
+        spec = ObservationSpec.from_config(cfg).base_mapping()
         vcfg = cfg["value_functions"]["vhat"]
         u_max, v_max, T = float(cfg["agents"]["u_max"]), float(cfg["agents"]["v_max"]), float(vcfg["horizon"])
         z_max = vcfg.get("z_max", "auto")
