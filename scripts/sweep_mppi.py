@@ -2,7 +2,7 @@
 
 The tuning set uses a seed that no study evaluates (default 100), so the configured
 hyperparameters are not fitted to the reported scenarios. Each setting is a real evaluation
-through ``madpinn.evaluation.job.evaluate`` (same code path as the workflow, no MLflow).
+through ``madpinn.commands.evaluate.evaluate`` (same code path as the workflow, no MLflow).
 
     PYTHONPATH=$PWD python scripts/sweep_mppi.py --n-agents 16 --scenarios 20 \
         --vary penalty_weight=0,100,1000,10000 --vary temperature=0.005,0.02,0.1

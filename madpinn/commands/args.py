@@ -23,8 +23,8 @@ def add_job_args(p: argparse.ArgumentParser, threads_default: int | None = 1, pr
 
 def add_model_arg(p: argparse.ArgumentParser, names: tuple[str, ...]) -> None:
     """``--model NAME=PATH`` (repeatable): the trained files a job reads, passed in by its rule."""
-    p.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
-                   help=f"trained model file read by the job (names: {', '.join(names)}); repeatable")
+    p.add_argument("--model", action="extend", nargs="+", default=[], metavar="NAME=PATH",
+                   help=f"trained model file(s) read by the job (names: {', '.join(names)}); repeatable")
 
 
 def parse_models(items: list[str]) -> dict[str, Path]:

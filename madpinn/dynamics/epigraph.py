@@ -17,6 +17,14 @@ the velocity coordinates. The Hamiltonian of the paper's HJB (``min_u ⟨∇V, f
 closed form: ``H = ⟨∇_o V, w_o⟩ − ∂_z V · l_d − u_max · Σ_a ‖∂V/∂v_a‖₁`` with the optimal
 (bang-bang) control ``u_a* = −u_max · sign(∂V/∂v_a)``.
 
+**Velocity saturation (option, ``velocity_saturation``; the paper's state constraint |v| ≤ v_max,
+which the simulators enforce by clipping).** With it, a control that pushes a velocity
+coordinate already at ``|v_a,k| ≥ v_max`` further out has no effect: per coordinate the control's
+term in the Hamiltonian is ``−u_max·|p|`` inside, ``−u_max·max(p, 0)`` at ``v ≥ v_max`` and
+``−u_max·max(−p, 0)`` at ``v ≤ −v_max`` (p = ∂V/∂v_a,k), and the optimal control there is 0 when
+the bang-bang choice would point outward. Off by default: every trained V̂ so far used the
+unbounded dynamics, and switching it on needs retraining.
+
 Sampling domain (per coordinate, uniform; matches :class:`~madpinn.observation.ObservationSpec`):
 velocities ``±v_max``, goal offsets ``±goal_range``, neighbour position offsets
 ``±offset_range``, ``z ∈ [0, z_max]``, ``t ∈ [0, T]``.
@@ -46,7 +54,8 @@ class EpigraphSystem(BoxControlSystem):
     """The augmented (n+1)-agent system of SPEC §4 and its box-control Hamiltonian.
 
     spec: observation layout and trained ranges; u_max, v_max: per-axis control (m/s²) and
-    velocity (m/s) bounds; horizon: T (s); z_max: upper end of the sampled budget (cost units).
+    velocity (m/s) bounds; horizon: T (s); z_max: upper end of the sampled budget (cost units);
+    velocity_saturation: controls pushing a velocity beyond ±v_max have no effect (module docstring).
     """
 
     spec: ObservationSpec
@@ -54,6 +63,7 @@ class EpigraphSystem(BoxControlSystem):
     v_max: float = 4.0
     horizon: float = 0.2
     z_max: float = 20.0
+    velocity_saturation: bool = False
 
     control_mode = "min"   # the agents minimise the epigraph value (cost)
     control_ndim = 2       # one control per observed agent: [..., n+1, 2]
@@ -142,6 +152,8 @@ class EpigraphSystem(BoxControlSystem):
         u = u.clamp(-self.u_max, self.u_max)
         do = self.transport(obs).clone()
         idx = self.velocity_index().to(obs.device)
+        if self.velocity_saturation:
+            u = torch.where(self._outward(obs[..., idx], u), torch.zeros_like(u), u)
         do[..., idx.flatten()] = do[..., idx.flatten()] + u.flatten(-2)
         return do, -self.running_cost(obs)
 
@@ -152,11 +164,32 @@ class EpigraphSystem(BoxControlSystem):
 
     control_grad = velocity_grad   # the controls enter the observed agents' velocities
 
+    def _outward(self, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Where control ``u`` pushes velocity ``v`` (both ``[..., n+1, 2]``) beyond ±v_max."""
+        return ((v >= self.v_max) & (u > 0)) | ((v <= -self.v_max) & (u < 0))
+
     def hamiltonian(self, obs: torch.Tensor, dv_dobs: torch.Tensor, dv_dz: torch.Tensor) -> torch.Tensor:
-        """``min_u ⟨∇V, f̂(ô, u)⟩`` ``[B]`` in closed form for box controls; the optimal control
-        ``−u_max·sign(∂V/∂v_a)`` ``[B, n+1, 2]`` is :meth:`optimal_control` (from the box)."""
+        """``min_u ⟨∇V, f̂(ô, u)⟩`` ``[B]`` in closed form for box controls (derived from the box,
+        :class:`~madpinn.dynamics.system.BoxControlSystem`); with ``velocity_saturation`` a control
+        that would push a saturated velocity further out contributes nothing."""
         drift = (dv_dobs * self.transport(obs)).sum(-1) - dv_dz * self.running_cost(obs)
-        return self.hamiltonian_from(drift, dv_dobs)
+        if not self.velocity_saturation:
+            return self.hamiltonian_from(drift, dv_dobs)
+        p = self.velocity_grad(dv_dobs)
+        u_star = -self.u_max * torch.sign(p)
+        effective = torch.where(self._outward(obs[..., self.velocity_index().to(obs.device)], u_star), torch.zeros_like(p), p.abs())
+        return drift - self.u_max * effective.sum((-1, -2))
+
+    def optimal_control(self, dv_dobs: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
+        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, 2]``;
+        with ``velocity_saturation`` (``obs`` then required) 0 where it would push a saturated
+        velocity further out."""
+        u = super().optimal_control(dv_dobs)
+        if self.velocity_saturation:
+            if obs is None:
+                raise ValueError("optimal_control needs the observation when velocity_saturation is on")
+            u = torch.where(self._outward(obs[..., self.velocity_index().to(obs.device)], u), torch.zeros_like(u), u)
+        return u
 
     def hjb_residual(self, obs, z, value, dv_dt, dv_dobs, dv_dz) -> torch.Tensor:
         """Paper eq. (loss): ``min(−∂_t V − H, V − g_d(o))`` ``[B]``."""
@@ -164,9 +197,10 @@ class EpigraphSystem(BoxControlSystem):
 
     @classmethod
     def from_config(cls, cfg: dict) -> "EpigraphSystem":
-        spec = ObservationSpec.from_config(cfg)
+        spec = ObservationSpec.from_config(cfg).base_mapping()
         vcfg = cfg["value_functions"]["vhat"]
         u_max, v_max, T = float(cfg["agents"]["u_max"]), float(cfg["agents"]["v_max"]), float(vcfg["horizon"])
         z_max = vcfg.get("z_max", "auto")
         z_max = cls.default_z_max(spec, v_max, u_max, T) if z_max in (None, "auto") else float(z_max)
-        return cls(spec=spec, u_max=u_max, v_max=v_max, horizon=T, z_max=z_max)
+        return cls(spec=spec, u_max=u_max, v_max=v_max, horizon=T, z_max=z_max,
+                   velocity_saturation=bool(vcfg.get("velocity_saturation", False)))
