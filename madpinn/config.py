@@ -41,12 +41,24 @@ def load_yaml(path: str | Path) -> dict:
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
-        raise ConfigError(f"config file {path} is not valid YAML: {exc}") from exc
+        raise ConfigError(f"config file {_yaml_error_text(path, exc)}") from exc
     if data is None:
         return {}
     if not isinstance(data, dict):
         raise ConfigError(f"config file {path} must hold a mapping at top level")
     return data
+
+
+def _yaml_error_text(path: Path, exc: yaml.YAMLError) -> str:
+    """``<file>:<line>:<column> is not valid YAML: <problem> (<context> at line L)``, one line."""
+    mark, problem = getattr(exc, "problem_mark", None), getattr(exc, "problem", None)
+    if mark is None or not problem:
+        return f"{path} is not valid YAML: {' '.join(str(exc).split())}"
+    text = f"{path}:{mark.line + 1}:{mark.column + 1} is not valid YAML: {problem}"
+    context, cmark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+    if context and cmark is not None:
+        text += f" ({context} at line {cmark.line + 1}, column {cmark.column + 1})"
+    return text
 
 
 def load_config(paths: Iterable[str | Path]) -> dict:

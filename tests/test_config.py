@@ -156,3 +156,25 @@ def test_agent_count_bound_admits_every_shipped_config_and_the_sampler_meets_it(
             assert n <= max_agents(cfg["arenas"][arena]["half_width"], r)
             starts, _ = generate_scenario(Arena.from_config(cfg, arena), n, seed=0, index=0, collision_radius=r)
             assert starts.shape == (n, 2)
+
+
+def test_malformed_yaml_names_file_and_line_in_cli_and_workflow(tmp_path):
+    bad_text = "sim:\n  dt: 0.01\n  record_every: [1, 2\nagents: {}\n"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(bad_text)
+    with pytest.raises(ConfigError, match=rf"{bad}:4:\d+ is not valid YAML: .*at line 3"):
+        load_config([bad])
+    # the workflow's own config.yaml (read by the Snakefile's `configfile:`): a copy of the
+    # workflow whose config.yaml is malformed
+    import shutil
+
+    wf = tmp_path / "wf"
+    shutil.copytree(REPO / "workflow", wf / "workflow")
+    shutil.copy(REPO / "Snakefile", wf / "Snakefile")
+    (wf / "config.yaml").write_text(bad_text)
+    proc = subprocess.run(
+        [sys.executable, "-m", "snakemake", "-n", "-s", str(wf / "Snakefile"), "-d", str(tmp_path / "run")],
+        capture_output=True, text=True, env=subprocess_env(), timeout=600,
+    )
+    assert proc.returncode != 0
+    assert f"madpinn: config file {wf / 'config.yaml'}:4:" in proc.stderr, proc.stderr[-2000:]
