@@ -4,12 +4,12 @@ has a rule that builds it (checked with a real dry run of the smoke workflow).""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 import torch
 
-from madpinn.config import method_config
-from madpinn.evaluation.job import policy_context
+from madpinn.evaluation.cell import CellSettings, policy_context
 from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
 from madpinn.policies import make_policy
 from madpinn.value_functions import CheckpointError, load_vs
@@ -28,14 +28,18 @@ def _hint_target(exc) -> str:
 def test_missing_checkpoint_hints_name_targets_with_a_rule(tmp_path, monkeypatch, smoke_cfg):
     monkeypatch.chdir(tmp_path)  # the workflow's directory, before any training
     targets = []
+    models = Path(smoke_cfg["paths"]["results"]) / "models"   # where the workflow's training rules write
+    passed = {"madpinn": {"vhat": models / "vhat.pt", "vs": models / "vs.pt"},
+              "safemarl": {"nominal": models / "safemarl_nominal.pt", "vs": models / "vs.pt"},
+              **{f"defmarl-{v}": {"policy": models / f"defmarl_{v}.pt"} for v in ("n3", "n8")}}
     for run in ("madpinn", "safemarl", "defmarl-n3", "defmarl-n8"):  # the first file each one loads
-        method, mcfg = method_config(smoke_cfg, run)
-        ctx = policy_context(smoke_cfg, mcfg, seed=0, batch_index=0, device=torch.device("cpu"), dtype=torch.float32)
+        cs = CellSettings.from_config(smoke_cfg, "main", run)
+        ctx = policy_context(cs, seed=0, batch_index=0, device=torch.device("cpu"), dtype=torch.float32, models=passed[run])
         with pytest.raises((CheckpointError, MarlCheckpointError)) as exc:
-            make_policy(method, ctx)
+            make_policy(cs.method, ctx)
         targets.append(_hint_target(exc))
     with pytest.raises(CheckpointError) as exc:
-        load_vs(ctx.models_dir / "vs.pt")
+        load_vs(models / "vs.pt")
     targets.append(_hint_target(exc))
     assert len(set(targets)) == 5
     proc = run_snakemake(tmp_path, "-n", *targets)  # fails (MissingRuleException) for a target without a rule
