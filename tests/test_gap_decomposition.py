@@ -39,7 +39,7 @@ def test_gap_decomposition_command_writes_every_row(tmp_path, one_thread):
     assert row.loc["mujoco + all fixes", "neighbour_goal"] == "neighbour"
     assert row.loc["double_integrator + carrot_margin=0.3", "carrot_margin"] == pytest.approx(0.3)
     md = (out / "decomposition.md").read_text()
-    assert "mujoco + all fixes" in md and "gap-decomposition" in md
+    assert "mujoco + all fixes" in md and "gap-decomposition --config" in md and "--seeds 100 --scenarios 2" in md
     diag = json.loads((out / "decomposition.json").read_text())["diagnostics"]
     assert len(diag) == len(names)
 
