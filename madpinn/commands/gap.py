@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, add_model_arg, config_of, parse_models
@@ -26,6 +25,19 @@ def _models(args) -> dict[str, Path]:
     return models
 
 
+def _command_line(args) -> str:
+    """The gap-decomposition command that reproduces this run (from the parsed arguments)."""
+    parts = ["python -m madpinn gap-decomposition --config", *args.config, "--run", args.run]
+    if args.model:
+        parts += ["--model", *args.model]
+    parts += ["--agents", *map(str, args.agents), "--seeds", *map(str, args.seeds), "--scenarios", str(args.scenarios)]
+    if args.carrot_margin is not None:
+        parts += ["--carrot-margin", str(args.carrot_margin)]
+    if args.margin_sweep:
+        parts += ["--margin-sweep", *map(str, args.margin_sweep)]
+    return " ".join(parts + ["--out-dir", str(args.out_dir)])
+
+
 def _gap(args) -> int:
     import torch
 
@@ -44,7 +56,7 @@ def _gap(args) -> int:
     except OSError:
         commit = ""
     provenance = {
-        "command": "python -m madpinn gap-decomposition " + " ".join(args.raw_argv),
+        "command": _command_line(args),
         "run": args.run, "vhat_model": str(models["vhat"]), "vs_model": str(models["vs"]),
         "config_hash": config_hash(cfg), "commit": commit or "unknown",
     }
@@ -92,7 +104,7 @@ def register(sub) -> None:
     p.add_argument("--carrot-margin", type=float, default=None, help="margin of the carrot fix (m; default observation.carrot_margin)")
     p.add_argument("--margin-sweep", type=float, nargs="*", default=[], help="extra double-integrator rows with these carrot margins (m)")
     p.add_argument("--out-dir", required=True, help="writes decomposition.{csv,md,json} here")
-    p.set_defaults(func=_gap, raw_argv=sys.argv[2:])
+    p.set_defaults(func=_gap)
 
     p = sub.add_parser("diagnose-collisions", help="classify MAD-PINN's collision onsets on either backend")
     common(p)
