@@ -199,7 +199,7 @@ def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_
     import copy
 
     from madpinn.dynamics.epigraph import EpigraphSystem
-    from madpinn.value_functions.cli import training_hash
+    from madpinn.value_functions.build import training_hash
 
     cfg = copy.deepcopy(paper_cfg)
     cfg["observation"].update(carrot_margin=0.5, neighbour_goal="ego")
