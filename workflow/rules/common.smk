@@ -1,17 +1,25 @@
 # Shared paths, target lists and helpers. Later rule files register what their methods need.
+import fcntl
+import hashlib
+import os
+
 import yaml
 
-from madpinn.config import config_hash, job_config, write_if_changed
+from madpinn.config import config_hash, job_config, method_config, write_if_changed
 
 PY = sys.executable
 RESULTS = config["paths"]["results"]
 FIGURES = config["paths"]["figures"]
 BACKEND = config["sim"]["backend"]
 LOGS = f"{RESULTS}/logs"
+# Training rules ask the cluster for one GPU when the config asks for CUDA (`device: cuda`).
+TRAIN_GPU = {"gpu": 1} if config["device"] == "cuda" else {}
 
-# Jobs read the merged, validated config from here (written only when it changes).
+# Jobs read the merged, validated config from here. Parsing writes nothing (a dry run beside a
+# running workflow must not change its config): the file is written by `onstart` below, i.e. only
+# by a real run, after it holds the workflow lock, and only when its content changes. Which jobs a
+# config change reruns is decided by each rule's `params` hashes (settings_hash), not by this file.
 RESOLVED = f"{RESULTS}/config.resolved.yaml"
-write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
 
 TRACKING = f"{RESULTS}/tracking/store.json"
 
@@ -47,7 +55,26 @@ def method_inputs(wildcards):
 
 
 def job_hash(wildcards):
-    return config_hash(job_config(config, wildcards.study, wildcards.run))
+    """Hash of the config an evaluation cell depends on (``madpinn.config.job_config``) and dtype."""
+    return config_hash({**job_config(config, wildcards.study, wildcards.run), "dtype": config["dtype"]})
+
+
+def _cell_size(wildcards):
+    """Agent-steps of one evaluation cell (scenarios × N × steps)."""
+    st = config["studies"][wildcards.study]
+    steps = config["arenas"][st["arena"]]["episode_s"] / config["sim"]["dt"]
+    return int(st["scenarios"]) * int(wildcards.n) * steps
+
+
+def eval_mem_mb(wildcards):
+    """Memory for one cell: 1 GB plus ~50 kB per simulated agent of a scenario batch (MuJoCo state, histories)."""
+    st = config["studies"][wildcards.study]
+    return 1000 + int(0.05 * min(int(st["scenarios"]), int(config["sim"]["scenario_batch"])) * int(wildcards.n))
+
+
+def eval_runtime(wildcards):
+    """Slurm time limit (min) of one cell: ≤ 200 µs per agent-step (docs/performance.md), ×2 margin."""
+    return 10 + int(2 * 200e-6 * _cell_size(wildcards) / 60)
 
 
 def table_targets():
@@ -66,3 +93,71 @@ def all_targets():
 
 # Rule files included later may extend this list (figures, validation outputs).
 EXTRA_TARGETS = []
+
+
+# --- what each job depends on: config subtrees and package sources (params -> rerun-triggers) ---
+
+def lookup_key(dotted):
+    """The config value at a dotted key ("value_functions.vhat"); a missing key is None."""
+    node = config
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def settings_hash(*keys, extra=None):
+    """Hash of the config subtrees a job reads (dotted keys) plus ``extra``; a rule's ``params``
+    carries it, so that a change of exactly those settings reruns the job and its dependents."""
+    return config_hash({"keys": {k: lookup_key(k) for k in keys}, "extra": extra})
+
+
+PACKAGE = Path(workflow.basedir) / "madpinn"
+
+# Parts of the package (sub-packages or modules under madpinn/) that each job family runs. Editing
+# a file there reruns the family's jobs (through their `source` param) and everything downstream;
+# the glue (cli/commands, config, tracking) changes no result and reruns nothing.
+SOURCES = {
+    "value": ["dynamics", "value_functions", "observation.py", "device.py"],
+    "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py"],
+    "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
+                 "observation.py", "scenarios.py", "device.py"],
+    "tables": ["evaluation", "figures"],
+    "render": ["simulation"],
+}
+_SOURCE_HASHES = {}
+
+
+def source_hash(family):
+    """sha256 (12 hex) over the path and bytes of every .py file of ``SOURCES[family]`` (read only)."""
+    if family not in _SOURCE_HASHES:
+        h = hashlib.sha256()
+        for part in SOURCES[family]:
+            root = PACKAGE / part
+            files = sorted(root.rglob("*.py")) if root.is_dir() else [root]
+            for f in files:
+                h.update(str(f.relative_to(PACKAGE)).encode() + b"\0" + f.read_bytes() + b"\0")
+        _SOURCE_HASHES[family] = h.hexdigest()[:12]
+    return _SOURCE_HASHES[family]
+
+
+# --- one real run at a time; recovery after kill -9 with the plain command ---
+# Snakemake's own lock files survive a kill -9 and then block every later run (LockException) until
+# `--unlock`; the default profile therefore sets `nolock: true` and the workflow holds an OS lock
+# instead (flock on .snakemake/madpinn.lock), which the kernel releases when the process dies.
+_RUN_LOCK = []
+
+
+onstart:
+    lock_path = Path(".snakemake") / "madpinn.lock"
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    fh = open(lock_path, "a")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        sys.stderr.write(f"\nmadpinn: another snakemake run is active in {os.getcwd()} (it holds {lock_path}); "
+                         "wait for it to finish or stop it.\n\n")
+        raise SystemExit(1)
+    _RUN_LOCK.append(fh)
+    write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))

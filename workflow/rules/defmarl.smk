@@ -2,7 +2,7 @@
 # evaluation jobs of run defmarl-<variant> depend on that variant's model only.
 # CPU budget (paper config, 550 iterations, 1 thread): ~20 min per model on the 2-core CI-class machine
 # (docs/defmarl.md); smoke: seconds.
-from madpinn.config import config_hash, method_config
+from madpinn.config import method_config
 
 
 def _defmarl_model(variant):
@@ -11,8 +11,8 @@ def _defmarl_model(variant):
 
 def _defmarl_train_hash(wildcards):
     _, m = method_config(config, f"defmarl-{wildcards.variant}")
-    return config_hash({"training": m["training"], "epigraph": m["epigraph"], "agents": config["agents"],
-                        "observation": config["observation"], "arenas": config["arenas"], "dtype": config["dtype"]})
+    return settings_hash("agents", "observation", "arenas", "dtype",
+                         extra={"training": m["training"], "epigraph": m["epigraph"]})
 
 
 if "defmarl" in config["methods"]:
@@ -33,9 +33,15 @@ if "defmarl" in config["methods"]:
             variant="|".join(DEFMARL_VARIANTS),
         params:
             train_hash=_defmarl_train_hash,
+            source=source_hash("marl"),
         threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=90,
+            **TRAIN_GPU,
+        priority: 50
         log:
             f"{LOGS}/train_defmarl_{{variant}}.log",
         shell:
-            "{PY} -m madpinn train-defmarl --config {RESOLVED} --variant {wildcards.variant} --out {output.model}"
-            " --threads {threads} 2>&1 | tee {log}"
+            "{PY:q} -m madpinn train-defmarl --config {RESOLVED:q} --variant {wildcards.variant:q} --out {output.model:q}"
+            " --threads {threads} 2>&1 | tee {log:q}"

@@ -10,10 +10,14 @@ rule evaluate:
         traj=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}_traj.npz",
     params:
         job_hash=job_hash,
+        source=source_hash("evaluate"),
     threads: 1
+    resources:
+        mem_mb=eval_mem_mb,
+        runtime=eval_runtime,
     log:
         f"{LOGS}/evaluate/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.log",
     shell:
-        "{PY} -m madpinn evaluate --config {RESOLVED} --study {wildcards.study} --run {wildcards.run}"
-        " --n-agents {wildcards.n} --seed {wildcards.seed} --backend {wildcards.backend}"
-        " --out {output.parquet} --threads {threads} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn evaluate --config {RESOLVED:q} --study {wildcards.study:q} --run {wildcards.run:q}"
+        " --n-agents {wildcards.n} --seed {wildcards.seed} --backend {wildcards.backend:q}"
+        " --out {output.parquet:q} --threads {threads} 2>&1 | tee {log:q}"

@@ -3,7 +3,10 @@
 rule tracking_init:
     output:
         TRACKING,
+    resources:
+        mem_mb=1000,
+        runtime=10,
     log:
         f"{LOGS}/tracking_init.log",
     shell:
-        "{PY} -m madpinn tracking-init --config {RESOLVED} --out {output} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn tracking-init --config {RESOLVED:q} --out {output:q} 2>&1 | tee {log:q}"

@@ -15,6 +15,18 @@ def init_model(kind):
     return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
 
 
+def train_settings(kind):
+    """Everything the trained weights and their summary depend on (the job's params hash)."""
+    return settings_hash(f"value_functions.{kind}", "value_functions.seed", "agents", "observation", "dtype")
+
+
+def train_runtime(kind):
+    """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
+    v = config["value_functions"][kind]
+    its = int(v["iterations"]) + int((v.get("fine_tune") or {}).get("iterations", 0))
+    return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
+
+
 rule train_vhat:
     input:
         tracking=TRACKING,
@@ -23,11 +35,20 @@ rule train_vhat:
         model=VHAT_MODEL,
         loss=f"{RESULTS}/models/vhat_loss.csv",
         summary=f"{RESULTS}/models/vhat_train.json",
+    params:
+        settings=train_settings("vhat"),
+        source=source_hash("value"),
     threads: VF_THREADS
+    resources:
+        mem_mb=4000,
+        runtime=train_runtime("vhat"),
+        **TRAIN_GPU,
+    priority: 100
     log:
         f"{LOGS}/train_vhat.log",
     shell:
-        "{PY} -m madpinn train-value --config {RESOLVED} --kind vhat --out {output.model} --threads {threads} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn train-value --config {RESOLVED:q} --kind vhat --out {output.model:q} --threads {threads}"
+        " 2>&1 | tee {log:q}"
 
 
 rule train_vs:
@@ -38,11 +59,20 @@ rule train_vs:
         model=VS_MODEL,
         loss=f"{RESULTS}/models/vs_loss.csv",
         summary=f"{RESULTS}/models/vs_train.json",
+    params:
+        settings=train_settings("vs"),
+        source=source_hash("value"),
     threads: VF_THREADS
+    resources:
+        mem_mb=4000,
+        runtime=train_runtime("vs"),
+        **TRAIN_GPU,
+    priority: 50
     log:
         f"{LOGS}/train_vs.log",
     shell:
-        "{PY} -m madpinn train-value --config {RESOLVED} --kind vs --out {output.model} --threads {threads} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn train-value --config {RESOLVED:q} --kind vs --out {output.model:q} --threads {threads}"
+        " 2>&1 | tee {log:q}"
 
 
 rule validate_vs:
@@ -51,15 +81,21 @@ rule validate_vs:
         model=VS_MODEL,
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
-        figure=multiext(f"{FIGURES}/fig_vs_slices", ".pdf", ".png"),
+        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst", category="Value functions"),
+        pdf=f"{FIGURES}/fig_vs_slices.pdf",
     params:
         stem=f"{FIGURES}/fig_vs_slices",
+        settings=settings_hash("value_functions.vs.validation", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
     log:
         f"{LOGS}/validate_vs.log",
     shell:
-        "{PY} -m madpinn validate-vs --config {RESOLVED} --model {input.model} --out {output.report}"
-        " --fig-stem {params.stem} --threads {threads} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn validate-vs --config {RESOLVED:q} --model {input.model:q} --out {output.report:q}"
+        " --fig-stem {params.stem:q} --threads {threads} 2>&1 | tee {log:q}"
 
 
 rule validate_vhat:
@@ -68,12 +104,18 @@ rule validate_vhat:
         model=VHAT_MODEL,
     output:
         report=f"{RESULTS}/validation/vhat_residuals.json",
+    params:
+        settings=settings_hash("value_functions.vhat.validation", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
     log:
         f"{LOGS}/validate_vhat.log",
     shell:
-        "{PY} -m madpinn validate-vhat --config {RESOLVED} --model {input.model} --out {output.report}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn validate-vhat --config {RESOLVED:q} --model {input.model:q} --out {output.report:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
 
 
 rule fig_value_heatmap:
@@ -81,15 +123,22 @@ rule fig_value_heatmap:
         tracking=TRACKING,
         model=VHAT_MODEL,
     output:
-        multiext(f"{FIGURES}/fig_value_heatmap", ".pdf", ".png"),
+        png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
+                   category="Value functions"),
+        pdf=f"{FIGURES}/fig_value_heatmap.pdf",
     params:
         stem=f"{FIGURES}/fig_value_heatmap",
+        settings=settings_hash("arenas.small", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=15,
     log:
         f"{LOGS}/fig_value_heatmap.log",
     shell:
-        "{PY} -m madpinn fig-value-heatmap --config {RESOLVED} --model {input.model} --out-stem {params.stem}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "{PY:q} -m madpinn fig-value-heatmap --config {RESOLVED:q} --model {input.model:q} --out-stem {params.stem:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
 
 
 EXTRA_TARGETS += [
