@@ -2,13 +2,6 @@
 # `safemarl` method (and its `safemarl-unfiltered` variant) depend on it and on the learned V_s.
 SAFEMARL_NOMINAL = f"{RESULTS}/models/safemarl_nominal.pt"
 
-
-def _safemarl_train_hash():
-    m = config["methods"]["safemarl"]
-    return settings_hash("agents", "observation", "dtype",
-                         extra={"nominal": m["nominal"], "arena": config["arenas"][m["nominal"]["arena"]]})
-
-
 if "safemarl" in config["methods"]:
     METHOD_INPUTS["safemarl"] = [SAFEMARL_NOMINAL, VS_MODEL]  # VS_MODEL: workflow/rules/train.smk
 
@@ -20,7 +13,8 @@ if "safemarl" in config["methods"]:
             history=f"{RESULTS}/models/safemarl_nominal_history.csv",
             summary=f"{RESULTS}/models/safemarl_nominal.json",
         params:
-            train_hash=_safemarl_train_hash(),
+            config=RESOLVED,
+            train_hash=safemarl_train_hash(),
             source=source_hash("marl"),
         threads: 1
         resources:
@@ -28,10 +22,12 @@ if "safemarl" in config["methods"]:
             runtime=60,
             **TRAIN_GPU,
         priority: 50
+        conda:
+            CONDA_ENV
         log:
             f"{LOGS}/train_safemarl_nominal.log",
         shell:
-            "{PY:q} -m madpinn train-safemarl-nominal --config {RESOLVED:q} --out {output.model:q}"
+            "python -m madpinn train-safemarl-nominal --config {params.config:q} --out {output.model:q}"
             " --threads {threads} 2>&1 | tee {log:q}"
 
     # `all` trains the nominal policy when a study runs SafeMARL (filtered or not).

@@ -3,10 +3,14 @@
 rule tracking_init:
     output:
         TRACKING,
+    params:
+        config=RESOLVED,
     resources:
         mem_mb=1000,
         runtime=10,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/tracking_init.log",
     shell:
-        "{PY:q} -m madpinn tracking-init --config {RESOLVED:q} --out {output:q} 2>&1 | tee {log:q}"
+        "python -m madpinn tracking-init --config {params.config:q} --out {output:q} 2>&1 | tee {log:q}"
