@@ -104,3 +104,18 @@ def test_paths_with_spaces_work(tmp_path):
     run_in(copy, "-j2", "table_update_ablation", configfiles=("smoke.yaml", "tiny.yaml"))
     assert (copy / "my results" / "fig s" / "table_update_ablation.csv").is_file()
     assert planned_jobs(run_in(copy, "-n", "table_update_ablation", configfiles=("smoke.yaml", "tiny.yaml"))) == {}
+
+
+def test_a_second_concurrent_run_is_refused(tmp_path):
+    """Snakemake's lock files are off (they outlive a kill -9); the kernel lock held by a running
+    workflow (here: by this test) refuses a second real run before any job starts."""
+    import fcntl
+
+    lock = tmp_path / ".snakemake" / "madpinn.lock"
+    lock.parent.mkdir()
+    with open(lock, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        proc = _snakemake("-j1", "results/smoke/tracking/store.json", "-d", str(tmp_path), "--configfile",
+                          "config.yaml", "workflow/configs/smoke.yaml", check=False)
+    assert proc.returncode != 0 and "another snakemake run is active" in proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "results" / "smoke" / "tracking").exists()
