@@ -14,7 +14,7 @@ import yaml
 
 from conftest import REPO, subprocess_env
 from madpinn.config import ConfigError, deep_merge, validate_config
-from workflow_helpers import TINY, copy_repo, planned_jobs, run_in, write_overlay
+from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, write_overlay
 
 
 def _snakemake(*args, cwd=REPO, check=True):
@@ -100,7 +100,7 @@ def test_injected_path_never_runs(tmp_path):
 def test_paths_with_spaces_work(tmp_path):
     """A results directory with a space through training, evaluation and a table."""
     copy = copy_repo(tmp_path / "my clone")
-    write_overlay(copy / "tiny.yaml", TINY, {"paths": {"results": "my results", "figures": "my results/fig s"}})
+    write_overlay(copy / "tiny.yaml", TINY, NO_TRACKING, {"paths": {"results": "my results", "figures": "my results/fig s"}})
     run_in(copy, "-j2", "table_update_ablation", configfiles=("smoke.yaml", "tiny.yaml"))
     assert (copy / "my results" / "fig s" / "table_update_ablation.csv").is_file()
     assert planned_jobs(run_in(copy, "-n", "table_update_ablation", configfiles=("smoke.yaml", "tiny.yaml"))) == {}

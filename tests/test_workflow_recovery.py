@@ -15,7 +15,7 @@ from mlflow.tracking import MlflowClient
 from workflow_helpers import TINY, copy_repo, env_for, planned_jobs, run_in, snakemake_cmd, write_overlay
 
 FILES = ("smoke.yaml", "tiny.yaml")
-TARGETS = ("table_update_ablation", "table_safety_scaling")
+TARGETS = ("table_update_ablation",)
 
 
 def _start(copy):

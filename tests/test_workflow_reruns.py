@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from workflow_helpers import TINY, copy_repo, planned_jobs, run_in, tree_state, write_overlay
+from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, tree_state, write_overlay
 
 TRAININGS = {"train_vhat", "train_vs"}
 TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation"}
@@ -20,7 +20,7 @@ FIGURES = {"fig_cost_safety", "fig_trajectories", "fig_value_heatmap", "fig_vs_s
 def done(tmp_path_factory):
     """A copy of the repository after a complete tiny run of ``all``."""
     copy = copy_repo(tmp_path_factory.mktemp("clone"))
-    write_overlay(copy / "tiny.yaml", TINY)
+    write_overlay(copy / "tiny.yaml", TINY, NO_TRACKING)
     run_in(copy, "-j2", "all", configfiles=("smoke.yaml", "tiny.yaml"))
     return copy
 

@@ -17,16 +17,20 @@ REPO = Path(__file__).resolve().parents[1]
 COPIED = ("Snakefile", "config.yaml", "madpinn", "workflow", "profiles")
 
 # The smallest configuration that still builds every table and figure through the real code paths
-# (the smoke overlay with one cell per run, double-integrator physics).
+# (the smoke overlay with one cell per run, double-integrator physics). NO_TRACKING: for tests of
+# the DAG alone (MLflow logging is covered by the recovery tests and tests/test_workflow.py).
 TINY = {
     "sim": {"backend": "double_integrator"},
     "studies": {
         "main": {"agent_counts": [3], "seeds": [0], "scenarios": 1, "runs": ["madpinn", "nominal"]},
-        "scaling": {"agent_counts": [64], "seeds": [0], "scenarios": 1, "runs": ["nominal"]},
+        "scaling": {"agent_counts": [8], "seeds": [0], "scenarios": 1, "runs": ["nominal"]},
         "ablation_neighbours": {"runs": ["madpinn-nearest"]},
         "ablation_update": {"runs": ["madpinn-k1"]},
     },
 }
+
+
+NO_TRACKING = {"tracking": {"enabled": False}}
 
 
 def copy_repo(dest: Path) -> Path:
@@ -66,7 +70,7 @@ def snakemake_cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "snakemake", *args]
 
 
-def run_in(copy: Path, *args: str, configfiles=("smoke.yaml",), check=True, timeout=900, env=None):
+def run_in(copy: Path, *args: str, configfiles=("smoke.yaml",), check=True, timeout=2400, env=None):
     """``snakemake ARGS --configfile ...`` run from the copy's root, as the README does (the default
     profile is found there)."""
     cmd = snakemake_cmd(*args, "--configfile", "config.yaml", *map(str, configfiles))
