@@ -31,9 +31,9 @@ from pathlib import Path
 from typing import Mapping
 
 import pandas as pd
-import torch
 
 from madpinn.config import deep_merge
+from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.evaluation.cell import CellSettings, policy_context
 from madpinn.evaluation.collisions import CollisionProbe, summarise
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
@@ -92,16 +92,17 @@ def run_cell(cfg: dict, backend: str, run: str, study: str, n_agents: int, seed:
     if cs.method != "madpinn":
         raise ValueError(f"the gap decomposition evaluates MAD-PINN runs (madpinn[-variant]), got '{run}'")
     arena = cs.arena
-    cpu, f32 = torch.device("cpu"), torch.float32
+    device, dtype = resolve_device(cs.device), resolve_dtype(cs.dtype)
+    seed_everything(seed)   # as evaluate does (thread count left to the caller)
     r = cs.limits.collision_radius
     n_steps, period, batch = cs.episode_steps, cs.policy_period, cs.sim.scenario_batch
     frames, events = [], []
     for b, first in enumerate(range(0, scenarios, batch)):
         count = min(batch, scenarios - first)
-        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, cpu, f32, first_index=first)
-        probe = CollisionProbe(make_policy(cs.method, policy_context(cs, seed, b, cpu, f32, models)), r)
+        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
+        probe = CollisionProbe(make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models)), r)
         probe.scenario_offset = first
-        result, _ = run_episode(make_backend(backend, cs.sim, cs.limits, cpu, f32), probe, starts, goals, n_steps, r,
+        result, _ = run_episode(make_backend(backend, cs.sim, cs.limits, device, dtype), probe, starts, goals, n_steps, r,
                                 policy_period=period, progress=progress, desc=f"{backend} N={n_agents} seed={seed}")
         frames.append(scenario_metrics(result, first_index=first))
         events += [{**e, "seed": seed} for e in probe.events]

@@ -1,21 +1,7 @@
 # Value functions (issue 3): train V̂ and V_s, validate them, and draw their figures.
 # Other rule files read the models as `rules.train_vhat.output.model` / `rules.train_vs.output.model`.
-import os
-
+# Helpers (init_model, init_arg, train_settings, train_runtime): common.smk.
 VF_THREADS = int(config["value_functions"]["threads"])
-
-
-def init_model(kind):
-    """The model a ``value_functions.<kind>.init_from`` fine-tuning run starts from (or nothing)."""
-    path = config["value_functions"][kind].get("init_from")
-    if not path:
-        return []
-    return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
-
-
-def init_arg(kind):
-    """``--model init=PATH`` when the run fine-tunes a trained model."""
-    return " ".join(f"--model init={p}" for p in init_model(kind))
 
 
 rule train_vhat:
@@ -27,13 +13,24 @@ rule train_vhat:
         loss=f"{RESULTS}/models/vhat_loss.csv",
         summary=f"{RESULTS}/models/vhat_train.json",
     params:
+        config=RESOLVED,
         init=init_arg("vhat"),
+        settings=train_settings("vhat"),
+        source=source_hash("value"),
     threads: VF_THREADS
+    resources:
+        mem_mb=4000,
+        runtime=train_runtime("vhat"),
+        **TRAIN_GPU,
+    priority: 100
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/train_vhat.log",
     shell:
-        "{PY} -m madpinn train-value --config {RESOLVED} --kind vhat --out {output.model} {params.init}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn train-value --config {params.config:q} --kind vhat --out {output.model:q} {params.init:q}"
+        " --threads {threads}"
+        " 2>&1 | tee {log:q}"
 
 
 rule train_vs:
@@ -45,13 +42,24 @@ rule train_vs:
         loss=f"{RESULTS}/models/vs_loss.csv",
         summary=f"{RESULTS}/models/vs_train.json",
     params:
+        config=RESOLVED,
         init=init_arg("vs"),
+        settings=train_settings("vs"),
+        source=source_hash("value"),
     threads: VF_THREADS
+    resources:
+        mem_mb=4000,
+        runtime=train_runtime("vs"),
+        **TRAIN_GPU,
+    priority: 50
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/train_vs.log",
     shell:
-        "{PY} -m madpinn train-value --config {RESOLVED} --kind vs --out {output.model} {params.init}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn train-value --config {params.config:q} --kind vs --out {output.model:q} {params.init:q}"
+        " --threads {threads}"
+        " 2>&1 | tee {log:q}"
 
 
 rule validate_vs:
@@ -60,15 +68,24 @@ rule validate_vs:
         model=rules.train_vs.output.model,
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
-        figure=multiext(f"{FIGURES}/fig_vs_slices", ".pdf", ".png"),
+        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst", category="Value functions"),
+        pdf=f"{FIGURES}/fig_vs_slices.pdf",
     params:
-        stem=f"{FIGURES}/fig_vs_slices",
+        config=RESOLVED,
+        stem=stem_of("png"),
+        settings=settings_hash("value_functions.vs.validation", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/validate_vs.log",
     shell:
-        "{PY} -m madpinn validate-vs --config {RESOLVED} --model vs={input.model} --out {output.report}"
-        " --fig-stem {params.stem} --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn validate-vs --config {params.config:q} --model vs={input.model:q} --out {output.report:q}"
+        " --fig-stem {params.stem:q} --threads {threads} 2>&1 | tee {log:q}"
 
 
 rule validate_vhat:
@@ -77,12 +94,21 @@ rule validate_vhat:
         model=rules.train_vhat.output.model,
     output:
         report=f"{RESULTS}/validation/vhat_residuals.json",
+    params:
+        config=RESOLVED,
+        settings=settings_hash("value_functions.vhat.validation", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/validate_vhat.log",
     shell:
-        "{PY} -m madpinn validate-vhat --config {RESOLVED} --model vhat={input.model} --out {output.report}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn validate-vhat --config {params.config:q} --model vhat={input.model:q} --out {output.report:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
 
 
 rule fig_value_heatmap:
@@ -90,15 +116,25 @@ rule fig_value_heatmap:
         tracking=TRACKING,
         model=rules.train_vhat.output.model,
     output:
-        multiext(f"{FIGURES}/fig_value_heatmap", ".pdf", ".png"),
+        png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
+                   category="Value functions"),
+        pdf=f"{FIGURES}/fig_value_heatmap.pdf",
     params:
-        stem=f"{FIGURES}/fig_value_heatmap",
+        config=RESOLVED,
+        stem=stem_of("png"),
+        settings=settings_hash("arenas.small", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/fig_value_heatmap.log",
     shell:
-        "{PY} -m madpinn fig-value-heatmap --config {RESOLVED} --model vhat={input.model} --out-stem {params.stem}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn fig-value-heatmap --config {params.config:q} --model vhat={input.model:q} --out-stem {params.stem:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
 
 
 EXTRA_TARGETS += [
