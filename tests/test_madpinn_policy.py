@@ -54,16 +54,24 @@ def test_bisection_matches_dense_grid_and_warm_start_matches_cold():
     obs = torch.cat([observations(300, seed=1), observations(40, seed=2, overlap=True)])
     zs, grid = dense_grid_values(vhat, obs, steps)
     z, feasible = cold_budget_search(vhat, obs, steps)
-    assert torch.equal(feasible, grid[:, -1] <= 0)
+    # The search evaluates V̂ in other batch shapes than the dense grid; another CPU's kernels may
+    # round them differently, which flips a sign only where |V̂| is tiny. Rows with a grid value
+    # within EPS of 0 are ambiguous and left out of the exact comparisons (measured on one CPU:
+    # other batch shapes change V̂ by up to 3e-8 — other CPUs more —, the smallest |V̂| on the grid
+    # is 1.1e-6, and 0.9 % of the rows have a value within 1e-4 of 0).
+    EPS = 1e-4
+    clear = (grid.abs() > EPS).all(1)
+    assert clear.float().mean() > 0.8
+    assert torch.equal(feasible[clear], grid[clear, -1] <= 0)
     assert torch.all(z[~feasible] == vhat.z_max)  # infeasible fallback
     h = vhat.z_max / 2**steps
     i = torch.round(z / h).long()
     rows = feasible.nonzero().squeeze(1)
     # the answer is a crossing of the grid: V̂ ≤ 0 at z*, > 0 one cell below (or z* is the first cell)
-    assert torch.all(grid[rows, i[rows]] <= 0)
-    assert torch.all((i[rows] == 1) | (grid[rows, i[rows] - 1] > 0))
+    assert torch.all(grid[rows, i[rows]] <= EPS)
+    assert torch.all((i[rows] == 1) | (grid[rows, i[rows] - 1] > -EPS))
     # where V̂ is non-increasing in z the answer is the smallest feasible grid point (> 0)
-    mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & feasible
+    mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & feasible & clear
     first = torch.argmax((grid[:, 1:] <= 0).int(), dim=1) + 1
     assert mono.sum() >= 10
     assert torch.equal(i[mono], first[mono])
@@ -71,14 +79,14 @@ def test_bisection_matches_dense_grid_and_warm_start_matches_cold():
     z_prev = (z + (torch.rand(z.shape, generator=torch.Generator().manual_seed(0)) - 0.5) * 0.3).clamp(0, vhat.z_max)
     zw, fw, hit = warm_budget_search(vhat, obs, z_prev, steps)
     assert hit.float().mean() > 0.3
-    unsafe_mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & ~feasible
+    unsafe_mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & ~feasible & clear
     assert unsafe_mono.sum() >= 3 and not fw[unsafe_mono].any() and torch.all(zw[unsafe_mono] == vhat.z_max)
     assert hit[unsafe_mono].all()  # previous answer near z_max: resolved by the top block, no cold search
     iw = torch.round(zw / h).long()
     assert torch.equal(iw[mono], i[mono]) and torch.equal(fw[mono], feasible[mono])
     assert torch.allclose(zw[mono], z[mono], rtol=1e-6, atol=0)
     ok = fw.nonzero().squeeze(1)
-    assert torch.all(grid[ok, iw[ok]] <= 0)
+    assert torch.all(grid[ok, iw[ok]] <= EPS)
 
 
 def policy(strategy="nearest", update_every=5, dtype=torch.float32, seed=0):
@@ -104,7 +112,10 @@ def test_control_is_bang_bang_from_ego_gradient_at_z_star_with_fallback():
     z, feasible = cold_budget_search(pol.vhat, obs, 10)
     assert not feasible[0] and z[0] == pol.vhat.z_max and pol.stats["infeasible"] >= 1
     _, grad, _ = pol.vhat.value_and_grad(obs, z, 0.0)
-    assert torch.equal(u.reshape(18, 2), -4.0 * torch.sign(grad[:, 0:2]))
+    # a sign is exact where the gradient is not within another CPU's rounding of 0
+    clear = grad[:, 0:2].abs() > 1e-4
+    assert clear.float().mean() > 0.8
+    assert torch.equal(u.reshape(18, 2)[clear], -4.0 * torch.sign(grad[:, 0:2])[clear])
     assert set(u.unique().tolist()) <= {-4.0, 0.0, 4.0}
 
 
