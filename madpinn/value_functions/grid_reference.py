@@ -163,29 +163,65 @@ def vs_on_grid(vs, solution: GridSolution, mask: np.ndarray, chunk: int = 65536)
     return np.stack(out)
 
 
-def validate_vs_against_grid(vs, settings: GridSettings, progress: bool = False) -> tuple[dict, GridSolution]:
-    """Solve the reference at ``settings.nodes`` and at the nested coarse resolution, and compare
-    the PINN ``vs`` (:class:`~madpinn.value_functions.model.PairValue`) with the fine one on the
-    interior nodes at every requested time. Returns ``(report, fine solution)``."""
-    system = vs.problem.system
+def solve_reference(system: PairSystem, settings: GridSettings, progress: bool = False):
+    """The reference at ``settings.nodes`` and at the nested coarse resolution, and the coarse
+    one's error against it on the interior nodes (the grid's own convergence check).
+    Returns ``(fine, coarse, convergence)``."""
     if settings.p_range > system.p_range or settings.v_range > system.v_range:
         raise ValueError(f"grid box (|p| ≤ {settings.p_range}, |v| ≤ {settings.v_range}) exceeds V_s's trained domain "
                          f"(|p| ≤ {system.p_range}, |v| ≤ {system.v_range})")
-    fine = solve_pair_grid(system, settings.nodes, settings.p_range, settings.v_range, settings.times, settings.accuracy, progress)
-    coarse = solve_pair_grid(system, (settings.nodes + 1) // 2, settings.p_range, settings.v_range, settings.times,
-                             settings.accuracy, progress)
-    mask = fine.interior_mask(settings.interior_p, settings.interior_v)
-    pred = vs_on_grid(vs, fine, mask)
-    per_time = {f"{t:g}": compare_values(fine.values[i][mask], pred[i]) for i, t in enumerate(fine.times)}
-    report = {
-        "grid": {**fine.meta, "coarse_nodes": coarse.meta["nodes"], "interior_p": settings.interior_p,
-                 "interior_v": settings.interior_v, "interior_nodes": int(mask.sum()),
-                 "wall_s_fine": fine.wall_s, "wall_s_coarse": coarse.wall_s},
-        "system": {"u_rel_max": system.u_rel_max, "collision_radius": system.collision_radius, "horizon": system.horizon},
-        "grid_convergence": convergence(fine, coarse, settings.interior_p, settings.interior_v),
+    args = (settings.p_range, settings.v_range, settings.times, settings.accuracy, progress)
+    fine = solve_pair_grid(system, settings.nodes, *args)
+    coarse = solve_pair_grid(system, (settings.nodes + 1) // 2, *args)
+    return fine, coarse, convergence(fine, coarse, settings.interior_p, settings.interior_v)
+
+
+def save_solution(path, solution: GridSolution, system: PairSystem, settings: GridSettings, extra: dict) -> None:
+    """Write the solution (float32 values) with the system and settings it solves, as ``.npz``."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = {"system": {"u_max": system.u_max, "collision_radius": system.collision_radius, "horizon": system.horizon},
+              "settings": {**settings.__dict__, "times": list(settings.times)}, "meta": solution.meta,
+              "wall_s": solution.wall_s, **extra}
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez_compressed(tmp, p_axis=solution.p_axis, v_axis=solution.v_axis, times=np.asarray(solution.times),
+                        values=solution.values.astype(np.float32), header=np.asarray(json.dumps(header)))
+    tmp.replace(path)
+
+
+def load_solution(path) -> tuple[GridSolution, dict]:
+    """``(solution, header)`` from :func:`save_solution`'s file."""
+    import json
+
+    with np.load(path, allow_pickle=False) as d:
+        header = json.loads(str(d["header"]))
+        sol = GridSolution(p_axis=d["p_axis"], v_axis=d["v_axis"], times=tuple(float(t) for t in d["times"]),
+                           values=d["values"].astype(np.float64), wall_s=float(header["wall_s"]), meta=header["meta"])
+    return sol, header
+
+
+def compare_vs(vs, solution: GridSolution, header: dict) -> dict:
+    """Report of the PINN ``vs`` against the grid reference on its interior nodes, per time."""
+    system, settings = vs.problem.system, header["settings"]
+    ref = header["system"]
+    mine = {"u_max": system.u_max, "collision_radius": system.collision_radius, "horizon": system.horizon}
+    if any(abs(float(ref[k]) - float(mine[k])) > 1e-12 for k in mine):
+        raise ValueError(f"the grid reference solves {ref}, the V_s model {mine}: re-solve the grid for this model")
+    if settings["p_range"] > system.p_range or settings["v_range"] > system.v_range:
+        raise ValueError("the grid box exceeds V_s's trained domain")
+    mask = solution.interior_mask(settings["interior_p"], settings["interior_v"])
+    pred = vs_on_grid(vs, solution, mask)
+    per_time = {f"{t:g}": compare_values(solution.values[i][mask], pred[i]) for i, t in enumerate(solution.times)}
+    return {
+        "grid": {**solution.meta, "interior_p": settings["interior_p"], "interior_v": settings["interior_v"],
+                 "interior_nodes": int(mask.sum()), "wall_s": solution.wall_s},
+        "grid_convergence": header.get("convergence"),
         "vs_vs_grid": per_time,
         "target": {"mae": 0.01, "unsafe_called_safe": 0.05},
         "meets_target": all(m["mae"] <= 0.01 and m["unsafe_called_safe"] <= 0.05 for m in per_time.values()),
         "model_iterations": vs.meta.get("iterations"),
+        "model_config_hash": vs.meta.get("config_hash"),
     }
-    return report, fine
