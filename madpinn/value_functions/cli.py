@@ -6,7 +6,8 @@
 - ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png);
 - ``solve-vs-grid``: the hj_reachability grid reference of V_s (.npz) with its convergence check;
 - ``validate-vs-grid``: V_s against the grid reference (JSON + zero-level-set figure);
-- ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states).
+- ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states);
+- ``ship-models`` / ``install-shipped``: ``models/`` + ``manifest.json``; sha256-checked install.
 """
 
 from __future__ import annotations
@@ -279,6 +280,33 @@ def _verify_vhat(args) -> int:
     return 0
 
 
+def _pairs(items, what: str) -> dict:
+    out = {}
+    for item in items or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise SystemExit(f"{what} must be NAME=PATH, got {item!r}")
+        out.setdefault(name, []).append(path)
+    return out
+
+
+def _ship_models(args) -> int:
+    from madpinn.value_functions.shipping import ship
+
+    models = {k: v[-1] for k, v in _pairs(args.model, "--model").items()}
+    manifest = ship(models, args.out_dir, _pairs(args.validation, "--validation"), device=args.device)
+    print(json.dumps({k: {f: e[f] for f in ("sha256", "bytes", "iterations", "samples")}
+                      for k, e in manifest["models"].items()}, indent=2))
+    return 0
+
+
+def _install_shipped(args) -> int:
+    from madpinn.value_functions.shipping import install
+
+    print(install(args.dir, args.name, args.out))
+    return 0
+
+
 def register(sub) -> None:
     from madpinn.cli import add_config_arg
 
@@ -331,3 +359,16 @@ def register(sub) -> None:
     common(p)
     p.add_argument("--out", required=True, help="JSON report")
     p.set_defaults(func=_verify_vhat)
+
+    p = sub.add_parser("ship-models", help="copy trained models into models/ and record them in models/manifest.json")
+    p.add_argument("--model", action="append", required=True, help="NAME=PATH (repeatable), e.g. vs=results/models/vs.pt")
+    p.add_argument("--validation", action="append", help="NAME=JSON report stored with the entry (repeatable)")
+    p.add_argument("--out-dir", default="models", help="shipped-models directory (default models/)")
+    p.add_argument("--device", default=None, help="device the models were trained on, when the checkpoint does not say")
+    p.set_defaults(func=_ship_models)
+
+    p = sub.add_parser("install-shipped", help="copy a shipped model to OUT after checking its sha256")
+    p.add_argument("--dir", default="models", help="shipped-models directory with manifest.json")
+    p.add_argument("--name", required=True, help="model name in the manifest (vs, vhat, safemarl_nominal, ...)")
+    p.add_argument("--out", required=True, help="destination, e.g. results/models/vs.pt")
+    p.set_defaults(func=_install_shipped)

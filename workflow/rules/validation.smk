@@ -17,7 +17,7 @@ rule solve_vs_grid:
 rule validate_vs_grid:
     input:
         tracking=TRACKING,
-        model=rules.train_vs.output.model,
+        model=str(rules.train_vs.output.model),  # str(): a rules.X reference pins the producer to X (no shipped install)
         grid=rules.solve_vs_grid.output.solution,
     output:
         report=f"{RESULTS}/validation/vs_grid.json",
@@ -41,7 +41,7 @@ EXTRA_TARGETS += [
 rule verify_vhat:
     input:
         tracking=TRACKING,
-        model=rules.train_vhat.output.model,
+        model=str(rules.train_vhat.output.model),
     output:
         report=f"{RESULTS}/validation/vhat_scenario.json",
     threads: 1
@@ -53,3 +53,40 @@ rule verify_vhat:
 
 
 EXTRA_TARGETS += [f"{RESULTS}/validation/vhat_scenario.json"]
+
+
+# Shipped checkpoints (workflow/configs/shipped.yaml): results/models/<name>.pt comes from the
+# sha256-checked models/<name>.pt instead of its training rule.
+SHIPPED = config.get("shipped_models") or {}
+if SHIPPED.get("enabled") and SHIPPED.get("names"):
+
+    rule install_shipped_model:
+        input:
+            manifest=f"{SHIPPED['dir']}/manifest.json",
+            model=f"{SHIPPED['dir']}/{{name}}.pt",
+        output:
+            f"{RESULTS}/models/{{name}}.pt",
+        wildcard_constraints:
+            name="|".join(SHIPPED["names"]),
+        threads: 1
+        log:
+            f"{LOGS}/install_shipped_{{name}}.log",
+        shell:
+            "{PY} -m madpinn install-shipped --dir {SHIPPED[dir]} --name {wildcards.name} --out {output} 2>&1 | tee {log}"
+
+    # one ruleorder per shipped name (a ruleorder naming a rule this configuration lacks disables it)
+    if "vs" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_vs
+
+    if "vhat" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_vhat
+
+    if "safemarl_nominal" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_safemarl_nominal
+
+    if any(n.startswith("defmarl_") for n in SHIPPED["names"]):
+
+        ruleorder: install_shipped_model > train_defmarl
