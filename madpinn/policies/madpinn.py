@@ -155,7 +155,7 @@ class MadPinnPolicy:
         self._k_before, self._k_last = self._k_last, r.index
         self.last_search = r
         z, feasible = r.z, r.feasible
-        u = self.vhat.system.optimal_control(r.grad)[:, 0]
+        u = self.vhat.system.optimal_control(r.grad, obs)[:, 0]
         st = self.stats
         st["policy_steps"] += 1
         st["agent_steps"] += S * N
