@@ -94,16 +94,20 @@ def main() -> None:
     ap.add_argument("--cells", nargs="+", default=["small", "large"], choices=sorted(CELLS))
     ap.add_argument("--scenarios", type=int, nargs=2, default=[20, 2], metavar=("SMALL", "LARGE"))
     ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
+    ap.add_argument("--episode-s", type=float, default=None, help="shorter episodes than the arenas' (s)")
     ap.add_argument("--verify", action="store_true", help="also run the cold search at every warm step")
     ap.add_argument("--threads", type=int, default=1)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
-    print(f"models: {args.vhat} {args.vs}; torch threads {args.threads}; seed {args.seed}; CPU process time")
+    print(f"models: {args.vhat} {args.vs}; torch threads {args.threads}; seed {args.seed}; CPU process time; "
+          f"episodes {args.episode_s or 'of the arenas'} s")
     means = []
     with torch.no_grad():
         for name in args.cells:
             N, arena = CELLS[name]
+            if args.episode_s:
+                arena = Arena(arena.name, arena.half_width, args.episode_s)
             S = args.scenarios[0 if name == "small" else 1]
             runs = {}
             for warm in (True, False):
