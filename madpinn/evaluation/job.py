@@ -127,7 +127,8 @@ def evaluate(
             wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
             params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][arena.name],
                     "scenarios": total, "sim": cfg["sim"], "observation": cfg["observation"]},
-            metrics={**{k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")},
+            metrics={**{k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all",
+                                                 "cost_all_time_avg", "elapsed_s", "policy_us_per_agent_step")},
                      **{f"policy_{k}": v for k, v in summary.get("policy_stats", {}).items()}},
             artifacts=[out, json_path, traj_path],
         )
