@@ -31,6 +31,7 @@ include: "workflow/rules/safemarl.smk"
 include: "workflow/rules/defmarl.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/madpinn.smk"
+include: "workflow/rules/report.smk"
 include: "workflow/rules/tables.smk"
 
 

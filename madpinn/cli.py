@@ -71,9 +71,44 @@ def _table(args) -> int:
     from madpinn.tracking import log_job
 
     cfg = load_config(args.config)
-    files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir)
+    files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir, oracle_paths=args.oracle or ())
     if not args.no_track:
         log_job(cfg, job_key=f"table/{args.name}", rule=args.name, wildcards={}, params={"kind": args.kind, "inputs": len(args.inputs)}, artifacts=files)
+    print("\n".join(map(str, files)))
+    return 0
+
+
+def _oracle(args) -> int:
+    from madpinn.evaluation.oracle import OracleSettings, write_bounds
+    from madpinn.scenarios import Arena
+
+    cfg = load_config(args.config)
+    arena = Arena.from_config(cfg, args.arena)
+    settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
+                              dt=cfg["oracle"]["dt"])
+    print(write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"], settings))
+    return 0
+
+
+def _reproduction(args) -> int:
+    import pandas as pd
+
+    from madpinn.evaluation.reproduction import write_report
+    from madpinn.tracking import log_job
+    from madpinn.tracking.mlflow_store import git_commit
+
+    cfg = load_config(args.config)
+    study_of = dict(kv.split("=", 1) for kv in args.tables)   # table name -> study
+    by_study: dict[str, list[str]] = {}
+    for p in args.inputs:
+        for study in pd.read_parquet(p, columns=["study"])["study"].unique():
+            by_study.setdefault(str(study), []).append(p)
+    tables = {name: by_study[study] for name, study in study_of.items() if study in by_study}
+    files = write_report(args.out_dir, tables, cfg, oracle_paths=args.oracle or (), model_paths=args.models or (),
+                         commit=git_commit())
+    if not args.no_track:
+        log_job(cfg, job_key="report/reproduction", rule="reproduction_report", wildcards={},
+                params={"tables": sorted(tables)}, artifacts=files)
     print("\n".join(map(str, files)))
     return 0
 
@@ -126,9 +161,29 @@ def register(sub) -> None:
     p.add_argument("--name", required=True)
     p.add_argument("--kind", required=True, choices=["safety_by_n", "summary"])
     p.add_argument("--inputs", nargs="+", required=True)
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files: adds the lower-bound rows")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table)
+
+    p = sub.add_parser("reproduction", help="reproduction report: every table beside the paper's values")
+    add_config_arg(p)
+    p.add_argument("--tables", nargs="+", required=True, help="NAME=STUDY pairs")
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of those studies")
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (oracle rows)")
+    p.add_argument("--models", nargs="*", default=None, help="model files whose sha256 the provenance lists")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_reproduction)
+
+    p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
+    add_config_arg(p)
+    p.add_argument("--arena", required=True)
+    p.add_argument("--n-agents", type=int, required=True)
+    p.add_argument("--seed", type=int, required=True)
+    p.add_argument("--scenarios", type=int, required=True)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=_oracle)
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")
     add_config_arg(p)

@@ -9,6 +9,7 @@ for _name, (_study, _kind) in TABLES.items():
         input:
             tracking=TRACKING,
             results=study_results(_study),
+            oracle=oracle_inputs(_study),
         output:
             expand(f"{FIGURES}/{_name}.{{ext}}", ext=["csv", "md", "tex"]),
         params:
@@ -18,7 +19,7 @@ for _name, (_study, _kind) in TABLES.items():
             f"{LOGS}/{_name}.log",
         shell:
             "{PY} -m madpinn table --config {RESOLVED} --name {params.name} --kind {params.kind}"
-            " --inputs {input.results} --out-dir {FIGURES} 2>&1 | tee {log}"
+            " --inputs {input.results} --oracle {input.oracle} --out-dir {FIGURES} 2>&1 | tee {log}"
 
 
 ALL_TARGETS = all_targets() + EXTRA_TARGETS
