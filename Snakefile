@@ -25,6 +25,7 @@ except ConfigError as exc:
 include: "workflow/rules/common.smk"
 include: "workflow/rules/tracking.smk"
 include: "workflow/rules/evaluate.smk"
+include: "workflow/rules/oracle.smk"
 include: "workflow/rules/train.smk"
 include: "workflow/rules/mujoco.smk"
 include: "workflow/rules/safemarl.smk"

@@ -120,7 +120,7 @@ def _figure(args) -> int:
     if args.name == "fig_cost_safety":
         from madpinn.figures.cost_safety import plot_cost_safety
 
-        files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name)
+        files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name, oracle_paths=args.oracle or ())
     elif args.name == "fig_trajectories":
         from madpinn.evaluation.tables import label_of
         from madpinn.figures.trajectories import plot_trajectories
@@ -189,6 +189,7 @@ def register(sub) -> None:
     add_config_arg(p)
     p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories"])
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_figure)

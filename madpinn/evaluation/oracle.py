@@ -16,7 +16,7 @@ sandwich the continuous optimum J*:
 * **upper bound** (:func:`upper_bound`) — a feasible trajectory: piecewise-constant control
   (exact double-integrator steps; velocity is linear between samples so the box holds
   throughout), with the interval cost bounded by convexity (chord ≤ trapezoid) plus the
-  quadratic's bow ``‖s(h−s)/2·u‖ ≤ √2·u_max·h²/8``, integrated ``√2·u_max·h³/12``. J* ≤ UB.
+  quadratic's bow ``‖s(h−s)/2·u_k‖``, integrated ``h³/12·‖u_k‖``. J* ≤ UB.
 
 The scenario's bound is the mean of LB over its agents. UB − LB bounds the discretisation gap
 (docs/evaluation.md reports it at two resolutions). Agents of a batch are independent blocks of
@@ -87,7 +87,9 @@ def _programme(kind: str, steps: int, h: float, u_max: float, v_max: float, batc
         node = cp.norm(cp.vstack([cp.vec(X[0], order="C"), cp.vec(X[1], order="C")]), 2, axis=0)
         w = np.ones(steps + 1)
         w[[0, -1]] = 0.5                                            # trapezoid weights per block
-        cost = h * (np.tile(w, batch) @ node) + batch * steps * np.sqrt(2) * u_max * h**3 / 12
+        dv = [cp.vec(V[a][:, 1:] - V[a][:, :-1], order="C") for a in range(2)]
+        bow = h**2 / 12 * cp.sum(cp.norm(cp.vstack(dv), 2, axis=0))   # Σ h³/12·‖u_k‖, u_k = Δv_k / h
+        cost = h * (np.tile(w, batch) @ node) + bow
     final = cp.norm(cp.vstack([X[0][:, steps], X[1][:, steps]]), 2, axis=0)
     cost = cost + cp.sum(final)
     return cp.Problem(cp.Minimize(cost), cons), x0, v0, X, V, M
@@ -118,7 +120,8 @@ def _solve(kind: str, offsets: np.ndarray, s: OracleSettings, velocities: np.nda
         if kind == "lower":
             per = h * np.hypot(M[0].value, M[1].value).sum(axis=1)
         else:
-            per = h * (node[:, :-1] + node[:, 1:]).sum(axis=1) / 2 + s.steps * np.sqrt(2) * s.u_max * h**3 / 12
+            dv = np.hypot(np.diff(V[0].value, axis=1), np.diff(V[1].value, axis=1))
+            per = h * (node[:, :-1] + node[:, 1:]).sum(axis=1) / 2 + h**2 / 12 * dv.sum(axis=1)
         out[first:first + n] = (per + node[:, -1])[:n]
         first_u[first:first + n] = np.stack([V[a].value[:n, 1] - V[a].value[:n, 0] for a in range(2)], axis=-1) / h
     return out, np.clip(first_u, -s.u_max, s.u_max)

@@ -14,12 +14,13 @@ if "main" in config["studies"]:
         input:
             tracking=TRACKING,
             results=study_results("main"),
+            oracle=oracle_inputs("main"),
         output:
             expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS),
         log:
             f"{LOGS}/fig_cost_safety.log",
         shell:
-            "{PY} -m madpinn figure --config {RESOLVED} --name fig_cost_safety --inputs {input.results}"
+            "{PY} -m madpinn figure --config {RESOLVED} --name fig_cost_safety --inputs {input.results} --oracle {input.oracle}"
             " --out-dir {FIGURES} 2>&1 | tee {log}"
 
     EXTRA_TARGETS += expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS)

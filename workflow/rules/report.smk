@@ -1,45 +1,9 @@
-# Oracle cost lower bounds (SPEC §3) and the reproduction report (issue 16).
-# Included after every method's rule file (TABLES, METHOD_INPUTS complete) and before tables.smk.
-ORACLE_DIR = f"{RESULTS}/oracle"
-
-wildcard_constraints:
-    arena=r"[a-z_]+",
-
-
-def oracle_scenarios(arena, n, seed):
-    """Scenarios 0..S-1 of (arena, N, seed) that any study evaluates (S: the largest count)."""
-    counts = [st["scenarios"] for st in config["studies"].values()
-              if st["arena"] == arena and int(n) in st["agent_counts"] and int(seed) in st["seeds"]]
-    if not counts:
-        raise ValueError(f"no study evaluates arena {arena}, N={n}, seed {seed}")
-    return max(counts)
-
-
-def oracle_inputs(study):
-    st = config["studies"][study]
-    return [f"{ORACLE_DIR}/{st['arena']}/n{n}_seed{seed}.parquet" for n in st["agent_counts"] for seed in st["seeds"]]
-
-
+# Reproduction report (issue 16): every paper table beside the paper's values, with provenance.
+# Included after every method's rule file (TABLES and METHOD_INPUTS complete) and before tables.smk.
 def study_models(study):
     """Model files the runs of a study load (for checksums in the report)."""
     return sorted({m for run in config["studies"][study]["runs"]
                    for m in METHOD_INPUTS.get(run, METHOD_INPUTS.get(run.split("-")[0], []))})
-
-
-# One job per (arena, N, seed): the per-scenario lone-agent lower bound (cached across studies).
-rule oracle:
-    output:
-        f"{ORACLE_DIR}/{{arena}}/n{{n}}_seed{{seed}}.parquet",
-    params:
-        scenarios=lambda w: oracle_scenarios(w.arena, w.n, w.seed),
-        dt=config["oracle"]["dt"],
-        arena=lambda w: config["arenas"][w.arena],
-    threads: 1
-    log:
-        f"{LOGS}/oracle/{{arena}}/n{{n}}_seed{{seed}}.log",
-    shell:
-        "{PY} -m madpinn oracle --config {RESOLVED} --arena {wildcards.arena} --n-agents {wildcards.n}"
-        " --seed {wildcards.seed} --scenarios {params.scenarios} --out {output} 2>&1 | tee {log}"
 
 
 _REPORT_TABLES = {name: study for name, (study, _) in TABLES.items() if study in config["studies"]}
