@@ -42,25 +42,34 @@ def plot_cost_safety(result_paths: Iterable[str | Path], cfg: dict, out_prefix: 
             x, sx = 100 * r["safety_rate_mean"], 100 * r["safety_rate_std"]
             y, sy = r["cost_time_avg_mean"], r["cost_time_avg_std"]
             xerr = [[min(sx, x)], [min(sx, 100.0 - x)]]          # clipped to [0, 100] %
-            ax.errorbar(x, y, xerr=xerr, yerr=[[min(sy, y)], [sy]], fmt=MARKERS[i % len(MARKERS)], ms=sizes[i],
-                        mfc="none", mew=1.6, capsize=2.5, elinewidth=1.0, color=colours[run], label=r["label"],
-                        zorder=2 + i)
+            ax.errorbar(x, y, xerr=xerr, yerr=[[min(sy, y)], [sy]], fmt="none", capsize=2.5, elinewidth=1.0,
+                        color=colours[run], zorder=2)
+            # white-filled, largest first: a coinciding later run shows inside the earlier one's outline
+            ax.plot(x, y, MARKERS[i % len(MARKERS)], ms=sizes[i], mfc="white", mew=1.6, color=colours[run],
+                    label=r["label"], zorder=3 + i)
             ymax = max(ymax, y + sy)
         o = oracle[oracle["n_agents"] == n]
         if not o.empty:
             ax.axhline(o.iloc[0]["cost_time_avg_mean"], ls="--", lw=1.0, color="0.3", label="Oracle (lone-agent lower bound)", zorder=1)
+
             ymax = max(ymax, o.iloc[0]["cost_time_avg_mean"])
         ax.set_title(f"{n} agents")
         ax.set_xlabel("safety rate (%)")
         lo = agg[agg["n_agents"] == n]["safety_rate_mean"].min() * 100
-        ax.set_xlim(max(0.0, min(lo - 5.0, 95.0)), 102.0)
+        ax.set_xlim(max(0.0, min(lo - 5.0, 95.0)), 101.0)
+        ax.xaxis.set_major_locator(plt.MaxNLocator(5, integer=True))
+        ax.set_xticks([t for t in ax.get_xticks() if t <= 100])
         ax.set_ylim(0.0, 1.12 * ymax if ymax > 0 else 1.0)
-    axes[0][0].set_ylabel("time-averaged cost  (cumulative cost ÷ T)")
-    handles, labels = {}, {}
+    axes[0][0].set_ylabel("cost ÷ T (time-averaged)")
+    handles = {}
     for ax in axes[0]:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(lab, h)
-    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=min(len(handles), 5),
-               bbox_to_anchor=(0.5, -0.02 - 0.06 * ((len(handles) - 1) // 5)), frameon=False)
-    fig.tight_layout()
+    oracle_h = {k: handles.pop(k) for k in [k for k in handles if k.startswith("Oracle")]}
+    handles.update(oracle_h)                                   # runs first, the oracle line last
+    ncol = min(len(handles), 4)
+    rows = -(-len(handles) // ncol)
+    fig.tight_layout(rect=(0, 0.07 * rows, 1, 1))
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=ncol, frameon=False,
+               bbox_to_anchor=(0.5, 0.0))
     return style.save(fig, out_prefix)

@@ -58,8 +58,8 @@ def plot_trajectories(traj_paths: Sequence[str | Path], labels: Sequence[str], o
                 ax.set_ylabel(f"{label}\ny (m)", fontsize=8)
             else:
                 ax.set_yticklabels([])
-            if row == len(data) - 1 or True:
-                ax.set_xticklabels([] if row != len(data) - 1 else [f"{t:g}" for t in ticks])
+            if row != len(data) - 1:
+                ax.set_xticklabels([])
             if row == 0:
                 ax.set_title(f"t = {times[k]:.2f} s", fontsize=9)
             _scale_bar(ax, hw, bar)
@@ -69,5 +69,5 @@ def plot_trajectories(traj_paths: Sequence[str | Path], labels: Sequence[str], o
         Line2D([], [], marker="o", ls="none", mfc="none", mec="red", mew=1.5, ms=10, label="collided (ring: radius r)"),
     ]
     fig.legend(handles=legend, loc="lower center", ncol=3, frameon=False, bbox_to_anchor=(0.5, -0.01), fontsize=8)
-    fig.tight_layout(rect=(0, 0.04, 1, 1))
+    fig.tight_layout(rect=(0, 0.3 / fig.get_figheight(), 1, 1))
     return style.save(fig, out_prefix)
