@@ -116,8 +116,7 @@ def _dump(cfg, tmp):
 
 
 def test_figures_from_the_small_run(small_run):
-    """Both figures draw from the same files; every run of the panel is a legend entry and the
-    oracle line is there (visibility itself was checked by eye, docs/evaluation.md)."""
+    """Both figures draw from the small run's files (their look was checked by eye)."""
     import matplotlib.pyplot as plt
 
     from madpinn.figures.cost_safety import plot_cost_safety
