@@ -85,7 +85,7 @@ def _oracle(args) -> int:
     cfg = load_config(args.config)
     arena = Arena.from_config(cfg, args.arena)
     settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
-                              dt=cfg["oracle"]["dt"])
+                              dt=arena.episode_s / cfg["oracle"]["steps"])
     print(write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"], settings))
     return 0
 

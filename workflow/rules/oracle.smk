@@ -26,7 +26,7 @@ rule oracle:
         f"{ORACLE_DIR}/{{arena}}/n{{n}}_seed{{seed}}.parquet",
     params:
         scenarios=lambda w: oracle_scenarios(w.arena, w.n, w.seed),
-        dt=config["oracle"]["dt"],
+        steps=config["oracle"]["steps"],
         arena=lambda w: config["arenas"][w.arena],
     threads: 1
     log:
