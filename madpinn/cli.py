@@ -62,7 +62,7 @@ def _evaluate(args) -> int:
         cfg, args.study, args.run, args.n_agents, args.seed, args.out, backend=args.backend,
         threads=args.threads, progress=not args.no_progress, track=not args.no_track,
     )
-    print(json.dumps({k: summary[k] for k in ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "elapsed_s")}))
+    print(json.dumps({k: summary[k] for k in ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")}))
     return 0
 
 

@@ -150,7 +150,11 @@ def to_markdown(table: pd.DataFrame) -> str:
 
 def to_latex(table: pd.DataFrame, caption: str) -> str:
     def esc(s) -> str:
-        return str(s).replace("%", r"\%").replace("±", r"$\pm$").replace("·", "--").replace("_", r"\_")
+        s = str(s).replace("%", r"\%").replace("±", r"$\pm$").replace("_", r"\_")
+        for a, b in (("÷", r"$\div$"), ("∫", r"$\int$"), ("‖", r"$\|$"), ("−", "-"), ("∞", r"$\infty$"),
+                     ("m·s", r"m$\cdot$s"), ("·", "--")):
+            s = s.replace(a, b)
+        return s
 
     cols = list(table.columns)
     spec = "l" + "c" * (len(cols) - 1)
