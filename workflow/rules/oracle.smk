@@ -25,12 +25,18 @@ rule oracle:
     output:
         f"{ORACLE_DIR}/{{arena}}/n{{n}}_seed{{seed}}.parquet",
     params:
+        config=RESOLVED,
         scenarios=lambda w: oracle_scenarios(w.arena, w.n, w.seed),
-        steps=config["oracle"]["steps"],
-        arena=lambda w: config["arenas"][w.arena],
+        settings=settings_hash("oracle", "agents", "arenas"),
+        source=source_hash("oracle"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=240,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/oracle/{{arena}}/n{{n}}_seed{{seed}}.log",
     shell:
-        "{PY} -m madpinn oracle --config {RESOLVED} --arena {wildcards.arena} --n-agents {wildcards.n}"
-        " --seed {wildcards.seed} --scenarios {params.scenarios} --out {output} 2>&1 | tee {log}"
+        "python -m madpinn oracle --config {params.config:q} --arena {wildcards.arena:q} --n-agents {wildcards.n}"
+        " --seed {wildcards.seed} --scenarios {params.scenarios} --out {output:q} 2>&1 | tee {log:q}"

@@ -18,14 +18,24 @@ rule reproduction_report:
         oracle=sorted({p for s in _REPORT_TABLES.values() for p in oracle_inputs(s)}),
         models=sorted({m for s in _REPORT_TABLES.values() for m in study_models(s)}),
     output:
-        REPORT_OUTPUTS,
+        md=REPORT_OUTPUTS[0],
+        json=REPORT_OUTPUTS[1],
     params:
-        tables=" ".join(f"{n}={s}" for n, s in _REPORT_TABLES.items()),
+        config=RESOLVED,
+        tables=[f"{n}={s}" for n, s in _REPORT_TABLES.items()],
+        settings=settings_hash("experiment", extra={s: run_labels(s) for s in _REPORT_TABLES.values()}),
+        source=source_hash("tables"),
+        out_dir=out_dir_of("md"),
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/reproduction_report.log",
     shell:
-        "{PY} -m madpinn reproduction --config {RESOLVED} --tables {params.tables} --inputs {input.results}"
-        " --oracle {input.oracle} --models {input.models} --out-dir {FIGURES} 2>&1 | tee {log}"
+        "python -m madpinn reproduction --config {params.config:q} --tables {params.tables:q} --inputs {input.results:q}"
+        " --oracle {input.oracle:q} --models {input.models:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
 EXTRA_TARGETS += REPORT_OUTPUTS

@@ -3,7 +3,14 @@
 rule tracking_init:
     output:
         TRACKING,
+    params:
+        config=RESOLVED,
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/tracking_init.log",
     shell:
-        "{PY} -m madpinn tracking-init --config {RESOLVED} --out {output} 2>&1 | tee {log}"
+        "python -m madpinn tracking-init --config {params.config:q} --out {output:q} 2>&1 | tee {log:q}"
