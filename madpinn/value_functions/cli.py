@@ -84,7 +84,7 @@ def _train_job(cfg: dict, kind: str, args, run) -> int:
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{kind}.ckpt.pt"
     chash = training_hash(cfg, kind)
     total = settings.iterations + int((vcfg.get("fine_tune") or {}).get("iterations", 0))
-    every = max(1, total // LIVE_POINTS)
+    every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     net, info = train(problem, settings, ckpt, chash, device=device, dtype=dtype, progress=not args.no_progress,
                       stop_after=args.stop_after, on_iteration=run.curve("loss", every))
     if not info["completed"]:
