@@ -32,6 +32,7 @@ include: "workflow/rules/defmarl.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/tables.smk"
+include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 
 
 rule all:

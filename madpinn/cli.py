@@ -21,6 +21,7 @@ COMMAND_MODULES = [
     "madpinn.simulation.mujoco.commands",  # render-clip (issue 5)
     "madpinn.marl.cli",  # train-safemarl-nominal (issue 7)
     "madpinn.marl.defmarl.cli",  # train-defmarl (issue 8)
+    "madpinn.evaluation.gap_cli",  # gap-decomposition, diagnose-collisions (issue 14)
 ]
 
 

@@ -9,8 +9,12 @@ position, so the observation is translation invariant; units m and m/s)::
       for each neighbour j:  p_j - p_ego (2), v_j (2), g_j - p_ego (2) ]
 
 Deployment maps a global state into this layout with :func:`build_observation`: goal offsets
-beyond the trained range are shortened along their direction (a carrot), neighbour offsets are
-shrunk along their direction into the trained range, and missing neighbours are padded with
+beyond ``goal_range − carrot_margin`` are shortened along their direction (a carrot strictly inside
+V̂'s trained box, where V̂ is more accurate than on its edge), neighbour offsets are shrunk along
+their direction into the trained range, a neighbour's goal is shortened relative to the
+*neighbour* (its own carrot, then cut along its own heading at the trained box, so the heading
+the neighbour flies is preserved; ``neighbour_goal: ego`` restores the old shortening of
+``g_j − p_ego``, which turns a far neighbour's heading), and missing neighbours are padded with
 motionless phantoms sitting at their goals on the boundary of the trained box: phantom slot k
 at bearing π/4 + 2πk/n (slot 0 at the corner ``(offset_range, offset_range)``, slot 1 of two
 at the opposite corner). Phantoms are therefore ≥ offset_range·√2 − sensing_radius away from
@@ -20,13 +24,16 @@ any radius-limited real neighbour and pairwise apart, so they add neither cost n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
 EGO_DIM = 4
 NEIGHBOUR_DIM = 6
 PHANTOM = -1
+NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
+# ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
+DEPLOYMENT_ONLY_KEYS = ("carrot_margin", "neighbour_goal")
 
 
 @dataclass(frozen=True)
@@ -38,6 +45,13 @@ class ObservationSpec:
     offset_range: per-coordinate bound (m) of neighbour position offsets seen in training.
     sensing_radius: observation radius (m) used by radius-limited neighbour choices.
     collision_radius: r (m).
+    carrot_margin: goal offsets are shortened into ±(goal_range − carrot_margin) (m); 0 = the
+        box edge (the old mapping).
+    neighbour_goal: ``"neighbour"`` shortens a neighbour's goal offset relative to the neighbour
+        (heading preserved), ``"ego"`` shortens ``g_j − p_ego`` into the box (the old mapping).
+
+    The dataclass defaults are the old mapping (what V̂ training and the MARL features use);
+    ``from_config`` reads ``observation.carrot_margin`` / ``observation.neighbour_goal``.
     """
 
     n_neighbours: int = 2
@@ -45,6 +59,25 @@ class ObservationSpec:
     offset_range: float = 2.0
     sensing_radius: float = 1.0
     collision_radius: float = 0.1
+    carrot_margin: float = 0.0
+    neighbour_goal: str = "ego"
+
+    def __post_init__(self):
+        if not (math.isfinite(self.carrot_margin) and 0.0 <= self.carrot_margin < self.goal_range):
+            raise ValueError(f"observation.carrot_margin must be in [0, goal_range = {self.goal_range}), got {self.carrot_margin}")
+        if self.neighbour_goal not in NEIGHBOUR_GOAL_MODES:
+            raise ValueError(f"observation.neighbour_goal must be one of {NEIGHBOUR_GOAL_MODES}, got '{self.neighbour_goal}'")
+
+    def base_mapping(self) -> "ObservationSpec":
+        """This spec with the deployment-only settings at the old mapping: what value-function
+        training sees, and what the baselines (MPPI, MARL features) keep using (the fixes are
+        about V̂'s trained box)."""
+        return replace(self, carrot_margin=0.0, neighbour_goal="ego")
+
+    @property
+    def carrot_range(self) -> float:
+        """Per-coordinate bound (m) of the goal offsets given to V̂ at deployment."""
+        return self.goal_range - self.carrot_margin
 
     @property
     def dim(self) -> int:
@@ -63,6 +96,8 @@ class ObservationSpec:
             offset_range=float(o["offset_range"]),
             sensing_radius=float(o["sensing_radius"]),
             collision_radius=float(cfg["agents"]["collision_radius"]),
+            carrot_margin=float(o.get("carrot_margin", 0.0)),
+            neighbour_goal=str(o.get("neighbour_goal", "ego")),
         )
 
 
@@ -71,6 +106,19 @@ def shrink_to_box(vec: torch.Tensor, bound: float) -> torch.Tensor:
     max_abs = vec.abs().amax(dim=-1, keepdim=True)
     scale = torch.where(max_abs > bound, bound / max_abs.clamp_min(1e-12), torch.ones_like(max_abs))
     return vec * scale
+
+
+def clip_ray_to_box(origin: torch.Tensor, ray: torch.Tensor, bound: float) -> torch.Tensor:
+    """Largest ``s ∈ [0, 1]`` with ``origin + s·ray`` inside ``[−bound, bound]²`` (per row), times
+    ``ray``: the ray cut at the box, direction kept. ``origin`` outside the box gives the part of
+    the ray that stays no farther out than ``origin`` (s = 0 when the ray points outward).
+    Shapes ``[..., 2]``."""
+    hi = origin.clamp_min(bound)    # an origin outside the box is never pushed further out
+    lo = origin.clamp_max(-bound)
+    room = torch.where(ray > 0, hi - origin, origin - lo)   # distance to the wall the ray heads for
+    s = torch.where(ray.abs() > 1e-12, room / ray.abs().clamp_min(1e-12), torch.full_like(ray, float("inf")))
+    s = s.amin(dim=-1, keepdim=True).clamp(0.0, 1.0)
+    return ray * s
 
 
 def phantom_offsets(n_neighbours: int, offset_range: float) -> torch.Tensor:
@@ -106,14 +154,19 @@ def build_observation(
     p_j = _gather_agents(p, idx) - p.unsqueeze(2)
     v_j = _gather_agents(v, idx)
     g_j = _gather_agents(goals, idx) - p.unsqueeze(2)
-    p_j = shrink_to_box(p_j, spec.offset_range)
-    g_j = shrink_to_box(g_j, spec.goal_range)
+    if spec.neighbour_goal == "ego":
+        p_j = shrink_to_box(p_j, spec.offset_range)
+        g_j = shrink_to_box(g_j, spec.carrot_range)
+    else:
+        own = shrink_to_box(g_j - p_j, spec.carrot_range)          # the neighbour's own carrot
+        p_j = shrink_to_box(p_j, spec.offset_range)
+        g_j = p_j + clip_ray_to_box(p_j, own, spec.carrot_range)   # cut along its heading at the box
     slot = phantom_offsets(spec.n_neighbours, spec.offset_range).to(p_j)
     mask = phantom.unsqueeze(-1)
     p_j = torch.where(mask, slot, p_j)
     g_j = torch.where(mask, slot, g_j)
     v_j = torch.where(mask, torch.zeros_like(v_j), v_j)
-    ego_goal = shrink_to_box(goals - p, spec.goal_range)
+    ego_goal = shrink_to_box(goals - p, spec.carrot_range)
     nbr = torch.cat([p_j, v_j, g_j], dim=-1).flatten(-2)
     return torch.cat([v, ego_goal, nbr], dim=-1)
 

@@ -104,3 +104,52 @@ def test_residual_is_the_papers_min():
     r = sy.hjb_residual(obs, z, v, dvdt, go, gz)
     expect = torch.minimum(-dvdt - sy.hamiltonian(obs, go, gz), v - constraint(obs, 2, 0.1))
     assert torch.equal(r, expect)
+
+
+# --- issue 14: velocity saturation as an option of V̂'s dynamics -------------------------------
+
+def test_velocity_saturation_removes_outward_control_from_hamiltonian_and_control():
+    from dataclasses import replace
+
+    free, sat = system(), replace(system(), velocity_saturation=True)
+    gen = torch.Generator().manual_seed(100)
+    obs, z = free.sample(2048, gen, dtype=torch.float64)
+    vidx = free.velocity_index().flatten()
+    # half of the samples: some velocity coordinates pinned at ±v_max
+    pin = torch.rand(2048, vidx.numel(), generator=gen, dtype=torch.float64) < 0.3
+    signs = torch.where(torch.rand(2048, vidx.numel(), generator=gen, dtype=torch.float64) < 0.5, -1.0, 1.0)
+    obs[:, vidx] = torch.where(pin, 4.0 * signs, obs[:, vidx].clamp(-3.99, 3.99))
+    grad = torch.randn(2048, free.obs_dim, generator=gen, dtype=torch.float64)
+    dz = torch.rand(2048, generator=gen, dtype=torch.float64)
+    h_free, h_sat = free.hamiltonian(obs, grad, dz), sat.hamiltonian(obs, grad, dz)
+    # less control authority: the minimum can only rise; unchanged where nothing is pinned
+    assert (h_sat >= h_free - 1e-12).all()
+    none_pinned = ~pin.any(-1)
+    assert torch.allclose(h_sat[none_pinned], h_free[none_pinned])
+    assert (h_sat[pin.any(-1)] > h_free[pin.any(-1)] + 1e-9).any()
+    # the closed form is attained by the optimal control through the saturated dynamics ...
+    u = sat.optimal_control(grad, obs)
+    do, dzdt = sat.f(obs, z, u)
+    assert torch.allclose((grad * do).sum(-1) + dz * dzdt, h_sat, atol=1e-9)
+    # ... and no corner control does better (brute force over 2^6 bang-bang choices on 256 rows)
+    rows = slice(0, 256)
+    best = torch.full((256,), float("inf"), dtype=torch.float64)
+    for corner in itertools.product((-4.0, 4.0), repeat=6):
+        uc = torch.tensor(corner, dtype=torch.float64).reshape(1, 3, 2).expand(256, 3, 2)
+        do_c, dz_c = sat.f(obs[rows], z[rows], uc)
+        best = torch.minimum(best, (grad[rows] * do_c).sum(-1) + dz[rows] * dz_c)
+    assert torch.allclose(best, h_sat[rows], atol=1e-9)
+    # the optimal control never pushes a pinned velocity further out
+    v = obs[:, vidx].reshape(2048, 3, 2)
+    assert not (((v >= 4.0) & (u > 0)) | ((v <= -4.0) & (u < 0))).any()
+    with pytest.raises(ValueError, match="observation"):
+        sat.optimal_control(grad)
+
+
+def test_velocity_saturation_is_off_by_default_and_read_from_the_config(paper_cfg):
+    import copy
+
+    assert EpigraphSystem.from_config(paper_cfg).velocity_saturation is False
+    cfg = copy.deepcopy(paper_cfg)
+    cfg["value_functions"]["vhat"]["velocity_saturation"] = True
+    assert EpigraphSystem.from_config(cfg).velocity_saturation is True

@@ -1,4 +1,5 @@
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -125,3 +126,85 @@ def test_phantoms_never_conflict_with_each_other():
     obs = build_observation(state, torch.zeros(1, 3, 2), nbrs, SPEC)
     assert constraint(obs[0, 0], 2, 0.1).item() < -1.0
     assert running_cost(obs[0, 0], 2).item() == pytest.approx(0.0)
+
+
+# --- issue 14: carrot margin and neighbour-relative goal shortening --------------------------
+
+def _heading_deg(vec: torch.Tensor) -> float:
+    return math.degrees(math.atan2(float(vec[1]), float(vec[0])))
+
+
+def test_carrot_strictly_inside_the_trained_box_by_the_margin():
+    spec = replace(SPEC, carrot_margin=0.25)
+    gen = torch.Generator().manual_seed(100)
+    state = torch.cat([torch.rand(4, 6, 2, generator=gen) * 16 - 8, torch.zeros(4, 6, 2)], dim=-1)
+    goals = torch.rand(4, 6, 2, generator=gen) * 16 - 8
+    nbrs = nearest_neighbours(state, 2)
+    obs = build_observation(state, goals, nbrs, spec)
+    ego_goal = obs[..., 2:4]
+    assert ego_goal.abs().amax() <= 1.75 + 1e-6          # goal_range − margin
+    far = (goals - state[..., 0:2]).abs().amax(-1) > 2.0
+    assert far.any()
+    # shortened along its own direction, onto the inner box edge
+    assert torch.allclose(ego_goal[far].abs().amax(-1), torch.full((int(far.sum()),), 1.75), atol=1e-5)
+    cos = torch.nn.functional.cosine_similarity(ego_goal[far], (goals - state[..., 0:2])[far], dim=-1)
+    assert cos.min() > 1 - 1e-5
+    # neighbour goals stay inside the inner box (or, for a neighbour beyond it, no farther out than it)
+    for mode in ("neighbour", "ego"):
+        o = build_observation(state, goals, nbrs, replace(spec, neighbour_goal=mode))
+        nbr = o[..., 4:].reshape(4, 6, 2, 6)
+        bound = nbr[..., 0:2].abs().amax(-1).clamp_min(1.75) if mode == "neighbour" else 1.75
+        assert (nbr[..., 4:6].abs().amax(-1) <= bound + 1e-6).all()
+    # margin 0: the old mapping (carrot on the box edge)
+    old = build_observation(state, goals, nbrs, SPEC)
+    assert torch.allclose(old[..., 2:4][far].abs().amax(-1), torch.full((int(far.sum()),), 2.0), atol=1e-5)
+
+
+def test_neighbour_goal_is_shortened_relative_to_the_neighbour_keeping_its_heading():
+    # the issue's example: a neighbour at (1.5, −1.5) heading to (6, 6), ego at the origin
+    state = torch.tensor([[[0.0, 0.0, 0.0, 0.0], [1.5, -1.5, 0.0, 0.0]]])
+    goals = torch.tensor([[[1.0, 0.0], [6.0, 6.0]]])
+    nbrs = torch.tensor([[[1, -1], [0, -1]]])
+    true_heading = _heading_deg(torch.tensor([4.5, 7.5]))
+    new = build_observation(state, goals, nbrs, replace(SPEC, neighbour_goal="neighbour"))[0, 0]
+    old = build_observation(state, goals, nbrs, replace(SPEC, neighbour_goal="ego"))[0, 0]
+    p_j, g_j = new[4:6], new[8:10]
+    assert abs(_heading_deg(g_j - p_j) - true_heading) < 0.01
+    assert g_j.abs().amax() <= 2.0 + 1e-6 and (g_j - p_j).norm() > 0.5   # inside the box, still heading out
+    # the old mapping turns it by ≈ 23° (the distortion this fixes)
+    assert abs(_heading_deg(old[8:10] - old[4:6]) - true_heading) > 15.0
+    # a neighbour whose goal is already inside the box is unchanged by either mapping
+    goals_in = torch.tensor([[[1.0, 0.0], [1.0, -0.5]]])
+    a = build_observation(state, goals_in, nbrs, replace(SPEC, neighbour_goal="neighbour"))
+    b = build_observation(state, goals_in, nbrs, replace(SPEC, neighbour_goal="ego"))
+    assert torch.allclose(a, b)
+
+
+def test_neighbour_beyond_the_box_heading_outward_is_not_pushed_further_out():
+    spec = replace(SPEC, neighbour_goal="neighbour", carrot_margin=0.3)
+    state = torch.tensor([[[0.0, 0.0, 0.0, 0.0], [1.9, 0.0, 0.0, 0.0]]])   # beyond 1.7, inside offset_range
+    goals = torch.tensor([[[0.0, 0.0], [5.0, 0.5]]])
+    g_j = build_observation(state, goals, torch.tensor([[[1, -1], [0, -1]]]), spec)[0, 0, 8:10]
+    assert torch.allclose(g_j, torch.tensor([1.9, 0.0]), atol=1e-6)   # s = 0: goal at the neighbour
+
+
+def test_bad_carrot_margin_and_mode_fail_early():
+    with pytest.raises(ValueError, match="carrot_margin"):
+        replace(SPEC, carrot_margin=2.0)
+    with pytest.raises(ValueError, match="neighbour_goal"):
+        replace(SPEC, neighbour_goal="sideways")
+
+
+def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_hash(paper_cfg):
+    import copy
+
+    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.value_functions.cli import training_hash
+
+    cfg = copy.deepcopy(paper_cfg)
+    cfg["observation"].update(carrot_margin=0.5, neighbour_goal="ego")
+    assert training_hash(cfg, "vhat") == training_hash(paper_cfg, "vhat")
+    spec = EpigraphSystem.from_config(cfg).spec
+    assert spec.carrot_margin == 0.0 and spec.neighbour_goal == "ego"
+    cfg["value_functions"]["vhat"]["velocity_saturation"] = True      # this one does retrain
+    assert training_hash(cfg, "vhat") != training_hash(paper_cfg, "vhat")

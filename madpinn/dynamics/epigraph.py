@@ -17,6 +17,14 @@ the velocity coordinates. The Hamiltonian of the paper's HJB (``min_u ⟨∇V, f
 closed form: ``H = ⟨∇_o V, w_o⟩ − ∂_z V · l_d − u_max · Σ_a ‖∂V/∂v_a‖₁`` with the optimal
 (bang-bang) control ``u_a* = −u_max · sign(∂V/∂v_a)``.
 
+**Velocity saturation (option, ``velocity_saturation``; the paper's state constraint |v| ≤ v_max,
+which the simulators enforce by clipping).** With it, a control that pushes a velocity
+coordinate already at ``|v_a,k| ≥ v_max`` further out has no effect: per coordinate the control's
+term in the Hamiltonian is ``−u_max·|p|`` inside, ``−u_max·max(p, 0)`` at ``v ≥ v_max`` and
+``−u_max·max(−p, 0)`` at ``v ≤ −v_max`` (p = ∂V/∂v_a,k), and the optimal control there is 0 when
+the bang-bang choice would point outward. Off by default: every trained V̂ so far used the
+unbounded dynamics, and switching it on needs retraining.
+
 Sampling domain (per coordinate, uniform; matches :class:`~madpinn.observation.ObservationSpec`):
 velocities ``±v_max``, goal offsets ``±goal_range``, neighbour position offsets
 ``±offset_range``, ``z ∈ [0, z_max]``, ``t ∈ [0, T]``.
@@ -45,7 +53,8 @@ class EpigraphSystem:
     """The augmented (n+1)-agent system of SPEC §4 and its box-control Hamiltonian.
 
     spec: observation layout and trained ranges; u_max, v_max: per-axis control (m/s²) and
-    velocity (m/s) bounds; horizon: T (s); z_max: upper end of the sampled budget (cost units).
+    velocity (m/s) bounds; horizon: T (s); z_max: upper end of the sampled budget (cost units);
+    velocity_saturation: controls pushing a velocity beyond ±v_max have no effect (module docstring).
     """
 
     spec: ObservationSpec
@@ -53,6 +62,7 @@ class EpigraphSystem:
     v_max: float = 4.0
     horizon: float = 0.2
     z_max: float = 20.0
+    velocity_saturation: bool = False
 
     # ---- layout -------------------------------------------------------------------------
     @property
@@ -134,6 +144,8 @@ class EpigraphSystem:
         u = u.clamp(-self.u_max, self.u_max)
         do = self.transport(obs).clone()
         idx = self.velocity_index().to(obs.device)
+        if self.velocity_saturation:
+            u = torch.where(self._outward(obs[..., idx], u), torch.zeros_like(u), u)
         do[..., idx.flatten()] = do[..., idx.flatten()] + u.flatten(-2)
         return do, -self.running_cost(obs)
 
@@ -142,14 +154,30 @@ class EpigraphSystem:
         idx = self.velocity_index().to(dv_dobs.device)
         return dv_dobs[..., idx]
 
+    def _outward(self, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Where control ``u`` pushes velocity ``v`` (both ``[..., n+1, 2]``) beyond ±v_max."""
+        return ((v >= self.v_max) & (u > 0)) | ((v <= -self.v_max) & (u < 0))
+
     def hamiltonian(self, obs: torch.Tensor, dv_dobs: torch.Tensor, dv_dz: torch.Tensor) -> torch.Tensor:
         """``min_u ⟨∇V, f̂(ô, u)⟩`` ``[B]`` in closed form for box controls."""
         drift = (dv_dobs * self.transport(obs)).sum(-1) - dv_dz * self.running_cost(obs)
-        return drift - self.u_max * self.velocity_grad(dv_dobs).abs().sum((-1, -2))
+        p = self.velocity_grad(dv_dobs)
+        if not self.velocity_saturation:
+            return drift - self.u_max * p.abs().sum((-1, -2))
+        u_star = -self.u_max * torch.sign(p)
+        effective = torch.where(self._outward(obs[..., self.velocity_index().to(obs.device)], u_star), torch.zeros_like(p), p.abs())
+        return drift - self.u_max * effective.sum((-1, -2))
 
-    def optimal_control(self, dv_dobs: torch.Tensor) -> torch.Tensor:
-        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, 2]``."""
-        return -self.u_max * torch.sign(self.velocity_grad(dv_dobs))
+    def optimal_control(self, dv_dobs: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
+        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, 2]``;
+        with ``velocity_saturation`` (``obs`` then required) 0 where it would push a saturated
+        velocity further out."""
+        u = -self.u_max * torch.sign(self.velocity_grad(dv_dobs))
+        if self.velocity_saturation:
+            if obs is None:
+                raise ValueError("optimal_control needs the observation when velocity_saturation is on")
+            u = torch.where(self._outward(obs[..., self.velocity_index().to(obs.device)], u), torch.zeros_like(u), u)
+        return u
 
     def hjb_residual(self, obs, z, value, dv_dt, dv_dobs, dv_dz) -> torch.Tensor:
         """Paper eq. (loss): ``min(−∂_t V − H, V − g_d(o))`` ``[B]``."""
@@ -157,9 +185,10 @@ class EpigraphSystem:
 
     @classmethod
     def from_config(cls, cfg: dict) -> "EpigraphSystem":
-        spec = ObservationSpec.from_config(cfg)
+        spec = ObservationSpec.from_config(cfg).base_mapping()
         vcfg = cfg["value_functions"]["vhat"]
         u_max, v_max, T = float(cfg["agents"]["u_max"]), float(cfg["agents"]["v_max"]), float(vcfg["horizon"])
         z_max = vcfg.get("z_max", "auto")
         z_max = cls.default_z_max(spec, v_max, u_max, T) if z_max in (None, "auto") else float(z_max)
-        return cls(spec=spec, u_max=u_max, v_max=v_max, horizon=T, z_max=z_max)
+        return cls(spec=spec, u_max=u_max, v_max=v_max, horizon=T, z_max=z_max,
+                   velocity_saturation=bool(vcfg.get("velocity_saturation", False)))

@@ -51,7 +51,7 @@ def local_observation(state: torch.Tensor, goals: torch.Tensor, spec: Observatio
     """Global state ``[S, N, 4]``, goals ``[S, N, 2]`` -> :class:`LocalObs` with K = ``k`` slots."""
     if k < 1:
         raise ValueError(f"need at least one neighbour slot, got {k}")
-    kspec = replace(spec, n_neighbours=k)
+    kspec = replace(spec.base_mapping(), n_neighbours=k)   # issue-14 mapping fixes are MAD-PINN's
     idx = nearest_neighbours(state, k, radius=spec.sensing_radius)
     obs = build_observation(state, goals, idx, kspec)
     ego = obs[..., :EGO_DIM]

@@ -191,7 +191,7 @@ class MadPinnPolicy:
             z, feasible = cold_budget_search(self.vhat, obs, steps)
         self._z_prev = z
         _, dv_dobs, _ = self.vhat.value_and_grad(obs, z, 0.0)
-        u = self.vhat.system.optimal_control(dv_dobs)[:, 0]
+        u = self.vhat.system.optimal_control(dv_dobs, obs)[:, 0]
         st = self.stats
         st["policy_steps"] += 1
         st["agent_steps"] += S * N

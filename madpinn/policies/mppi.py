@@ -212,4 +212,4 @@ def make_generator(device, seed: int) -> torch.Generator:
 def make_mppi(ctx: PolicyContext) -> MPPIPolicy:
     params = MPPIParams.from_config(ctx.method_cfg)
     planner = MPPIPlanner(params, ctx.dynamics, ctx.obs_spec.collision_radius, make_generator(ctx.device, ctx.seed))
-    return MPPIPolicy(planner, ctx.obs_spec, ctx.dynamics)
+    return MPPIPolicy(planner, ctx.obs_spec.base_mapping(), ctx.dynamics)   # issue-14 fixes are MAD-PINN's

@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from madpinn.config import config_hash, load_config
+from madpinn.observation import DEPLOYMENT_ONLY_KEYS
 
 KINDS = ("vhat", "vs")
 LIVE_POINTS = 1000   # training curves: at most this many live MLflow points per run
@@ -32,7 +33,10 @@ def problem_from_config(cfg: dict, kind: str):
 def training_hash(cfg: dict, kind: str) -> str:
     """Hash of everything the trained weights depend on (not validation settings)."""
     vcfg = {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
-    return config_hash({"kind": kind, "agents": cfg["agents"], "observation": cfg["observation"], "vf": vcfg,
+    if not vcfg.get("velocity_saturation", True):   # off = the dynamics every earlier model was trained with: same hash
+        vcfg.pop("velocity_saturation")
+    observation = {k: v for k, v in cfg["observation"].items() if k not in DEPLOYMENT_ONLY_KEYS}   # deployment-only keys do not retrain
+    return config_hash({"kind": kind, "agents": cfg["agents"], "observation": observation, "vf": vcfg,
                         "seed": cfg["value_functions"]["seed"], "dtype": cfg["dtype"]})
 
 

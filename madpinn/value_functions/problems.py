@@ -109,12 +109,15 @@ class EpigraphProblem(PINNProblem):
 
     def describe(self) -> dict:
         sy = self.system
-        return {"spec": asdict(sy.spec), "u_max": sy.u_max, "v_max": sy.v_max, "horizon": sy.horizon, "z_max": sy.z_max}
+        d = {"spec": asdict(sy.spec), "u_max": sy.u_max, "v_max": sy.v_max, "horizon": sy.horizon, "z_max": sy.z_max}
+        if sy.velocity_saturation:   # absent = the unbounded dynamics of every earlier checkpoint
+            d["velocity_saturation"] = True
+        return d
 
     @classmethod
     def from_description(cls, d: dict) -> "EpigraphProblem":
         return cls(EpigraphSystem(spec=ObservationSpec(**d["spec"]), u_max=d["u_max"], v_max=d["v_max"],
-                                  horizon=d["horizon"], z_max=d["z_max"]))
+                                  horizon=d["horizon"], z_max=d["z_max"], velocity_saturation=bool(d.get("velocity_saturation", False))))
 
 
 class PairProblem(PINNProblem):
