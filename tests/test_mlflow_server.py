@@ -5,6 +5,7 @@ goes away mid-job loses no result and its run is logged exactly once by the next
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -43,7 +44,8 @@ class Server:
                "--workers", "1", "--backend-store-uri", f"sqlite:///{self.root / 'mlflow.db'}",
                "--artifacts-destination", str(self.root / "artifacts")]
         self.proc = subprocess.Popen(cmd, cwd=self.root, stdout=open(self.root / "server.log", "ab"),
-                                     stderr=subprocess.STDOUT, start_new_session=True, env=subprocess_env())
+                                     stderr=subprocess.STDOUT, start_new_session=True,
+                                     env=subprocess_env({"MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}))
         deadline = time.monotonic() + START_TIMEOUT_S
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
@@ -98,8 +100,6 @@ def test_live_runs_on_a_tracking_server_show_real_durations_curves_and_models(se
     (run,) = runs
     info = run.info
     assert info.status == "FINISHED" and run.data.tags["madpinn.source"] == "workflow"
-    import json
-
     train_ms = 1000 * json.loads((work / "results/smoke/models/vs_train.json").read_text())["wall_s"]
     duration = info.end_time - info.start_time
     assert train_ms <= duration <= workflow_wall_ms      # the run spans the training, not a post-hoc moment
@@ -110,6 +110,7 @@ def test_live_runs_on_a_tracking_server_show_real_durations_curves_and_models(se
     assert info.start_time <= stamps[0] and stamps[-1] <= info.end_time
     import mlflow.pytorch
 
+    mlflow.set_tracking_uri(server.uri)
     net = mlflow.pytorch.load_model(f"runs:/{info.run_id}/vs_network")
     saved = torch.load(work / target, weights_only=True)["state_dict"]
     assert all(torch.equal(v, saved[k]) for k, v in net.state_dict().items())
@@ -128,7 +129,7 @@ def _tree(root: Path) -> dict:
 
 def test_server_lost_mid_job_keeps_results_and_the_next_start_logs_the_run_once(server, tmp_path):
     work = tmp_path / "work"
-    overlay = (SMOKE, _overlay(tmp_path, 20000))
+    overlay = (SMOKE, _overlay(tmp_path, 2000))   # seconds on an idle core: the server is stopped meanwhile
     env = {"MLFLOW_TRACKING_URI": server.uri}
     proc = _popen_snakemake(work, "-j1", "results/smoke/models/vs.pt", configfiles=overlay, env=env)
     deadline = time.monotonic() + 300
@@ -162,3 +163,10 @@ def test_server_lost_mid_job_keeps_results_and_the_next_start_logs_the_run_once(
     assert run.info.status == "FINISHED" and run.info.start_time == live.info.start_time
     assert len(c.get_metric_history(run.info.run_id, "loss")) == 1000       # every curve point, none twice
     assert "vs.pt" in {a.path for a in c.list_artifacts(run.info.run_id)}
+
+    # a new tracking URI re-creates the store (tracking_init reruns) but reruns no finished job
+    other = work / "other" / "mlflow.db"
+    proc = run_snakemake(work, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=overlay,
+                         env={"MLFLOW_TRACKING_URI": f"sqlite:///{other}"})
+    out = proc.stdout + proc.stderr
+    assert "rule tracking_init" in out and "rule train_vs" not in out and not other.parent.exists()
