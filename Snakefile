@@ -9,10 +9,22 @@ from pathlib import Path
 
 sys.path.insert(0, workflow.basedir)  # the package, also when not pip-installed
 
-from madpinn.config import ConfigError, validate_config
+from madpinn.config import ConfigError, load_yaml, validate_config
+
+DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
+
+# Snakemake's YAML error names neither file nor line: parse with madpinn's loader first, which
+# does (file:line:column). Files given by --configfile are parsed by snakemake's command line
+# before this Snakefile runs (docs/reliability.md).
+try:
+    for _path in [DEFAULT_CONFIG, *workflow.configfiles]:
+        load_yaml(_path)
+except ConfigError as exc:
+    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
+    raise SystemExit(1)
 
 
-configfile: str(Path(workflow.basedir) / "config.yaml")
+configfile: str(DEFAULT_CONFIG)
 
 
 try:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -40,12 +41,24 @@ def load_yaml(path: str | Path) -> dict:
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
-        raise ConfigError(f"config file {path} is not valid YAML: {exc}") from exc
+        raise ConfigError(f"config file {_yaml_error_text(path, exc)}") from exc
     if data is None:
         return {}
     if not isinstance(data, dict):
         raise ConfigError(f"config file {path} must hold a mapping at top level")
     return data
+
+
+def _yaml_error_text(path: Path, exc: yaml.YAMLError) -> str:
+    """``<file>:<line>:<column> is not valid YAML: <problem> (<context> at line L)``, one line."""
+    mark, problem = getattr(exc, "problem_mark", None), getattr(exc, "problem", None)
+    if mark is None or not problem:
+        return f"{path} is not valid YAML: {' '.join(str(exc).split())}"
+    text = f"{path}:{mark.line + 1}:{mark.column + 1} is not valid YAML: {problem}"
+    context, cmark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+    if context and cmark is not None:
+        text += f" ({context} at line {cmark.line + 1}, column {cmark.column + 1})"
+    return text
 
 
 def load_config(paths: Iterable[str | Path]) -> dict:
@@ -75,16 +88,71 @@ def validate_config(cfg: Mapping[str, Any]) -> None:
 
     validator = jsonschema.Draft202012Validator(_schema())
     errors = sorted(validator.iter_errors(cfg), key=lambda e: list(map(str, e.absolute_path)))
-    lines = []
+    lines = [f"  - '{key}': {value} is not a finite number" for key, value in _non_finite(cfg)]
     for err in errors:
         if err.validator == "additionalProperties":
             lines.append(f"  - '{_key_path(err)}': {err.message} (unknown key)")
         else:
             lines.append(f"  - '{_key_path(err)}': {err.message}")
     if not lines:
-        lines = _cross_field_errors(cfg)
+        lines = _cross_field_errors(cfg) + _infeasible_agent_counts(cfg)
     if lines:
         raise ConfigError("invalid configuration:\n" + "\n".join(lines))
+
+
+def _non_finite(node: Any, path: str = "") -> list[tuple[str, float]]:
+    """``(key path, value)`` of every NaN or ±inf in the config (YAML ``.nan``, ``.inf``): JSON
+    schema's ``number`` type and its bounds let them through (NaN compares false to every bound)."""
+    if isinstance(node, float):
+        return [] if math.isfinite(node) else [(path or "<top level>", node)]
+    if isinstance(node, Mapping):
+        items = node.items()
+    elif isinstance(node, (list, tuple)):
+        items = enumerate(node)
+    else:
+        return []
+    return [bad for key, value in items for bad in _non_finite(value, f"{path}.{key}" if path else str(key))]
+
+
+def _agent_count_settings(cfg: Mapping[str, Any]):
+    """``(key path, arena name, agent counts)`` of every place that samples scenarios: the studies
+    and any method setting (or variant) holding an ``arena`` with ``agent_counts``."""
+    for name, study in cfg["studies"].items():
+        yield f"studies.{name}", study["arena"], study["agent_counts"]
+
+    def walk(node, path):
+        if isinstance(node, Mapping):
+            if isinstance(node.get("arena"), str) and isinstance(node.get("agent_counts"), list):
+                yield path, node["arena"], node["agent_counts"]
+            for key, value in node.items():
+                yield from walk(value, f"{path}.{key}")
+
+    for method in cfg["methods"]:
+        yield from walk(cfg["methods"][method], f"methods.{method}")
+        for variant in cfg["methods"][method].get("variants", {}):
+            _, merged = method_config(cfg, f"{method}-{variant}")
+            yield from walk(merged, f"methods.{method}.variants.{variant}")
+
+
+def _infeasible_agent_counts(cfg: Mapping[str, Any]) -> list[str]:
+    """Agent counts the scenario sampler cannot place in their arena (``madpinn.scenarios``)."""
+    from madpinn.scenarios import max_agents
+
+    r = float(cfg["agents"]["collision_radius"])
+    lines, seen = [], set()
+    for path, arena, counts in _agent_count_settings(cfg):
+        if arena not in cfg["arenas"]:
+            continue  # reported by _cross_field_errors
+        limit = max_agents(float(cfg["arenas"][arena]["half_width"]), r)
+        for n in counts:
+            if n > limit and (path, n) not in seen:
+                seen.add((path, n))
+                lines.append(
+                    f"  - '{path}.agent_counts': {n} agents do not fit in arena '{arena}' with separation "
+                    f"2r = {2 * r:g} m (at most {limit}: the scenario sampler's coverage limit); "
+                    f"use fewer agents or a larger arena"
+                )
+    return lines
 
 
 def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:

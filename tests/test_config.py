@@ -85,3 +85,96 @@ def test_job_hash_ignores_the_study_fan_out_but_not_the_cell_settings():
     fewer["studies"]["main"]["scenarios"] = 40
     assert config_hash(job_config(fewer, "main", "nominal")) != base
     assert config_hash(job_config(cfg, "main", "madpinn")) != config_hash(job_config(cfg, "main", "madpinn-filtered"))
+
+
+@pytest.mark.parametrize(
+    "overlay,key",
+    [
+        ({"sim": {"dt": float("nan")}}, "sim.dt"),
+        ({"value_functions": {"vhat": {"lr": float("inf")}}}, "value_functions.vhat.lr"),
+        ({"methods": {"mppi": {"margin": float("-inf")}}}, "methods.mppi.margin"),
+        ({"arenas": {"small": {"half_width": float("nan")}}}, "arenas.small.half_width"),
+    ],
+)
+def test_nan_and_inf_fail_validation_naming_the_key(overlay, key):
+    cfg = deep_merge(load_yaml(REPO / "config.yaml"), overlay)
+    with pytest.raises(ConfigError, match=rf"'{key}': -?(nan|inf) is not a finite number"):
+        validate_config(cfg)
+
+
+def test_yaml_nan_and_inf_are_caught_by_the_cli(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("sim: {dt: .nan}\nvalue_functions: {vhat: {lr: .inf}}\n")
+    proc = subprocess.run(
+        [sys.executable, "-m", "madpinn", "validate-config", "--config", str(REPO / "config.yaml"), str(bad)],
+        capture_output=True, text=True, env=subprocess_env(),
+    )
+    assert proc.returncode != 0 and "config OK" not in proc.stdout
+    assert "'sim.dt': nan is not a finite number" in proc.stderr
+    assert "'value_functions.vhat.lr': inf is not a finite number" in proc.stderr
+
+
+@pytest.mark.parametrize(
+    "overlay,key",
+    [
+        ({"studies": {"main": {"agent_counts": [3, 5000]}}}, "studies.main.agent_counts"),
+        ({"arenas": {"large": {"half_width": 0.5}}}, "studies.scaling.agent_counts"),
+        ({"methods": {"safemarl": {"nominal": {"agent_counts": [3, 70]}}}}, "methods.safemarl.nominal.agent_counts"),
+        ({"methods": {"defmarl": {"variants": {"n8": {"training": {"agent_counts": [500]}}}}}},
+         "methods.defmarl.variants.n8.training.agent_counts"),
+    ],
+)
+def test_infeasible_agent_count_fails_validation(overlay, key):
+    cfg = deep_merge(load_yaml(REPO / "config.yaml"), overlay)
+    with pytest.raises(ConfigError, match=rf"'{key}': \d+ agents do not fit in arena '\w+'.*at most \d+"):
+        validate_config(cfg)
+
+
+def _scenario_settings(cfg):
+    from madpinn.config import _agent_count_settings
+
+    return sorted({(arena, n) for _, arena, counts in _agent_count_settings(cfg) for n in counts})
+
+
+def test_agent_count_bound_admits_every_shipped_config_and_the_sampler_meets_it(paper_cfg, smoke_cfg):
+    from madpinn.scenarios import Arena, generate_scenario, max_agents
+
+    r = paper_cfg["agents"]["collision_radius"]
+    # the bound is the sampler's own limit: validation accepts N = limit and rejects limit + 1 ...
+    limit = max_agents(paper_cfg["arenas"]["small"]["half_width"], r)
+    ablation = {"studies": {"ablation_update": {"agent_counts": [limit]}}}
+    validate_config(deep_merge(paper_cfg, ablation))
+    ablation["studies"]["ablation_update"]["agent_counts"] = [limit + 1]
+    with pytest.raises(ConfigError, match=f"at most {limit}"):
+        validate_config(deep_merge(paper_cfg, ablation))
+    # ... and at that limit the sampler finds a scenario within its attempt budget
+    starts, goals = generate_scenario(Arena.from_config(paper_cfg, "small"), limit, seed=0, index=0, collision_radius=r)
+    assert starts.shape == goals.shape == (limit, 2)
+    # every configured (arena, N) of the shipped configs is within the bound and sampled at once
+    for cfg in (paper_cfg, smoke_cfg):
+        for arena, n in _scenario_settings(cfg):
+            assert n <= max_agents(cfg["arenas"][arena]["half_width"], r)
+            starts, _ = generate_scenario(Arena.from_config(cfg, arena), n, seed=0, index=0, collision_radius=r)
+            assert starts.shape == (n, 2)
+
+
+def test_malformed_yaml_names_file_and_line_in_cli_and_workflow(tmp_path):
+    bad_text = "sim:\n  dt: 0.01\n  record_every: [1, 2\nagents: {}\n"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(bad_text)
+    with pytest.raises(ConfigError, match=rf"{bad}:4:\d+ is not valid YAML: .*at line 3"):
+        load_config([bad])
+    # the workflow's own config.yaml (read by the Snakefile's `configfile:`): a copy of the
+    # workflow whose config.yaml is malformed
+    import shutil
+
+    wf = tmp_path / "wf"
+    shutil.copytree(REPO / "workflow", wf / "workflow")
+    shutil.copy(REPO / "Snakefile", wf / "Snakefile")
+    (wf / "config.yaml").write_text(bad_text)
+    proc = subprocess.run(
+        [sys.executable, "-m", "snakemake", "-n", "-s", str(wf / "Snakefile"), "-d", str(tmp_path / "run")],
+        capture_output=True, text=True, env=subprocess_env(), timeout=600,
+    )
+    assert proc.returncode != 0
+    assert f"madpinn: config file {wf / 'config.yaml'}:4:" in proc.stderr, proc.stderr[-2000:]

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import torch
 
+from madpinn.hints import build_hint
 from madpinn.marl.networks import GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
 
@@ -57,11 +58,11 @@ def save_checkpoint(path: str | Path, trainer, meta: dict | None = None) -> Path
 def load_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> dict:
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f"MARL checkpoint not found: {path} (train it first, e.g. the workflow rule train_safemarl_nominal)")
+        raise CheckpointError(f"MARL checkpoint not found: {path}; {build_hint(path)}")
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any unpickling failure means an unusable file
-        raise CheckpointError(f"cannot read MARL checkpoint {path} (corrupted or not a torch file): {exc}") from exc
+        raise CheckpointError(f"cannot read MARL checkpoint {path} (corrupted or not a torch file): {exc}; delete it, then {build_hint(path)}") from exc
     if not isinstance(ck, dict) or ck.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a {FORMAT} checkpoint")
     if ck.get("version") != VERSION:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import torch
 
+from madpinn.hints import build_hint
 from madpinn.value_functions.problems import PROBLEMS, PINNProblem, as_time, assemble
 from madpinn.value_functions.siren import Siren
 
@@ -153,12 +154,12 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict:
     """Load and check a checkpoint dict (weights_only); clear :class:`CheckpointError` otherwise."""
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f"value-function checkpoint not found: {path} (train it: snakemake -j2 {path})")
+        raise CheckpointError(f"value-function checkpoint not found: {path}; {build_hint(path)}")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # noqa: BLE001 - truncated zip, garbage, pickled objects, ...
         raise CheckpointError(f"value-function checkpoint {path} is corrupted or truncated ({type(exc).__name__}: {exc}); "
-                              f"delete it and re-run its training rule") from exc
+                              f"delete it, then {build_hint(path)}") from exc
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a madpinn value-function checkpoint")
     if data.get("version") != VERSION:
