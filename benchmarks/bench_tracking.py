@@ -67,7 +67,8 @@ def main() -> None:
         print(f"{k}: sign change {r['sign_change_ms']:.1f} ms (physical bound ≈ {r['sign_change_bound_ms']:.1f} ms), "
               f"−2 m/s² after {r['reach_minus2_ms']:.1f} ms")
     h = res["velocity_hold_amplitude"]
-    print(f"bang-bang velocity hold: ±{h['mujoco']:.3f} m/s (double integrator ±{h['double_integrator']:.3f} m/s)")
+    print(f"bang-bang velocity hold: ±{h['mujoco']:.3f} m/s (loop closed on the setpoint: ±{h['mujoco_on_setpoint']:.3f}; "
+          f"double integrator ±{h['double_integrator']:.3f} m/s)")
     t = res["tracking"]
     print(f"bang-bang tracking RMS: {100 * t['dwell_0.02']['rms']:.2f} cm (dwell 0.02 s), {100 * t['dwell_0.25']['rms']:.2f} cm (dwell 0.25 s)")
     print(json.dumps(res))

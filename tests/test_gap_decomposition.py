@@ -39,7 +39,7 @@ def test_gap_decomposition_command_writes_every_row(tmp_path, one_thread):
     assert row.loc["mujoco + all fixes", "neighbour_goal"] == "neighbour"
     assert row.loc["double_integrator + carrot_margin=0.3", "carrot_margin"] == pytest.approx(0.3)
     md = (out / "decomposition.md").read_text()
-    assert "mujoco + all fixes" in md and "gap-decomposition" in md
+    assert "mujoco + all fixes" in md and "gap-decomposition --config" in md and "--seeds 100 --scenarios 2" in md
     diag = json.loads((out / "decomposition.json").read_text())["diagnostics"]
     assert len(diag) == len(names)
 
@@ -67,3 +67,13 @@ def test_collision_diagnostics_run_on_mujoco(one_thread):
     for e in events:
         assert e["observed"] in ("both", "one", "none") and e["infeasible_lead_s"] >= 0 and 0 <= e["scenario"] < 2
     assert summary["cost_time_avg"] == pytest.approx(summary["cost"] / 0.25)
+
+
+def test_workflow_target_runs_the_command_and_is_not_part_of_all(tmp_path):
+    from conftest import run_snakemake
+
+    target = run_snakemake(tmp_path, "-n", "-p", "gap_decomposition").stdout
+    assert "rule gap_decomposition" in target and "madpinn gap-decomposition" in target
+    assert "--model vhat=results/smoke/models/vhat.pt vs=results/smoke/models/vs.pt" in target
+    assert "--seeds 100 " in target and "--margin-sweep 0.1" in target
+    assert "gap_decomposition" not in run_snakemake(tmp_path, "-n", "all").stdout

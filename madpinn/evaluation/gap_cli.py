@@ -24,6 +24,19 @@ def _config_with_models(args) -> dict:
     return deep_merge(cfg, {"methods": {"madpinn": models}}) if models else cfg
 
 
+def _command_line(args) -> str:
+    """The gap-decomposition command that reproduces this run (from the parsed arguments)."""
+    parts = ["python -m madpinn gap-decomposition --config", *args.config, "--run", args.run]
+    if args.model:
+        parts += ["--model", *args.model]
+    parts += ["--agents", *map(str, args.agents), "--seeds", *map(str, args.seeds), "--scenarios", str(args.scenarios)]
+    if args.carrot_margin is not None:
+        parts += ["--carrot-margin", str(args.carrot_margin)]
+    if args.margin_sweep:
+        parts += ["--margin-sweep", *map(str, args.margin_sweep)]
+    return " ".join(parts + ["--out-dir", str(args.out_dir)])
+
+
 def _gap(args) -> int:
     import torch
 
@@ -39,7 +52,7 @@ def _gap(args) -> int:
     except OSError:
         commit = ""
     provenance = {
-        "command": "python -m madpinn gap-decomposition " + " ".join(args.raw_argv),
+        "command": _command_line(args),
         "run": args.run, "vhat_model": cfg["methods"]["madpinn"]["vhat_model"], "vs_model": cfg["methods"]["madpinn"]["vs_model"],
         "config_hash": config_hash(cfg), "commit": commit or "unknown",
     }
@@ -70,8 +83,6 @@ def _diagnose(args) -> int:
 
 
 def register(sub) -> None:
-    import sys
-
     from madpinn.cli import add_config_arg
 
     def common(p):
@@ -89,7 +100,7 @@ def register(sub) -> None:
     p.add_argument("--carrot-margin", type=float, default=None, help="margin of the carrot fix (m; default observation.carrot_margin)")
     p.add_argument("--margin-sweep", type=float, nargs="*", default=[], help="extra double-integrator rows with these carrot margins (m)")
     p.add_argument("--out-dir", required=True, help="writes decomposition.{csv,md,json} here")
-    p.set_defaults(func=_gap, raw_argv=sys.argv[2:])
+    p.set_defaults(func=_gap)
 
     p = sub.add_parser("diagnose-collisions", help="classify MAD-PINN's collision onsets on either backend")
     common(p)

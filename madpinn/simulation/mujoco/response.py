@@ -66,23 +66,27 @@ def sign_change_bound_ms(backend: MujocoBackend, direction, u: float = 4.0) -> f
 def velocity_hold(backend: MujocoBackend, dynamics: DoubleIntegrator, target: float = 1.0, seconds: float = 2.0,
                   n: int = 4, seed: int = 0) -> dict:
     """Closed-loop bang-bang velocity hold ``u = −u_max·sign(v − target)`` per axis at every
-    ``dt`` on the measured velocity, for the drone and the exact double integrator; returns the
-    oscillation amplitude (m/s, half peak-to-peak over the last half, worst drone and axis)."""
+    ``dt``, for the drone (``mujoco``: the policy sees the measured velocity), the drone with the
+    policy closing its loop on the setpoint velocity v_d instead (``mujoco_on_setpoint``; the
+    drone's own velocity is measured) and the exact double integrator; returns the oscillation
+    amplitude of the measured velocity (m/s, half peak-to-peak over the last half, worst drone
+    and axis)."""
     dt = backend.dt
     gen = torch.Generator().manual_seed(seed)
     v0 = torch.rand(1, n, 2, generator=gen, dtype=torch.float64) * 0.5
     starts = torch.zeros(1, n, 2, dtype=torch.float64)
     out = {}
-    for name in ("mujoco", "double_integrator"):
-        state = backend.reset(starts, v0) if name == "mujoco" else torch.cat([starts, v0], -1)
+    for name in ("mujoco", "mujoco_on_setpoint", "double_integrator"):
+        state = backend.reset(starts, v0) if name != "double_integrator" else torch.cat([starts, v0], -1)
         vs = []
         for _ in range(int(round(seconds / dt))):
-            u = -dynamics.u_max * torch.sign(state[..., 2:4] - target)
-            if name == "mujoco":
+            seen = torch.from_numpy(backend.reference[:, 2:4]).reshape(1, n, 2) if name == "mujoco_on_setpoint" else state[..., 2:4]
+            u = -dynamics.u_max * torch.sign(seen - target)
+            if name == "double_integrator":
+                state = dynamics.step(state, u, dt)
+            else:
                 backend.command(u, dt)
                 state = backend.step()
-            else:
-                state = dynamics.step(state, u, dt)
             vs.append(state[..., 2:4].clone())
         last = torch.stack(vs[len(vs) // 2:])
         out[name] = float(((last.amax(0) - last.amin(0)) / 2).max())
