@@ -34,6 +34,9 @@ except ConfigError as exc:
     raise SystemExit(1)
 
 
+report: "workflow/report/workflow.rst"
+
+
 include: "workflow/rules/common.smk"
 include: "workflow/rules/tracking.smk"
 include: "workflow/rules/evaluate.smk"

@@ -1,17 +1,28 @@
 # Shared paths, target lists and helpers. Later rule files register what their methods need.
+import fcntl
+import hashlib
+import os
+
 import yaml
 
-from madpinn.config import config_hash, job_config, write_if_changed
+from madpinn.config import config_hash, job_config, method_config, write_if_changed
 
-PY = sys.executable
+# Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
+# where the job's snakemake parses this file again); `conda:` envs, when used, come first.
+os.environ.update(PATH=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))
+CONDA_ENV = "../envs/madpinn.yaml"  # relative to workflow/rules/
 RESULTS = config["paths"]["results"]
 FIGURES = config["paths"]["figures"]
 BACKEND = config["sim"]["backend"]
 LOGS = f"{RESULTS}/logs"
+# Training rules ask the cluster for one GPU when the config asks for CUDA (`device: cuda`).
+TRAIN_GPU = {"gpu": 1} if config["device"] == "cuda" else {}
 
-# Jobs read the merged, validated config from here (written only when it changes).
+# Jobs read the merged, validated config from here. Parsing writes nothing (a dry run beside a
+# running workflow must not change its config): the file is written by `onstart` below, i.e. only
+# by a real run, after it holds the workflow lock, and only when its content changes. Which jobs a
+# config change reruns is decided by each rule's `params` hashes (settings_hash), not by this file.
 RESOLVED = f"{RESULTS}/config.resolved.yaml"
-write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
 
 TRACKING = f"{RESULTS}/tracking/store.json"
 
@@ -47,7 +58,26 @@ def method_inputs(wildcards):
 
 
 def job_hash(wildcards):
-    return config_hash(job_config(config, wildcards.study, wildcards.run))
+    """Hash of the config an evaluation cell depends on (``madpinn.config.job_config``) and dtype."""
+    return config_hash({**job_config(config, wildcards.study, wildcards.run), "dtype": config["dtype"]})
+
+
+def _cell_size(wildcards):
+    """Agent-steps of one evaluation cell (scenarios × N × steps)."""
+    st = config["studies"][wildcards.study]
+    steps = config["arenas"][st["arena"]]["episode_s"] / config["sim"]["dt"]
+    return int(st["scenarios"]) * int(wildcards.n) * steps
+
+
+def eval_mem_mb(wildcards):
+    """Memory for one cell: 1 GB plus ~50 kB per simulated agent of a scenario batch (MuJoCo state, histories)."""
+    st = config["studies"][wildcards.study]
+    return 1000 + int(0.05 * min(int(st["scenarios"]), int(config["sim"]["scenario_batch"])) * int(wildcards.n))
+
+
+def eval_runtime(wildcards):
+    """Slurm time limit (min) of one cell: ≤ 200 µs per agent-step (docs/performance.md), ×2 margin."""
+    return 10 + int(2 * 200e-6 * _cell_size(wildcards) / 60)
 
 
 def table_targets():
@@ -66,3 +96,130 @@ def all_targets():
 
 # Rule files included later may extend this list (figures, validation outputs).
 EXTRA_TARGETS = []
+
+
+# --- what each job depends on: config subtrees and package sources (params -> rerun-triggers) ---
+
+def lookup_key(dotted):
+    """The config value at a dotted key ("value_functions.vhat"); a missing key is None."""
+    node = config
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def settings_hash(*keys, extra=None):
+    """Hash of the config subtrees a job reads (dotted keys) plus ``extra``; a rule's ``params``
+    carries it, so that a change of exactly those settings reruns the job and its dependents."""
+    return config_hash({"keys": {k: lookup_key(k) for k in keys}, "extra": extra})
+
+
+PACKAGE = Path(workflow.basedir) / "madpinn"
+
+# Parts of the package (sub-packages or modules under madpinn/) that each job family runs. Editing
+# a file there reruns the family's jobs (through their `source` param) and everything downstream;
+# the glue (cli/commands, config, tracking) changes no result and reruns nothing.
+SOURCES = {
+    "value": ["dynamics", "value_functions", "observation.py", "device.py"],
+    "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py"],
+    "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
+                 "observation.py", "scenarios.py", "device.py"],
+    "tables": ["evaluation", "figures"],
+    "render": ["simulation"],
+}
+_SOURCE_HASHES = {}
+
+
+def source_hash(family):
+    """sha256 (12 hex) over the path and bytes of every .py file of ``SOURCES[family]`` (read only)."""
+    if family not in _SOURCE_HASHES:
+        h = hashlib.sha256()
+        for part in SOURCES[family]:
+            root = PACKAGE / part
+            files = sorted(root.rglob("*.py")) if root.is_dir() else [root]
+            for f in files:
+                h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
+        _SOURCE_HASHES[family] = h.hexdigest()[:12]
+    return _SOURCE_HASHES[family]
+
+
+# --- one real run at a time; recovery after kill -9 with the plain command ---
+# Snakemake's own lock files survive a kill -9 and then block every later run (LockException) until
+# `--unlock`; the default profile therefore sets `nolock: true` and the workflow holds an OS lock
+# instead (flock on .snakemake/madpinn.lock), which the kernel releases when the process dies.
+_RUN_LOCK = []
+
+
+onstart:
+    lock_path = Path(".snakemake") / "madpinn.lock"
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    fh = open(lock_path, "a")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        sys.stderr.write(f"\nmadpinn: another snakemake run is active in {os.getcwd()} (it holds {lock_path}); "
+                         "wait for it to finish or stop it.\n\n")
+        raise SystemExit(1)
+    _RUN_LOCK.append(fh)
+    write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
+
+
+# --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
+
+def stem_of(key):
+    """A params function: the named output's path without its extension (figure stems)."""
+    return lambda wildcards, output: os.path.splitext(output[key])[0]
+
+
+def out_dir_of(key):
+    """A params function: the directory of the named output."""
+    return lambda wildcards, output: os.path.dirname(output[key])
+
+
+def init_model(kind):
+    """The model a ``value_functions.<kind>.init_from`` fine-tuning run starts from (or nothing)."""
+    path = config["value_functions"][kind].get("init_from")
+    if not path:
+        return []
+    return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
+
+
+def train_settings(kind):
+    """Everything the trained weights and their summary depend on (the job's params hash)."""
+    return settings_hash(f"value_functions.{kind}", "value_functions.seed", "agents", "observation", "dtype")
+
+
+def train_runtime(kind):
+    """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
+    v = config["value_functions"][kind]
+    its = int(v["iterations"]) + int((v.get("fine_tune") or {}).get("iterations", 0))
+    return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
+
+
+def defmarl_model(variant):
+    name = method_config(config, f"defmarl-{variant}")[1]["model"]
+    return f"{RESULTS}/models/{name}"
+
+
+def defmarl_train_hash(wildcards):
+    _, m = method_config(config, f"defmarl-{wildcards.variant}")
+    return settings_hash("agents", "observation", "arenas", "dtype",
+                         extra={"training": m["training"], "epigraph": m["epigraph"]})
+
+
+def safemarl_train_hash():
+    m = config["methods"]["safemarl"]
+    return settings_hash("agents", "observation", "dtype",
+                         extra={"nominal": m["nominal"], "arena": config["arenas"][m["nominal"]["arena"]]})
+
+
+def traj_inputs(wildcards=None):
+    st = config["studies"][TRAJ["study"]]
+    return [eval_path(TRAJ["study"], run, TRAJ["n_agents"], TRAJ["seed"]).replace(".parquet", "_traj.npz") for run in st["runs"]]
+
+
+def run_labels(study):
+    """Labels the tables and figures print for a study's runs (part of their params hash)."""
+    return {run: method_config(config, run)[1].get("label", run) for run in config["studies"][study]["runs"]}

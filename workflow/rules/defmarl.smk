@@ -2,25 +2,13 @@
 # evaluation jobs of run defmarl-<variant> depend on that variant's model only.
 # CPU budget (paper config, 550 iterations, 1 thread): ~20 min per model on the 2-core CI-class machine
 # (docs/defmarl.md); smoke: seconds.
-from madpinn.config import config_hash, method_config
-
-
-def _defmarl_model(variant):
-    return f"{RESULTS}/models/" + method_config(config, f"defmarl-{variant}")[1]["model"]
-
-
-def _defmarl_train_hash(wildcards):
-    _, m = method_config(config, f"defmarl-{wildcards.variant}")
-    return config_hash({"training": m["training"], "epigraph": m["epigraph"], "agents": config["agents"],
-                        "observation": config["observation"], "arenas": config["arenas"], "dtype": config["dtype"]})
-
-
+# Helpers (defmarl_model, defmarl_train_hash): common.smk.
 if "defmarl" in config["methods"]:
     DEFMARL_VARIANTS = sorted(config["methods"]["defmarl"]["variants"])
     for _v in DEFMARL_VARIANTS:
-        if not _defmarl_model(_v).endswith(f"/defmarl_{_v}.pt"):
+        if os.path.basename(defmarl_model(_v)) != f"defmarl_{_v}.pt":
             raise ValueError(f"methods.defmarl.variants.{_v}.model must be defmarl_{_v}.pt (the training rule's output)")
-        METHOD_INPUTS[f"defmarl-{_v}"] = [_defmarl_model(_v)]
+        METHOD_INPUTS[f"defmarl-{_v}"] = [defmarl_model(_v)]
 
     rule train_defmarl:
         input:
@@ -32,10 +20,19 @@ if "defmarl" in config["methods"]:
         wildcard_constraints:
             variant="|".join(DEFMARL_VARIANTS),
         params:
-            train_hash=_defmarl_train_hash,
+            config=RESOLVED,
+            train_hash=defmarl_train_hash,
+            source=source_hash("marl"),
         threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=90,
+            **TRAIN_GPU,
+        priority: 50
+        conda:
+            CONDA_ENV
         log:
             f"{LOGS}/train_defmarl_{{variant}}.log",
         shell:
-            "{PY} -m madpinn train-defmarl --config {RESOLVED} --variant {wildcards.variant} --out {output.model}"
-            " --threads {threads} 2>&1 | tee {log}"
+            "python -m madpinn train-defmarl --config {params.config:q} --variant {wildcards.variant:q} --out {output.model:q}"
+            " --threads {threads} 2>&1 | tee {log:q}"

@@ -9,11 +9,18 @@ rule evaluate:
         summary=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.json",
         traj=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}_traj.npz",
     params:
+        config=RESOLVED,
         job_hash=job_hash,
+        source=source_hash("evaluate"),
     threads: 1
+    resources:
+        mem_mb=eval_mem_mb,
+        runtime=eval_runtime,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/evaluate/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.log",
     shell:
-        "{PY} -m madpinn evaluate --config {RESOLVED} --study {wildcards.study} --run {wildcards.run}"
-        " --n-agents {wildcards.n} --seed {wildcards.seed} --backend {wildcards.backend}"
-        " --out {output.parquet} --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn evaluate --config {params.config:q} --study {wildcards.study:q} --run {wildcards.run:q}"
+        " --n-agents {wildcards.n} --seed {wildcards.seed} --backend {wildcards.backend:q}"
+        " --out {output.parquet:q} --threads {threads} 2>&1 | tee {log:q}"

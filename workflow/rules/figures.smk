@@ -3,11 +3,6 @@ FIG_EXTS = ["pdf", "png"]
 TRAJ = config["figures"]["trajectories"]
 
 
-def traj_inputs(wildcards=None):
-    st = config["studies"][TRAJ["study"]]
-    return [eval_path(TRAJ["study"], run, TRAJ["n_agents"], TRAJ["seed"]).replace(".parquet", "_traj.npz") for run in st["runs"]]
-
-
 if "main" in config["studies"]:
 
     rule fig_cost_safety:
@@ -15,12 +10,23 @@ if "main" in config["studies"]:
             tracking=TRACKING,
             results=study_results("main"),
         output:
-            expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS),
+            png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst", category="Figures"),
+            pdf=f"{FIGURES}/fig_cost_safety.pdf",
+        params:
+            config=RESOLVED,
+            settings=settings_hash("experiment", extra=run_labels("main")),
+            source=source_hash("tables"),
+            out_dir=out_dir_of("png"),
+        resources:
+            mem_mb=2000,
+            runtime=15,
+        conda:
+            CONDA_ENV
         log:
             f"{LOGS}/fig_cost_safety.log",
         shell:
-            "{PY} -m madpinn figure --config {RESOLVED} --name fig_cost_safety --inputs {input.results}"
-            " --out-dir {FIGURES} 2>&1 | tee {log}"
+            "python -m madpinn figure --config {params.config:q} --name fig_cost_safety --inputs {input.results:q}"
+            " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
     EXTRA_TARGETS += expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS)
 
@@ -30,12 +36,23 @@ rule fig_trajectories:
         tracking=TRACKING,
         traj=traj_inputs(),
     output:
-        expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS),
+        png=report(f"{FIGURES}/fig_trajectories.png", caption="../report/fig_trajectories.rst", category="Figures"),
+        pdf=f"{FIGURES}/fig_trajectories.pdf",
+    params:
+        config=RESOLVED,
+        settings=settings_hash("experiment", "figures.trajectories", extra=run_labels(TRAJ["study"])),
+        source=source_hash("tables"),
+        out_dir=out_dir_of("png"),
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/fig_trajectories.log",
     shell:
-        "{PY} -m madpinn figure --config {RESOLVED} --name fig_trajectories --inputs {input.traj}"
-        " --out-dir {FIGURES} 2>&1 | tee {log}"
+        "python -m madpinn figure --config {params.config:q} --name fig_trajectories --inputs {input.traj:q}"
+        " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
 EXTRA_TARGETS += expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS)

@@ -13,16 +13,23 @@ rule gap_decomposition:
         md=f"{RESULTS}/gap/decomposition.md",
         json=f"{RESULTS}/gap/decomposition.json",
     params:
-        agents=" ".join(str(n) for n in GAP["agent_counts"]),
-        seeds=" ".join(str(s) for s in GAP["seeds"]),
+        config=RESOLVED,
+        agents=[str(n) for n in GAP["agent_counts"]],
+        seeds=[str(s) for s in GAP["seeds"]],
         scenarios=GAP["scenarios"],
-        sweep=(" --margin-sweep " + " ".join(str(m) for m in GAP["margin_sweep"])) if GAP["margin_sweep"] else "",
-        out_dir=f"{RESULTS}/gap",
-        hash=config_hash(GAP),
+        sweep=["--margin-sweep", *map(str, GAP["margin_sweep"])] if GAP["margin_sweep"] else [],
+        out_dir=out_dir_of("csv"),
+        settings=settings_hash("gap_decomposition", "agents", "observation", "sim", "arenas", "methods.madpinn", "dtype"),
+        source=source_hash("evaluate"),
     threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=600,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/gap_decomposition.log",
     shell:
-        "{PY} -m madpinn gap-decomposition --config {RESOLVED} --model vhat={input.vhat} vs={input.vs} "
-        "--agents {params.agents} --seeds {params.seeds} --scenarios {params.scenarios}{params.sweep} "
-        "--out-dir {params.out_dir} --no-progress 2>&1 | tee {log}"
+        "python -m madpinn gap-decomposition --config {params.config:q} --model vhat={input.vhat:q} vs={input.vs:q}"
+        " --agents {params.agents:q} --seeds {params.seeds:q} --scenarios {params.scenarios:q} {params.sweep:q}"
+        " --out-dir {params.out_dir:q} --no-progress 2>&1 | tee {log:q}"

@@ -11,11 +11,20 @@ if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
             traj=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}_traj.npz",
         output:
             f"{RESULTS}/clips/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.json",
+        params:
+            config=RESOLVED,
+            settings=settings_hash("sim.mujoco", "arenas"),
+            source=source_hash("render"),
+        resources:
+            mem_mb=2000,
+            runtime=15,
+        conda:
+            CONDA_ENV
         log:
             f"{LOGS}/render_clip/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.log",
         shell:
-            "{PY} -m madpinn render-clip --config {RESOLVED} --traj {input.traj} --out {output}"
-            " --key {wildcards.backend}/{wildcards.study}/{wildcards.run}/n{wildcards.n}_seed{wildcards.seed} 2>&1 | tee {log}"
+            "python -m madpinn render-clip --config {params.config:q} --traj {input.traj:q} --out {output:q}"
+            " --key {wildcards.backend:q}/{wildcards.study:q}/{wildcards.run:q}/n{wildcards.n}_seed{wildcards.seed} 2>&1 | tee {log:q}"
 
     EXTRA_TARGETS += [
         f"{RESULTS}/clips/{BACKEND}/{study}/{run}/n{min(st['agent_counts'])}_seed{st['seeds'][0]}.json"

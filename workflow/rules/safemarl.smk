@@ -1,15 +1,6 @@
 # SafeMARL (issue 7): train the nominal goal-reaching PPO policy once; evaluation jobs of the
 # `safemarl` method (and its `safemarl-unfiltered` variant) depend on it and on the learned V_s.
-from madpinn.config import config_hash
-
 SAFEMARL_NOMINAL = f"{RESULTS}/models/safemarl_nominal.pt"
-
-
-def _safemarl_train_hash():
-    m = config["methods"]["safemarl"]
-    return config_hash({"nominal": m["nominal"], "agents": config["agents"], "observation": config["observation"],
-                        "arena": config["arenas"][m["nominal"]["arena"]], "dtype": config["dtype"]})
-
 
 if "safemarl" in config["methods"]:
     METHOD_INPUTS["safemarl"] = [SAFEMARL_NOMINAL, VS_MODEL]  # VS_MODEL: workflow/rules/train.smk
@@ -22,13 +13,22 @@ if "safemarl" in config["methods"]:
             history=f"{RESULTS}/models/safemarl_nominal_history.csv",
             summary=f"{RESULTS}/models/safemarl_nominal.json",
         params:
-            train_hash=_safemarl_train_hash(),
+            config=RESOLVED,
+            train_hash=safemarl_train_hash(),
+            source=source_hash("marl"),
         threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=60,
+            **TRAIN_GPU,
+        priority: 50
+        conda:
+            CONDA_ENV
         log:
             f"{LOGS}/train_safemarl_nominal.log",
         shell:
-            "{PY} -m madpinn train-safemarl-nominal --config {RESOLVED} --out {output.model}"
-            " --threads {threads} 2>&1 | tee {log}"
+            "python -m madpinn train-safemarl-nominal --config {params.config:q} --out {output.model:q}"
+            " --threads {threads} 2>&1 | tee {log:q}"
 
     # `all` trains the nominal policy when a study runs SafeMARL (filtered or not).
     if any(run.split("-")[0] == "safemarl" for st in config["studies"].values() for run in st["runs"]):

@@ -10,15 +10,26 @@ for _name, (_study, _kind) in TABLES.items():
             tracking=TRACKING,
             results=study_results(_study),
         output:
-            expand(f"{FIGURES}/{_name}.{{ext}}", ext=["csv", "md", "tex"]),
+            csv=report(f"{FIGURES}/{_name}.csv", caption=f"../report/{_name}.rst", category="Tables"),
+            md=f"{FIGURES}/{_name}.md",
+            tex=f"{FIGURES}/{_name}.tex",
         params:
+            config=RESOLVED,
             name=_name,
             kind=_kind,
+            settings=settings_hash("experiment", extra=run_labels(_study)),
+            source=source_hash("tables"),
+            out_dir=out_dir_of("csv"),
+        resources:
+            mem_mb=1000,
+            runtime=10,
+        conda:
+            CONDA_ENV
         log:
             f"{LOGS}/{_name}.log",
         shell:
-            "{PY} -m madpinn table --config {RESOLVED} --name {params.name} --kind {params.kind}"
-            " --inputs {input.results} --out-dir {FIGURES} 2>&1 | tee {log}"
+            "python -m madpinn table --config {params.config:q} --name {params.name:q} --kind {params.kind:q}"
+            " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
 ALL_TARGETS = all_targets() + EXTRA_TARGETS

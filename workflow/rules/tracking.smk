@@ -1,6 +1,4 @@
 # MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
-import os
-
 from madpinn.tracking import TrackingError, TrackingSettings, check_store
 
 # Jobs started by this workflow tag their runs madpinn.source=workflow; runs started by hand
@@ -15,14 +13,19 @@ except TrackingError as exc:
     sys.stderr.write(f"\nmadpinn: {exc}\n\n")
     raise SystemExit(1)
 
+# Snakemake keeps one onstart handler: this one runs common.smk's (run lock, config.resolved.yaml)
+# first, then logs the runs whose logging failed during an earlier job, once, before any job
+# (onstart never runs on a dry run).
+_COMMON_ONSTART = workflow._onstart
 
-# Runs whose logging failed during an earlier job are logged once, before any job (not on a dry run).
+
 onstart:
-    from madpinn.tracking import flush_pending
-
+    _COMMON_ONSTART(log)
     if TRACKING_SETTINGS.enabled and TRACKING_SETTINGS.pending_dir.is_dir():
+        from madpinn.tracking import flush_pending
+
         counts = flush_pending(TRACKING_SETTINGS)
-        print(f"madpinn: pending MLflow runs {counts}", file=sys.stderr)
+        sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
 
 
 # The store and this configuration's experiment are created once, before the fan-out (parallel
@@ -36,8 +39,14 @@ rule tracking_init:
     output:
         TRACKING_STORE,
     params:
+        config=RESOLVED,
         uri=TRACKING_SETTINGS.uri if TRACKING_SETTINGS.enabled else "disabled",
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/tracking_init.log",
     shell:
-        "{PY} -m madpinn tracking-init --config {RESOLVED} --out {output} 2>&1 | tee {log}"
+        "python -m madpinn tracking-init --config {params.config:q} --out {output:q} 2>&1 | tee {log:q}"

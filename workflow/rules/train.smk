@@ -1,18 +1,9 @@
 # Value functions (issue 3): train V̂ and V_s, validate them, and draw their figures.
 # Other rule files depend on VHAT_MODEL / VS_MODEL (e.g. METHOD_INPUTS["madpinn"] = [VHAT_MODEL, VS_MODEL]).
-import os
-
+# Helpers (init_model, train_settings, train_runtime): common.smk.
 VHAT_MODEL = f"{RESULTS}/models/vhat.pt"
 VS_MODEL = f"{RESULTS}/models/vs.pt"
 VF_THREADS = int(config["value_functions"]["threads"])
-
-
-def init_model(kind):
-    """The model a ``value_functions.<kind>.init_from`` fine-tuning run starts from (or nothing)."""
-    path = config["value_functions"][kind].get("init_from")
-    if not path:
-        return []
-    return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
 
 
 rule train_vhat:
@@ -23,11 +14,23 @@ rule train_vhat:
         model=VHAT_MODEL,
         loss=f"{RESULTS}/models/vhat_loss.csv",
         summary=f"{RESULTS}/models/vhat_train.json",
+    params:
+        config=RESOLVED,
+        settings=train_settings("vhat"),
+        source=source_hash("value"),
     threads: VF_THREADS
+    resources:
+        mem_mb=4000,
+        runtime=train_runtime("vhat"),
+        **TRAIN_GPU,
+    priority: 100
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/train_vhat.log",
     shell:
-        "{PY} -m madpinn train-value --config {RESOLVED} --kind vhat --out {output.model} --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn train-value --config {params.config:q} --kind vhat --out {output.model:q} --threads {threads}"
+        " 2>&1 | tee {log:q}"
 
 
 rule train_vs:
@@ -38,11 +41,23 @@ rule train_vs:
         model=VS_MODEL,
         loss=f"{RESULTS}/models/vs_loss.csv",
         summary=f"{RESULTS}/models/vs_train.json",
+    params:
+        config=RESOLVED,
+        settings=train_settings("vs"),
+        source=source_hash("value"),
     threads: VF_THREADS
+    resources:
+        mem_mb=4000,
+        runtime=train_runtime("vs"),
+        **TRAIN_GPU,
+    priority: 50
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/train_vs.log",
     shell:
-        "{PY} -m madpinn train-value --config {RESOLVED} --kind vs --out {output.model} --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn train-value --config {params.config:q} --kind vs --out {output.model:q} --threads {threads}"
+        " 2>&1 | tee {log:q}"
 
 
 rule validate_vs:
@@ -51,15 +66,24 @@ rule validate_vs:
         model=VS_MODEL,
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
-        figure=multiext(f"{FIGURES}/fig_vs_slices", ".pdf", ".png"),
+        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst", category="Value functions"),
+        pdf=f"{FIGURES}/fig_vs_slices.pdf",
     params:
-        stem=f"{FIGURES}/fig_vs_slices",
+        config=RESOLVED,
+        stem=stem_of("png"),
+        settings=settings_hash("value_functions.vs.validation", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/validate_vs.log",
     shell:
-        "{PY} -m madpinn validate-vs --config {RESOLVED} --model {input.model} --out {output.report}"
-        " --fig-stem {params.stem} --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn validate-vs --config {params.config:q} --model {input.model:q} --out {output.report:q}"
+        " --fig-stem {params.stem:q} --threads {threads} 2>&1 | tee {log:q}"
 
 
 rule validate_vhat:
@@ -68,12 +92,21 @@ rule validate_vhat:
         model=VHAT_MODEL,
     output:
         report=f"{RESULTS}/validation/vhat_residuals.json",
+    params:
+        config=RESOLVED,
+        settings=settings_hash("value_functions.vhat.validation", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/validate_vhat.log",
     shell:
-        "{PY} -m madpinn validate-vhat --config {RESOLVED} --model {input.model} --out {output.report}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn validate-vhat --config {params.config:q} --model {input.model:q} --out {output.report:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
 
 
 rule fig_value_heatmap:
@@ -81,15 +114,25 @@ rule fig_value_heatmap:
         tracking=TRACKING,
         model=VHAT_MODEL,
     output:
-        multiext(f"{FIGURES}/fig_value_heatmap", ".pdf", ".png"),
+        png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
+                   category="Value functions"),
+        pdf=f"{FIGURES}/fig_value_heatmap.pdf",
     params:
-        stem=f"{FIGURES}/fig_value_heatmap",
+        config=RESOLVED,
+        stem=stem_of("png"),
+        settings=settings_hash("arenas.small", "dtype"),
+        source=source_hash("value"),
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/fig_value_heatmap.log",
     shell:
-        "{PY} -m madpinn fig-value-heatmap --config {RESOLVED} --model {input.model} --out-stem {params.stem}"
-        " --threads {threads} 2>&1 | tee {log}"
+        "python -m madpinn fig-value-heatmap --config {params.config:q} --model {input.model:q} --out-stem {params.stem:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
 
 
 EXTRA_TARGETS += [

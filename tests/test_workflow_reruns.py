@@ -1,0 +1,131 @@
+"""Reruns follow exactly what a change affects; dry runs write nothing; the report holds every
+table and figure. One real tiny run of the whole DAG in a copy of the repository, then
+``snakemake -n`` / ``--report`` against it."""
+
+import re
+import zipfile
+from pathlib import Path
+
+import pytest
+import yaml
+
+from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, tree_state, write_overlay
+
+TRAININGS = {"train_vhat", "train_vs"}
+TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation"}
+FIGURES = {"fig_cost_safety", "fig_trajectories", "fig_value_heatmap", "fig_vs_slices"}
+
+
+@pytest.fixture(scope="module")
+def done(tmp_path_factory):
+    """A copy of the repository after a complete tiny run of ``all``."""
+    copy = copy_repo(tmp_path_factory.mktemp("clone"))
+    write_overlay(copy / "tiny.yaml", TINY, NO_TRACKING)
+    run_in(copy, "-j2", "all", configfiles=("smoke.yaml", "tiny.yaml"))
+    return copy
+
+
+def _overlays(copy, *overlays):
+    files = ["smoke.yaml", "tiny.yaml"]
+    for i, o in enumerate(overlays):
+        write_overlay(copy / f"change{i}.yaml", o)
+        files.append(f"change{i}.yaml")
+    return files
+
+
+def _dry(copy, *overlays, targets=("all",)):
+    return planned_jobs(run_in(copy, "-n", *targets, configfiles=_overlays(copy, *overlays)))
+
+
+def test_complete_run_has_nothing_left_to_do(done):
+    assert _dry(done) == {}
+
+
+def test_training_setting_reruns_that_training_and_its_downstream_only(done):
+    jobs = _dry(done, {"value_functions": {"vhat": {"iterations": 31}}})
+    # V̂ feeds the madpinn cells (main, both ablations), V̂'s validation and heatmap, and the tables
+    # and figures built from those cells; V_s, the nominal cells and V_s's checks stay.
+    assert jobs == {"train_vhat": 1, "evaluate": 3, "validate_vhat": 1, "fig_value_heatmap": 1,
+                    "table_safety_scaling": 1, "table_neighbour_ablation": 1, "table_update_ablation": 1,
+                    "fig_cost_safety": 1, "fig_trajectories": 1, "all": 1}, jobs
+
+
+def test_unrelated_changes_rerun_nothing(done):
+    # a study the targets do not build from
+    assert _dry(done, {"studies": {"main": {"scenarios": 3}}},
+                targets=("table_update_ablation", "table_ours_scaling", "fig_value_heatmap")) == {}
+    # methods no configured study runs, the trainings of unused baselines
+    assert _dry(done, {"methods": {"mppi": {"samples": 17}, "safemarl": {"nominal": {"ppo": {"iterations": 4}}},
+                                   "defmarl": {"training": {"ppo": {"iterations": 3}}}}}) == {}
+
+
+def test_study_setting_reruns_that_study_only(done):
+    jobs = _dry(done, {"studies": {"ablation_neighbours": {"scenarios": 2}}})
+    assert jobs == {"evaluate": 1, "table_neighbour_ablation": 1, "all": 1}, jobs
+
+
+def _edit_and_dry(copy, rel):
+    path = copy / "madpinn" / rel
+    original = path.read_text()
+    path.write_text(original + "\n# edited by test_workflow_reruns\n")
+    try:
+        return _dry(copy)
+    finally:
+        path.write_text(original)
+
+
+def test_policy_code_change_reruns_evaluations_not_trainings(done):
+    jobs = _edit_and_dry(done, "policies/madpinn.py")
+    assert jobs.get("evaluate") == 5 and not (TRAININGS & set(jobs)), jobs
+    assert TABLES <= set(jobs) and {"fig_cost_safety", "fig_trajectories"} <= set(jobs)
+    assert _dry(done) == {}  # reverted: nothing again
+
+
+def test_value_function_code_change_reruns_trainings(done):
+    jobs = _edit_and_dry(done, "value_functions/train.py")
+    assert TRAININGS <= set(jobs) and jobs.get("evaluate") == 5, jobs
+
+
+def test_figure_code_change_reruns_tables_and_figures_only(done):
+    jobs = _edit_and_dry(done, "figures/style.py")
+    assert set(jobs) == TABLES | {"fig_cost_safety", "fig_trajectories", "all"}, jobs
+
+
+def test_dry_run_writes_nothing(done):
+    """`snakemake -n` with a changed config neither writes the resolved config nor anything else
+    (Snakemake's own .snakemake/ bookkeeping aside)."""
+    resolved = done / "results" / "smoke" / "config.resolved.yaml"
+    assert yaml.safe_load(resolved.read_text())["value_functions"]["vhat"]["iterations"] == 30
+    for change in ({"value_functions": {"vhat": {"iterations": 45}}},
+                   {"value_functions": {"vhat": {"iterations": 45}}, "paths": {"results": "elsewhere"}}):
+        files = _overlays(done, change)
+        before = tree_state(done)
+        jobs = planned_jobs(run_in(done, "-n", "all", configfiles=files))
+        assert "train_vhat" in jobs
+        assert tree_state(done) == before
+
+
+def test_report_holds_every_table_and_figure_with_captions(done):
+    run_in(done, "--report", "report.zip", configfiles=("smoke.yaml", "tiny.yaml"))
+    with zipfile.ZipFile(done / "report.zip") as z:
+        names = z.namelist()
+        html = "".join(z.read(n).decode("utf-8", "replace") for n in names if n.endswith((".html", ".js")))
+    for stem in TABLES:
+        assert any(n.endswith(f"{stem}.csv") for n in names), stem
+    for stem in FIGURES:
+        assert any(n.endswith(f"{stem}.png") for n in names), stem
+    for category in ("Tables", "Figures", "Value functions"):
+        assert category in html
+    assert "99.33" in html and "Table IV" in html  # captions carry the paper's values
+
+
+def test_shell_lines_quote_every_config_derived_field():
+    """Every ``{field}`` in a ``shell:`` string is ``:q``-quoted, except numbers (threads, N, seed)."""
+    numeric = {"threads", "wildcards.n", "wildcards.seed"}
+    repo = Path(__file__).resolve().parents[1]
+    for smk in sorted((repo / "workflow" / "rules").glob("*.smk")):
+        text = smk.read_text()
+        for block in re.findall(r"shell:\n((?:\s+\".*\"\n)+)", text):
+            for field in re.findall(r"(?<!\{)\{([^{}]+)\}(?!\})", block):
+                name, _, spec = field.partition(":")
+                assert spec == "q" or name in numeric, (smk.name, field)
