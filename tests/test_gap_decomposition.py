@@ -77,3 +77,16 @@ def test_workflow_target_runs_the_command_and_is_not_part_of_all(tmp_path):
     assert "--model vhat=results/smoke/models/vhat.pt vs=results/smoke/models/vs.pt" in target
     assert "--seeds 100 " in target and "--margin-sweep 0.1" in target
     assert "gap_decomposition" not in run_snakemake(tmp_path, "-n", "all").stdout
+
+
+def test_a_decomposition_cell_equals_the_evaluate_job_of_the_same_cell(tmp_path, one_thread):
+    from madpinn.evaluation.job import evaluate
+
+    cfg = load_config([REPO / "config.yaml", SMOKE])
+    d = tiny_model_dir()
+    cfg["methods"]["madpinn"].update(vhat_model=str(d / "vhat.pt"), vs_model=str(d / "vs.pt"))
+    summary, _ = gap.run_cell(cfg, "double_integrator", "madpinn", "main", 3, 100, cfg["studies"]["main"]["scenarios"])
+    again, _ = gap.run_cell(cfg, "double_integrator", "madpinn", "main", 3, 100, cfg["studies"]["main"]["scenarios"])
+    job = evaluate(cfg, "main", "madpinn", 3, 100, tmp_path / "cell.parquet", backend="double_integrator", progress=False, track=False)
+    for key in ("safety_rate", "safe_scenarios", "cost"):
+        assert summary[key] == again[key] == job[key]          # deterministic, and the same cell as evaluate's

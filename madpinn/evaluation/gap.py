@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
-import torch
 
 from madpinn.config import deep_merge, method_config
+from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.evaluation.collisions import CollisionProbe, summarise
 from madpinn.evaluation.job import episode_steps, policy_context, policy_period
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
@@ -91,16 +91,17 @@ def run_cell(cfg: dict, backend: str, run: str, study: str, n_agents: int, seed:
     if method != "madpinn":
         raise ValueError(f"the gap decomposition evaluates MAD-PINN runs (madpinn[-variant]), got '{run}'")
     arena = Arena.from_config(cfg, st["arena"])
-    cpu, f32 = torch.device("cpu"), torch.float32
+    device, dtype = resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
+    seed_everything(seed)   # as evaluate does (thread count left to the caller)
     r = float(cfg["agents"]["collision_radius"])
     n_steps, period, batch = episode_steps(cfg, arena), policy_period(cfg, mcfg), int(cfg["sim"]["scenario_batch"])
     frames, events = [], []
     for b, first in enumerate(range(0, scenarios, batch)):
         count = min(batch, scenarios - first)
-        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, cpu, f32, first_index=first)
-        probe = CollisionProbe(make_policy(method, policy_context(cfg, mcfg, seed, b, cpu, f32)), r)
+        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
+        probe = CollisionProbe(make_policy(method, policy_context(cfg, mcfg, seed, b, device, dtype)), r)
         probe.scenario_offset = first
-        result, _ = run_episode(make_backend(backend, cfg, cpu, f32), probe, starts, goals, n_steps, r,
+        result, _ = run_episode(make_backend(backend, cfg, device, dtype), probe, starts, goals, n_steps, r,
                                 policy_period=period, progress=progress, desc=f"{backend} N={n_agents} seed={seed}")
         frames.append(scenario_metrics(result, first_index=first))
         events += [{**e, "seed": seed} for e in probe.events]

@@ -3,7 +3,11 @@
 - ``train-value --kind vhat|vs``: train (resumable), write the model, loss CSV/figure, MLflow run;
 - ``validate-vs``: rollout verification JSON + V_s slices figure;
 - ``validate-vhat``: held-out HJB residual statistics JSON;
-- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png).
+- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png);
+- ``solve-vs-grid``: the hj_reachability grid reference of V_s (.npz) with its convergence check;
+- ``validate-vs-grid``: V_s against the grid reference (JSON + zero-level-set figure);
+- ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states);
+- ``ship-models`` / ``install-shipped``: ``models/`` + ``manifest.json``; sha256-checked install.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ def problem_from_config(cfg: dict, kind: str):
     if kind == "vhat":
         return EpigraphProblem(EpigraphSystem.from_config(cfg),
                                ConflictSampling.from_config(cfg["value_functions"]["vhat"]))
-    return PairProblem(PairSystem.from_config(cfg))
+    return PairProblem(PairSystem.from_config(cfg), ConflictSampling.from_config(cfg["value_functions"]["vs"]))
 
 
 def training_hash(cfg: dict, kind: str) -> str:
@@ -208,6 +212,104 @@ def _heatmap(args) -> int:
     return 0
 
 
+def grid_settings(cfg: dict):
+    from madpinn.value_functions.grid_reference import GridSettings
+
+    return GridSettings.from_dict(cfg["value_functions"]["vs"]["validation"]["grid"])
+
+
+def _solve_vs_grid(args) -> int:
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.tracking import log_job
+    from madpinn.value_functions.grid_reference import save_solution, solve_reference
+
+    cfg = load_config(args.config)
+    system, settings = PairSystem.from_config(cfg), grid_settings(cfg)
+    fine, coarse, conv = solve_reference(system, settings, progress=not args.no_progress)
+    extra = {"convergence": conv, "coarse_nodes": coarse.meta["nodes"], "wall_s_coarse": coarse.wall_s}
+    save_solution(args.out, fine, system, settings, extra)
+    summary = {"nodes": settings.nodes, "wall_s": fine.wall_s, "wall_s_coarse": coarse.wall_s,
+               **{f"coarse_mae_t{t}": m["mae"] for t, m in conv.items()}}
+    if not args.no_track:
+        log_job(cfg, job_key="validate/vs_grid_solution", rule="solve_vs_grid", wildcards={}, metrics=summary,
+                artifacts=[])
+    print(json.dumps(summary))
+    return 0
+
+
+def _validate_vs_grid(args) -> int:
+    from madpinn.tracking import log_job
+    from madpinn.value_functions import figures, load_vs
+    from madpinn.value_functions.grid_reference import compare_vs, load_solution
+
+    cfg = load_config(args.config)
+    _setup(cfg, args.threads)
+    import torch
+
+    vs = load_vs(args.model, dtype=torch.float64)
+    solution, header = load_solution(args.grid)
+    report = compare_vs(vs, solution, header)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=2))
+    figs = figures.vs_grid_figure(solution, vs, (-3.0, 0.0), Path(args.fig_stem))
+    metrics = {f"{k}_t{t}": m[k] for t, m in report["vs_vs_grid"].items() for k in ("mae", "unsafe_called_safe")}
+    if not args.no_track:
+        log_job(cfg, job_key="validate/vs_grid", rule="validate_vs_grid", wildcards={}, metrics=metrics,
+                artifacts=[out, *figs])
+    print(json.dumps({"meets_target": report["meets_target"], **metrics}))
+    return 0
+
+
+def _verify_vhat(args) -> int:
+    from madpinn.tracking import log_job
+    from madpinn.value_functions import load_vhat
+    from madpinn.value_functions.verification import ScenarioSettings, verify
+
+    cfg = load_config(args.config)
+    device, dtype = _setup(cfg, args.threads)
+    settings = ScenarioSettings.from_dict(cfg["value_functions"]["vhat"]["validation"]["scenario"])
+    vhat = load_vhat(args.model, device=device, dtype=dtype)
+    report = {"model": str(args.model), "model_iterations": vhat.meta.get("iterations"),
+              "model_config_hash": vhat.meta.get("config_hash"), "horizon": vhat.horizon,
+              "uniform": verify(vhat, settings, conflict=False), "conflict": verify(vhat, settings, conflict=True)}
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=2))
+    metrics = {f"{d}_{k}_rate": report[d][k]["rate"] for d in ("uniform", "conflict") for k in ("safety", "any")}
+    if not args.no_track:
+        log_job(cfg, job_key="validate/vhat_scenario", rule="verify_vhat", wildcards={}, metrics=metrics, artifacts=[out])
+    print(json.dumps(metrics))
+    return 0
+
+
+def _pairs(items, what: str) -> dict:
+    out = {}
+    for item in items or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise SystemExit(f"{what} must be NAME=PATH, got {item!r}")
+        out.setdefault(name, []).append(path)
+    return out
+
+
+def _ship_models(args) -> int:
+    from madpinn.value_functions.shipping import ship
+
+    models = {k: v[-1] for k, v in _pairs(args.model, "--model").items()}
+    manifest = ship(models, args.out_dir, _pairs(args.validation, "--validation"), device=args.device)
+    print(json.dumps({k: {f: e[f] for f in ("sha256", "bytes", "iterations", "samples")}
+                      for k, e in manifest["models"].items()}, indent=2))
+    return 0
+
+
+def _install_shipped(args) -> int:
+    from madpinn.value_functions.shipping import install
+
+    print(install(args.dir, args.name, args.out))
+    return 0
+
+
 def register(sub) -> None:
     from madpinn.cli import add_config_arg
 
@@ -242,3 +344,34 @@ def register(sub) -> None:
     common(p)
     p.add_argument("--out-stem", required=True, help="figure path without extension (.pdf and .png written)")
     p.set_defaults(func=_heatmap)
+
+    p = sub.add_parser("solve-vs-grid", help="grid reference of V_s (hj_reachability) with its convergence check")
+    common(p, model=False)
+    p.add_argument("--out", required=True, help="solution file (.npz)")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_solve_vs_grid)
+
+    p = sub.add_parser("validate-vs-grid", help="V_s against the grid reference: MAE, sign agreement, false safe")
+    common(p)
+    p.add_argument("--grid", required=True, help="solution file of solve-vs-grid (.npz)")
+    p.add_argument("--out", required=True, help="JSON report")
+    p.add_argument("--fig-stem", required=True, help="figure path without extension (.pdf and .png written)")
+    p.set_defaults(func=_validate_vs_grid)
+
+    p = sub.add_parser("verify-vhat", help="scenario-based (ε, β) verification of V̂ in the exact 3-agent dynamics")
+    common(p)
+    p.add_argument("--out", required=True, help="JSON report")
+    p.set_defaults(func=_verify_vhat)
+
+    p = sub.add_parser("ship-models", help="copy trained models into models/ and record them in models/manifest.json")
+    p.add_argument("--model", action="append", required=True, help="NAME=PATH (repeatable), e.g. vs=results/models/vs.pt")
+    p.add_argument("--validation", action="append", help="NAME=JSON report stored with the entry (repeatable)")
+    p.add_argument("--out-dir", default="models", help="shipped-models directory (default models/)")
+    p.add_argument("--device", default=None, help="device the models were trained on, when the checkpoint does not say")
+    p.set_defaults(func=_ship_models)
+
+    p = sub.add_parser("install-shipped", help="copy a shipped model to OUT after checking its sha256")
+    p.add_argument("--dir", default="models", help="shipped-models directory with manifest.json")
+    p.add_argument("--name", required=True, help="model name in the manifest (vs, vhat, safemarl_nominal, ...)")
+    p.add_argument("--out", required=True, help="destination, e.g. results/models/vs.pt")
+    p.set_defaults(func=_install_shipped)
