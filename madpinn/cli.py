@@ -43,12 +43,12 @@ def _validate(args) -> int:
 
 
 def _tracking_init(args) -> int:
-    from madpinn.tracking import init_store
+    from madpinn.tracking import TrackingSettings, init_store
 
-    cfg = load_config(args.config)
-    info = {"enabled": bool(cfg["tracking"]["enabled"])}
-    if info["enabled"]:
-        info.update(init_store(cfg))
+    settings = TrackingSettings.from_config(load_config(args.config))
+    info = {"enabled": settings.enabled}
+    if settings.enabled:
+        info.update(init_store(settings))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(info, indent=2))
     print(json.dumps(info))
@@ -69,34 +69,36 @@ def _evaluate(args) -> int:
 
 def _table(args) -> int:
     from madpinn.evaluation.tables import write_table
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
 
     cfg = load_config(args.config)
-    files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir)
-    if not args.no_track:
-        log_job(cfg, job_key=f"table/{args.name}", rule=args.name, wildcards={}, params={"kind": args.kind, "inputs": len(args.inputs)}, artifacts=files)
+    with job_run(cfg, job_key=f"table/{args.name}", rule=args.name, params={"kind": args.kind, "inputs": len(args.inputs)},
+                 track=not args.no_track) as run:
+        files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir)
+        run.finish(artifacts=files)
     print("\n".join(map(str, files)))
     return 0
 
 
 def _figure(args) -> int:
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
 
     cfg = load_config(args.config)
-    if args.name == "fig_cost_safety":
-        from madpinn.figures.cost_safety import plot_cost_safety
+    with job_run(cfg, job_key=f"figure/{args.name}", rule=args.name, params={"inputs": len(args.inputs)},
+                 track=not args.no_track) as run:
+        if args.name == "fig_cost_safety":
+            from madpinn.figures.cost_safety import plot_cost_safety
 
-        files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name)
-    elif args.name == "fig_trajectories":
-        from madpinn.evaluation.tables import label_of
-        from madpinn.figures.trajectories import plot_trajectories
+            files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name)
+        elif args.name == "fig_trajectories":
+            from madpinn.evaluation.tables import label_of
+            from madpinn.figures.trajectories import plot_trajectories
 
-        labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
-        files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
-    else:
-        raise ValueError(f"unknown figure '{args.name}'")
-    if not args.no_track:
-        log_job(cfg, job_key=f"figure/{args.name}", rule=args.name, wildcards={}, params={"inputs": len(args.inputs)}, artifacts=files)
+            labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
+            files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
+        else:
+            raise ValueError(f"unknown figure '{args.name}'")
+        run.finish(artifacts=files)
     print("\n".join(map(str, files)))
     return 0
 
