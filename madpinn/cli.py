@@ -43,12 +43,12 @@ def _validate(args) -> int:
 
 
 def _tracking_init(args) -> int:
-    from madpinn.tracking import init_store
+    from madpinn.tracking import TrackingSettings, init_store
 
-    cfg = load_config(args.config)
-    info = {"enabled": bool(cfg["tracking"]["enabled"])}
-    if info["enabled"]:
-        info.update(init_store(cfg))
+    settings = TrackingSettings.from_config(load_config(args.config))
+    info = {"enabled": settings.enabled}
+    if settings.enabled:
+        info.update(init_store(settings))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(info, indent=2))
     print(json.dumps(info))
@@ -63,40 +63,77 @@ def _evaluate(args) -> int:
         cfg, args.study, args.run, args.n_agents, args.seed, args.out, backend=args.backend,
         threads=args.threads, progress=not args.no_progress, track=not args.no_track,
     )
-    print(json.dumps({k: summary[k] for k in ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "elapsed_s")}))
+    print(json.dumps({k: summary[k] for k in ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")}))
     return 0
 
 
 def _table(args) -> int:
     from madpinn.evaluation.tables import write_table
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
 
     cfg = load_config(args.config)
-    files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir)
+    with job_run(cfg, job_key=f"table/{args.name}", rule=args.name, params={"kind": args.kind, "inputs": len(args.inputs)},
+                 track=not args.no_track) as run:
+        files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir, oracle_paths=args.oracle or ())
+        run.finish(artifacts=files)
+    print("\n".join(map(str, files)))
+    return 0
+
+
+def _oracle(args) -> int:
+    from madpinn.evaluation.oracle import OracleSettings, write_bounds
+    from madpinn.scenarios import Arena
+
+    cfg = load_config(args.config)
+    arena = Arena.from_config(cfg, args.arena)
+    settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
+                              dt=arena.episode_s / cfg["oracle"]["steps"])
+    print(write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"], settings))
+    return 0
+
+
+def _reproduction(args) -> int:
+    import pandas as pd
+
+    from madpinn.evaluation.reproduction import write_report
+    from madpinn.tracking import log_job
+    from madpinn.tracking.mlflow_store import git_commit
+
+    cfg = load_config(args.config)
+    study_of = dict(kv.split("=", 1) for kv in args.tables)   # table name -> study
+    by_study: dict[str, list[str]] = {}
+    for p in args.inputs:
+        for study in pd.read_parquet(p, columns=["study"])["study"].unique():
+            by_study.setdefault(str(study), []).append(p)
+    tables = {name: by_study[study] for name, study in study_of.items() if study in by_study}
+    files = write_report(args.out_dir, tables, cfg, oracle_paths=args.oracle or (), model_paths=args.models or (),
+                         commit=git_commit())
     if not args.no_track:
-        log_job(cfg, job_key=f"table/{args.name}", rule=args.name, wildcards={}, params={"kind": args.kind, "inputs": len(args.inputs)}, artifacts=files)
+        log_job(cfg, job_key="report/reproduction", rule="reproduction_report", wildcards={},
+                params={"tables": sorted(tables)}, artifacts=files)
     print("\n".join(map(str, files)))
     return 0
 
 
 def _figure(args) -> int:
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
 
     cfg = load_config(args.config)
-    if args.name == "fig_cost_safety":
-        from madpinn.figures.cost_safety import plot_cost_safety
+    with job_run(cfg, job_key=f"figure/{args.name}", rule=args.name, params={"inputs": len(args.inputs)},
+                 track=not args.no_track) as run:
+        if args.name == "fig_cost_safety":
+            from madpinn.figures.cost_safety import plot_cost_safety
 
-        files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name)
-    elif args.name == "fig_trajectories":
-        from madpinn.evaluation.tables import label_of
-        from madpinn.figures.trajectories import plot_trajectories
+            files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name, oracle_paths=args.oracle or ())
+        elif args.name == "fig_trajectories":
+            from madpinn.evaluation.tables import label_of
+            from madpinn.figures.trajectories import plot_trajectories
 
-        labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
-        files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
-    else:
-        raise ValueError(f"unknown figure '{args.name}'")
-    if not args.no_track:
-        log_job(cfg, job_key=f"figure/{args.name}", rule=args.name, wildcards={}, params={"inputs": len(args.inputs)}, artifacts=files)
+            labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
+            files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
+        else:
+            raise ValueError(f"unknown figure '{args.name}'")
+        run.finish(artifacts=files)
     print("\n".join(map(str, files)))
     return 0
 
@@ -127,14 +164,35 @@ def register(sub) -> None:
     p.add_argument("--name", required=True)
     p.add_argument("--kind", required=True, choices=["safety_by_n", "summary"])
     p.add_argument("--inputs", nargs="+", required=True)
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files: adds the lower-bound rows")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table)
+
+    p = sub.add_parser("reproduction", help="reproduction report: every table beside the paper's values")
+    add_config_arg(p)
+    p.add_argument("--tables", nargs="+", required=True, help="NAME=STUDY pairs")
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of those studies")
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (oracle rows)")
+    p.add_argument("--models", nargs="*", default=None, help="model files whose sha256 the provenance lists")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_reproduction)
+
+    p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
+    add_config_arg(p)
+    p.add_argument("--arena", required=True)
+    p.add_argument("--n-agents", type=int, required=True)
+    p.add_argument("--seed", type=int, required=True)
+    p.add_argument("--scenarios", type=int, required=True)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=_oracle)
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")
     add_config_arg(p)
     p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories"])
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_figure)

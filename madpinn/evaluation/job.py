@@ -1,7 +1,8 @@
 """One evaluation job: a (study, run, N, seed) cell -> per-scenario Parquet + JSON summary.
 
 Scenarios are simulated in batches of ``sim.scenario_batch``; all agents of a batch are
-computed together. Files are written first; MLflow logging comes after and cannot lose them.
+computed together. The job's MLflow run is live while it runs; files are written first and
+a tracking failure cannot lose them.
 """
 
 from __future__ import annotations
@@ -54,13 +55,36 @@ def evaluate(
     progress: bool = True,
     track: bool = True,
 ) -> dict:
-    """Run one evaluation cell and write ``out`` (.parquet), ``out``.json and ``out``_traj.npz."""
+    """Run one evaluation cell and write ``out`` (.parquet), ``out``.json and ``out``_traj.npz,
+    inside one live MLflow run (opened before the simulation, closed with the job's status)."""
+    from madpinn.tracking import job_run
+
     out = Path(out)
     if study not in cfg["studies"]:
         raise ValueError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
-    st = cfg["studies"][study]
     method, mcfg = method_config(cfg, run)
     backend = backend or cfg["sim"]["backend"]
+    arena_name = cfg["studies"][study]["arena"]
+    with job_run(
+        cfg, job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
+        wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
+        params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][arena_name],
+                "scenarios": cfg["studies"][study]["scenarios"], "sim": cfg["sim"], "observation": cfg["observation"]},
+        track=track,
+    ) as tracker:
+        summary, files = _evaluate_cell(cfg, study, run, method, mcfg, backend, n_agents, seed, out, threads, progress)
+        tracker.finish(
+            metrics={**{k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all",
+                                                 "cost_all_time_avg", "elapsed_s", "policy_us_per_agent_step")},
+                     **{f"policy_{k}": v for k, v in summary.get("policy_stats", {}).items()}},
+            artifacts=files,
+        )
+    return summary
+
+
+def _evaluate_cell(cfg, study, run, method, mcfg, backend, n_agents, seed, out: Path, threads, progress):
+    """The cell's simulation and files; returns ``(summary, [parquet, json, npz])``."""
+    st = cfg["studies"][study]
     arena = Arena.from_config(cfg, st["arena"])
     device, dtype = resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
     seed_everything(seed, threads)
@@ -119,16 +143,4 @@ def evaluate(
         collided=traj.collided[0], first_collision_step=traj.first_collision_step[0], dt=traj.dt,
         collision_radius=r, half_width=arena.half_width,
     )
-    if track:
-        from madpinn.tracking import log_job
-
-        log_job(
-            cfg, job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
-            wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
-            params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][arena.name],
-                    "scenarios": total, "sim": cfg["sim"], "observation": cfg["observation"]},
-            metrics={**{k: summary[k] for k in ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")},
-                     **{f"policy_{k}": v for k, v in summary.get("policy_stats", {}).items()}},
-            artifacts=[out, json_path, traj_path],
-        )
-    return summary
+    return summary, [out, json_path, traj_path]

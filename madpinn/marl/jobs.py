@@ -1,8 +1,8 @@
 """Workflow job: train the SafeMARL nominal policy (goal-reaching PPO in the small arena).
 
 Config: ``methods.safemarl.nominal`` (arena, agent counts, seed, env, network, reward, ppo).
-Files first — checkpoint, learning curve CSV, JSON summary — then one MLflow run with the
-learning curves as step metrics.
+One live MLflow run: learning curves logged per iteration as they happen; files first —
+checkpoint, learning curve CSV, JSON summary — then the files and the actor (``mlflow.pytorch``).
 """
 
 from __future__ import annotations
@@ -61,27 +61,29 @@ def write_training_record(out: Path, history: list[dict], wall: float, first_key
 
 
 def train_safemarl_nominal(cfg: dict, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True) -> dict:
+    from madpinn.tracking import job_run
+
     out = Path(out)
     if "safemarl" not in cfg["methods"]:
         raise ValueError("methods.safemarl is not configured (its 'nominal' block holds the PPO training settings)")
     tcfg = cfg["methods"]["safemarl"]["nominal"]
-    seed_everything(int(tcfg["seed"]), threads)
-    t0 = time.perf_counter()
-    trainer = build_trainer(cfg, tcfg)
-    history = trainer.train(progress=progress, desc="SafeMARL nominal PPO")
-    wall = time.perf_counter() - t0
-    save_checkpoint(out, trainer, meta={"method": "safemarl-nominal", "wall_s": wall, "arena": tcfg["arena"]})
-    summary, curve_path, json_path = write_training_record(
-        out, history, wall, first_keys=("episode_return", "final_distance", "collision_rate"),
-        last_keys=("episode_return", "final_distance", "reached_rate", "collision_rate"),
-    )
-    if track:
-        from madpinn.tracking import log_job
-
-        log_job(
-            cfg, job_key="train/safemarl_nominal", rule="train_safemarl_nominal", wildcards={},
-            params={"nominal": tcfg, "agents": cfg["agents"], "observation": cfg["observation"]},
-            metrics=summary, artifacts=[out, curve_path, json_path],
-            step_metrics={k: [h[k] for h in history] for k in CURVES},
+    with job_run(cfg, job_key="train/safemarl_nominal", rule="train_safemarl_nominal",
+                 params={"nominal": tcfg, "agents": cfg["agents"], "observation": cfg["observation"]}, track=track) as run:
+        seed_everything(int(tcfg["seed"]), threads)
+        t0 = time.perf_counter()
+        trainer = build_trainer(cfg, tcfg)
+        history = trainer.train(progress=progress, desc="SafeMARL nominal PPO", on_iteration=live_curves(run, CURVES))
+        wall = time.perf_counter() - t0
+        save_checkpoint(out, trainer, meta={"method": "safemarl-nominal", "wall_s": wall, "arena": tcfg["arena"]})
+        summary, curve_path, json_path = write_training_record(
+            out, history, wall, first_keys=("episode_return", "final_distance", "collision_rate"),
+            last_keys=("episode_return", "final_distance", "reached_rate", "collision_rate"),
         )
+        run.finish(metrics=summary, step=len(history), artifacts=[out, curve_path, json_path],
+                   models={"actor": trainer.actor})
     return summary
+
+
+def live_curves(run, keys):
+    """``on_iteration`` callback of a PPO trainer: the iteration's ``keys`` as step metrics."""
+    return lambda stats: run.log_metrics({k: stats[k] for k in keys if k in stats}, step=int(stats["iteration"]))

@@ -19,6 +19,7 @@ from madpinn.config import config_hash, load_config
 from madpinn.observation import DEPLOYMENT_ONLY_KEYS
 
 KINDS = ("vhat", "vs")
+LIVE_POINTS = 1000   # training curves: at most this many live MLflow points per run
 
 
 def problem_from_config(cfg: dict, kind: str):
@@ -50,19 +51,6 @@ def _setup(cfg: dict, threads: int | None):
     return resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
 
 
-def decimate(history, points: int = 5000) -> list[float]:
-    """Window means of the per-iteration loss (≤ ``points`` values) for MLflow step metrics."""
-    import numpy as np
-
-    h = np.asarray(history, dtype=float)
-    w = max(1, int(np.ceil(h.size / points)))
-    n = h.size // w
-    out = h[: n * w].reshape(n, w).mean(1).tolist()
-    if h.size > n * w:
-        out.append(float(h[n * w:].mean()))
-    return out
-
-
 def validation_figure(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
     from madpinn.value_functions import figures, validation
 
@@ -75,16 +63,25 @@ def validation_figure(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
 
 
 def _train(args) -> int:
+    from madpinn.tracking import job_run
+
+    cfg = load_config(args.config)
+    kind = args.kind
+    vcfg = cfg["value_functions"][kind]
+    with job_run(cfg, job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
+                 params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
+                         "config_hash": training_hash(cfg, kind)}, track=not args.no_track) as run:
+        return _train_job(cfg, kind, args, run)
+
+
+def _train_job(cfg: dict, kind: str, args, run) -> int:
     import numpy as np
 
-    from madpinn.tracking import log_job
     from madpinn.tracking.mlflow_store import git_commit
     from madpinn.value_functions import figures
     from madpinn.value_functions.model import model_from_payload, model_payload, save_atomic
     from madpinn.value_functions.train import TrainSettings, residual_stats, train
 
-    cfg = load_config(args.config)
-    kind = args.kind
     device, dtype = _setup(cfg, args.threads)
     problem = problem_from_config(cfg, kind)
     vcfg = cfg["value_functions"][kind]
@@ -94,14 +91,19 @@ def _train(args) -> int:
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{kind}.ckpt.pt"
     chash = training_hash(cfg, kind)
+    total = settings.iterations + int((vcfg.get("fine_tune") or {}).get("iterations", 0))
+    every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     net, info = train(problem, settings, ckpt, chash, device=device, dtype=dtype, progress=not args.no_progress,
-                      stop_after=args.stop_after)
+                      stop_after=args.stop_after, on_iteration=run.curve("loss", every))
     if not info["completed"]:
+        run.log_params({"completed": False})
         print(f"{kind}: stopped after {info['iterations']} of {settings.iterations} iterations; checkpoint {ckpt}")
         return 0
     if vcfg.get("fine_tune"):
-        net, info = _fine_tune(problem, settings, net, info, vcfg["fine_tune"], out, ckpt, chash, device, dtype, args)
+        net, info = _fine_tune(problem, settings, net, info, vcfg["fine_tune"], out, ckpt, chash, device, dtype, args,
+                               on_iteration=run.curve("loss", every, offset=info["iterations"]))
         if not info["completed"]:
+            run.log_params({"completed": False})
             return 0
     history = info["history"]
     meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
@@ -120,16 +122,14 @@ def _train(args) -> int:
     summary = {"kind": kind, "iterations": info["iterations"], "wall_s": info["wall_s"], "final_loss": meta["final_loss"],
                **meta["residual"]}
     Path(stem.with_name(stem.name + "_train.json")).write_text(json.dumps(summary, indent=2))
-    if not args.no_track:
-        log_job(cfg, job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
-                params={"settings": meta["settings"], "config_hash": chash},
-                metrics={k: v for k, v in summary.items() if isinstance(v, (int, float))},
-                artifacts=artifacts, step_metrics={"loss": decimate(history)})
+    run.finish(metrics={k: v for k, v in summary.items() if isinstance(v, (int, float))}, step=info["iterations"],
+               artifacts=artifacts, models={f"{kind}_network": net})
     print(json.dumps(summary))
     return 0
 
 
-def _fine_tune(problem, settings, net, info, ft: dict, out: Path, ckpt: Path, chash: str, device, dtype, args):
+def _fine_tune(problem, settings, net, info, ft: dict, out: Path, ckpt: Path, chash: str, device, dtype, args,
+               on_iteration=None):
     """Second stage of ``value_functions.<kind>.fine_tune``: save the first stage's model next to
     ``out`` (``<kind>_stage1.pt``), then train from it with a fresh optimizer and schedule
     (:func:`madpinn.value_functions.train.load_initial_weights`; no curriculum, its batches
@@ -146,7 +146,8 @@ def _fine_tune(problem, settings, net, info, ft: dict, out: Path, ckpt: Path, ch
     s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
                  curriculum_fraction=0.0, init_from=str(stage1))
     net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
-                        device=device, dtype=dtype, progress=not args.no_progress, stop_after=args.stop_after)
+                        device=device, dtype=dtype, progress=not args.no_progress, stop_after=args.stop_after,
+                        on_iteration=on_iteration)
     if not info2["completed"]:
         print(f"{problem.kind}: fine-tuning stopped after {info2['iterations']} of {s2.iterations} iterations")
     return net2, {"history": info["history"] + info2["history"], "iterations": info["iterations"] + info2["iterations"],
@@ -155,60 +156,58 @@ def _fine_tune(problem, settings, net, info, ft: dict, out: Path, ckpt: Path, ch
 
 
 def _validate_vs(args) -> int:
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
     from madpinn.value_functions import load_vs
     from madpinn.value_functions.validation import vs_rollouts
 
     cfg = load_config(args.config)
-    device, dtype = _setup(cfg, args.threads)
-    vs = load_vs(args.model, device=device, dtype=dtype)
-    val = cfg["value_functions"]["vs"]["validation"]
-    stats = vs_rollouts(vs, int(val["rollout_samples"]), float(val["rollout_dt"]), seed=int(cfg["value_functions"]["seed"]))
-    stats["target_false_safe_rate"] = 0.01
-    stats["model_iterations"] = vs.meta.get("iterations")
-    stats["residual"] = vs.meta.get("residual")
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(stats, indent=2))
-    figs = validation_figure(vs, cfg, "vs", Path(args.fig_stem))
-    if not args.no_track:
-        log_job(cfg, job_key="validate/vs", rule="validate_vs", wildcards={},
-                metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))}, artifacts=[out, *figs])
+    with job_run(cfg, job_key="validate/vs", rule="validate_vs", track=not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        vs = load_vs(args.model, device=device, dtype=dtype)
+        val = cfg["value_functions"]["vs"]["validation"]
+        stats = vs_rollouts(vs, int(val["rollout_samples"]), float(val["rollout_dt"]), seed=int(cfg["value_functions"]["seed"]))
+        stats["target_false_safe_rate"] = 0.01
+        stats["model_iterations"] = vs.meta.get("iterations")
+        stats["residual"] = vs.meta.get("residual")
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(stats, indent=2))
+        figs = validation_figure(vs, cfg, "vs", Path(args.fig_stem))
+        run.finish(metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))}, artifacts=[out, *figs])
     print(json.dumps({k: stats[k] for k in ("false_safe_rate", "mean_abs_error", "predicted_safe_fraction")}))
     return 0
 
 
 def _validate_vhat(args) -> int:
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
     from madpinn.value_functions import load_vhat
     from madpinn.value_functions.train import residual_stats
 
     cfg = load_config(args.config)
-    device, dtype = _setup(cfg, args.threads)
-    vhat = load_vhat(args.model, device=device, dtype=dtype)
-    samples = int(cfg["value_functions"]["vhat"]["validation"]["samples"])
-    stats = residual_stats(vhat.problem, vhat, samples, seed=int(cfg["value_functions"]["seed"]) + 1)
-    stats.update({"model_iterations": vhat.meta.get("iterations"), "z_max": vhat.z_max, "horizon": vhat.horizon})
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(stats, indent=2))
-    if not args.no_track:
-        log_job(cfg, job_key="validate/vhat", rule="validate_vhat", wildcards={},
-                metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))}, artifacts=[out])
+    with job_run(cfg, job_key="validate/vhat", rule="validate_vhat", track=not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        vhat = load_vhat(args.model, device=device, dtype=dtype)
+        samples = int(cfg["value_functions"]["vhat"]["validation"]["samples"])
+        stats = residual_stats(vhat.problem, vhat, samples, seed=int(cfg["value_functions"]["seed"]) + 1)
+        stats.update({"model_iterations": vhat.meta.get("iterations"), "z_max": vhat.z_max, "horizon": vhat.horizon})
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(stats, indent=2))
+        run.finish(metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))}, artifacts=[out])
     print(json.dumps(stats))
     return 0
 
 
 def _heatmap(args) -> int:
-    from madpinn.tracking import log_job
+    from madpinn.tracking import job_run
     from madpinn.value_functions import load_vhat
 
     cfg = load_config(args.config)
-    device, dtype = _setup(cfg, args.threads)
-    vhat = load_vhat(args.model, device=device, dtype=dtype)
-    files = validation_figure(vhat, cfg, "vhat", Path(args.out_stem))
-    if not args.no_track:
-        log_job(cfg, job_key="figure/fig_value_heatmap", rule="fig_value_heatmap", wildcards={}, artifacts=files)
+    with job_run(cfg, job_key="figure/fig_value_heatmap", rule="fig_value_heatmap", track=not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        vhat = load_vhat(args.model, device=device, dtype=dtype)
+        files = validation_figure(vhat, cfg, "vhat", Path(args.out_stem))
+        run.finish(artifacts=files)
     print("\n".join(map(str, files)))
     return 0
 

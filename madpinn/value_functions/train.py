@@ -20,6 +20,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import torch
 from tqdm.auto import tqdm
@@ -152,10 +153,12 @@ def load_initial_weights(problem: PINNProblem, settings: TrainSettings, net: tor
 def train(
     problem: PINNProblem, settings: TrainSettings, checkpoint: str | Path, config_hash: str,
     device=torch.device("cpu"), dtype=torch.float32, progress: bool = True, stop_after: int | None = None,
+    on_iteration: Callable[[int, float], None] | None = None,
 ) -> tuple[torch.nn.Module, dict]:
     """Train (resuming from ``checkpoint`` when it matches ``config_hash``); return
     ``(network, info)`` with the per-iteration loss history. ``stop_after`` ends the run early
-    after that many iterations in this call (used to test resume)."""
+    after that many iterations in this call (used to test resume); ``on_iteration(i, loss)`` is
+    called after iteration ``i`` (1-based) of this call, e.g. to log the curve live."""
     torch.manual_seed(settings.seed)
     net = build_network(problem, settings.network).to(device=device, dtype=dtype)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
@@ -193,6 +196,8 @@ def train(
     t0 = time.perf_counter()
     for it in bar:
         history.append(train_step(problem, net, opt, settings, it, device, dtype, offset))
+        if on_iteration is not None:
+            on_iteration(it + 1, history[-1])
         if (it + 1) % 50 == 0:
             bar.set_postfix(loss=f"{sum(history[-50:]) / 50:.4g}", refresh=False)
         if (it + 1) % settings.checkpoint_every == 0 and it + 1 < settings.iterations:

@@ -127,6 +127,7 @@ SOURCES = {
     "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
                  "observation.py", "scenarios.py", "device.py"],
     "tables": ["evaluation", "figures"],
+    "oracle": ["evaluation/oracle.py", "scenarios.py"],
     "render": ["simulation"],
 }
 _SOURCE_HASHES = {}

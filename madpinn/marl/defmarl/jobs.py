@@ -1,7 +1,8 @@
 """Workflow job: train one DEF-MARL model (``methods.defmarl`` merged with a variant).
 
-Files first — checkpoint, learning-curve CSV, JSON summary — then one MLflow run with the
-learning curves, constraint-violation rates and z statistics as step metrics.
+One live MLflow run: learning curves, constraint-violation rates and z statistics logged per
+iteration as they happen; files first — checkpoint, learning-curve CSV, JSON summary — then the
+files and the actor (``mlflow.pytorch``).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from madpinn.device import seed_everything
 from madpinn.marl.checkpoint import save_checkpoint
 from madpinn.marl.defmarl.epigraph import EpigraphConfig
 from madpinn.marl.defmarl.trainer import DefMarlTrainer
-from madpinn.marl.jobs import CURVES, build_trainer, write_training_record
+from madpinn.marl.jobs import CURVES, build_trainer, live_curves, write_training_record
 
 DEFMARL_CURVES = CURVES + ("violation_rate", "team_cost", "epigraph_objective", "z_start_mean", "z_end_mean",
                            "z_end_at_min", "loss_cost", "vh_mean", "vl_mean")
@@ -32,29 +33,28 @@ def build_defmarl_trainer(cfg: dict, run: str) -> tuple[DefMarlTrainer, dict]:
 
 
 def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True) -> dict:
+    from madpinn.tracking import job_run
+
     out = Path(out)
     if "defmarl" not in cfg["methods"]:
         raise ValueError("methods.defmarl is not configured")
     run = f"defmarl-{variant}"
     _, mcfg = method_config(cfg, run)
     tcfg = mcfg["training"]
-    seed_everything(int(tcfg["seed"]), threads)
-    t0 = time.perf_counter()
-    trainer, mcfg = build_defmarl_trainer(cfg, run)
-    history = trainer.train(progress=progress, desc=f"DEF-MARL ({variant})")
-    wall = time.perf_counter() - t0
-    save_checkpoint(out, trainer, meta={"method": "defmarl", "variant": variant, "epigraph": asdict(trainer.epi),
-                                        "wall_s": wall, "arena": tcfg["arena"], "agent_counts": list(tcfg["agent_counts"])})
-    summary, curve_path, json_path = write_training_record(
-        out, history, wall, first_keys=SUMMARY_KEYS, last_keys=SUMMARY_KEYS, extra={"run": run}
-    )
-    if track:
-        from madpinn.tracking import log_job
-
-        log_job(
-            cfg, job_key=f"train/defmarl_{variant}", rule="train_defmarl", wildcards={"variant": variant},
-            params={"training": tcfg, "epigraph": mcfg["epigraph"], "agents": cfg["agents"], "observation": cfg["observation"]},
-            metrics={k: v for k, v in summary.items() if k != "run"}, artifacts=[out, curve_path, json_path],
-            step_metrics={k: [h[k] for h in history] for k in DEFMARL_CURVES},
+    with job_run(cfg, job_key=f"train/defmarl_{variant}", rule="train_defmarl", wildcards={"variant": variant},
+                 params={"training": tcfg, "epigraph": mcfg["epigraph"], "agents": cfg["agents"],
+                         "observation": cfg["observation"]}, track=track) as tracker:
+        seed_everything(int(tcfg["seed"]), threads)
+        t0 = time.perf_counter()
+        trainer, mcfg = build_defmarl_trainer(cfg, run)
+        history = trainer.train(progress=progress, desc=f"DEF-MARL ({variant})",
+                                on_iteration=live_curves(tracker, DEFMARL_CURVES))
+        wall = time.perf_counter() - t0
+        save_checkpoint(out, trainer, meta={"method": "defmarl", "variant": variant, "epigraph": asdict(trainer.epi),
+                                            "wall_s": wall, "arena": tcfg["arena"], "agent_counts": list(tcfg["agent_counts"])})
+        summary, curve_path, json_path = write_training_record(
+            out, history, wall, first_keys=SUMMARY_KEYS, last_keys=SUMMARY_KEYS, extra={"run": run}
         )
+        tracker.finish(metrics={k: v for k, v in summary.items() if k != "run"}, step=len(history),
+                       artifacts=[out, curve_path, json_path], models={"actor": trainer.actor})
     return summary
