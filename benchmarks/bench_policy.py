@@ -1,7 +1,7 @@
 """One full MAD-PINN control step (neighbour update + z* search + control) for all agents.
 
-For N ∈ {16, 64, 256, 1024} at the large-arena density (256 agents in [-4, 4]², i.e. 4 agents/m²;
-half width 4·√(N/256) m), one scenario, mid-episode velocities uniform in [-2, 2] m/s:
+For N ∈ {16, 64, 256, 1024} at the density of 256 agents in the large arena ([-4, 4]², 4 agents/m²;
+64 and 128 agents there are 1 and 2/m²; half width 4·√(N/256) m), one scenario, mid-episode velocities uniform in [-2, 2] m/s:
 
 - ``batched``: :class:`madpinn.policies.madpinn.MadPinnPolicy` — all agents in one batch, V_s only
   on in-domain pairs, warm-started bisection (a step right after a warm-up step, with the

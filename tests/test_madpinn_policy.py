@@ -14,14 +14,9 @@ from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, meth
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec, build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.policies.madpinn import (
-    MadPinnPolicy,
-    MadPinnSettings,
-    bisection_steps,
-    cold_budget_search,
-    warm_budget_search,
-)
+from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
 from madpinn.policies.neighbours import make_selector
+from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, predict_index, warm_search
 from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.value_functions import CheckpointError
@@ -49,7 +44,7 @@ def dense_grid_values(vhat, obs, steps):
     return zs, v.reshape(B, -1)
 
 
-def test_bisection_matches_dense_grid_and_warm_start_matches_cold():
+def test_bisection_matches_dense_grid():
     vhat, _ = tiny_models()
     steps = bisection_steps(1e-3)
     assert steps == 10 and vhat.z_max / 2**steps <= 1e-3 * vhat.z_max
@@ -69,18 +64,84 @@ def test_bisection_matches_dense_grid_and_warm_start_matches_cold():
     first = torch.argmax((grid[:, 1:] <= 0).int(), dim=1) + 1
     assert mono.sum() >= 10
     assert torch.equal(i[mono], first[mono])
-    # warm start from a perturbed previous answer: same grid point on monotone rows, a crossing elsewhere
-    z_prev = (z + (torch.rand(z.shape, generator=torch.Generator().manual_seed(0)) - 0.5) * 0.3).clamp(0, vhat.z_max)
-    zw, fw, hit = warm_budget_search(vhat, obs, z_prev, steps)
-    assert hit.float().mean() > 0.3
-    unsafe_mono = (grid[:, 1:] <= grid[:, :-1]).all(1) & ~feasible
-    assert unsafe_mono.sum() >= 3 and not fw[unsafe_mono].any() and torch.all(zw[unsafe_mono] == vhat.z_max)
-    assert hit[unsafe_mono].all()  # previous answer near z_max: resolved by the top block, no cold search
-    iw = torch.round(zw / h).long()
-    assert torch.equal(iw[mono], i[mono]) and torch.equal(fw[mono], feasible[mono])
-    assert torch.allclose(zw[mono], z[mono], rtol=1e-6, atol=0)
-    ok = fw.nonzero().squeeze(1)
-    assert torch.all(grid[ok, iw[ok]] <= 0)
+
+
+def _monotone_with_margin(grid_values, feasible, margin=1e-4):
+    """Rows whose V̂ is non-increasing on the grid and not within ``margin`` of 0 at any grid
+    point (so another CPU's kernels cannot flip a sign); infeasible rows need only V̂(z_max) > margin."""
+    mono = (grid_values[:, 2:] <= grid_values[:, 1:-1]).all(1) & (grid_values[:, 1:].abs() > margin).all(1)
+    return (mono & feasible) | (~feasible & (grid_values[:, -1] > margin))
+
+
+@pytest.mark.parametrize("spread", [0, 1, 4, 40, 1024])
+def test_warm_search_returns_the_cold_answer_on_monotone_rows(spread):
+    """Bracketed warm start vs cold bisection on random and near-collision observations, from
+    predictions off by up to ``spread`` cells: the same grid index, z*, feasibility and control
+    gradient where V̂ is monotone in z; a verified crossing on every feasible row; the cold
+    feasibility flag on every row (both evaluate V̂(z_max)); fewer network rows."""
+    vhat, _ = tiny_models()
+    grid = ZGrid(vhat.z_max, bisection_steps(1e-3))
+    obs = torch.cat([observations(300, seed=1), observations(60, seed=2, overlap=True)])
+    zs, values = dense_grid_values(vhat, obs, grid.steps)
+    cold = cold_search(vhat, obs, grid)
+    offset = torch.randint(-spread, spread + 1, cold.index.shape, generator=torch.Generator().manual_seed(spread))
+    warm = warm_search(vhat, obs, grid, cold.index + offset)
+    rows = _monotone_with_margin(values, cold.feasible)
+    assert rows.sum() >= 10 and (~cold.feasible[rows]).sum() >= 3 and cold.feasible[rows].sum() >= 3
+    assert torch.equal(warm.index[rows], cold.index[rows]) and torch.equal(warm.feasible[rows], cold.feasible[rows])
+    assert torch.equal(warm.z[rows], cold.z[rows])
+    assert torch.allclose(warm.grad[rows], cold.grad[rows], rtol=1e-5, atol=1e-5)
+    ok = warm.feasible.nonzero().squeeze(1)
+    i = warm.index
+    assert torch.all(values[ok, i[ok]] <= 0) and torch.all((i[ok] == 1) | (values[ok, i[ok] - 1] > 0))
+    sure = (values[:, -1].abs() > 1e-4)  # V̂(z_max) not at the sign's edge
+    assert torch.equal(warm.feasible[sure], cold.feasible[sure]) and torch.all(warm.z[~warm.feasible] == vhat.z_max)
+    B = obs.shape[0]
+    assert cold.value_rows == B * (grid.steps + 1) and cold.grad_rows == B
+    assert warm.grad_rows <= 2 * B
+    if spread <= 40:  # a useful prediction (a random one, spread 1024, costs about as much as cold)
+        assert warm.value_rows + warm.grad_rows < cold.value_rows + cold.grad_rows
+    if spread == 0:  # exact prediction: V̂(z_k), V̂(z_max), V̂(z_{k−1}) at most; the unsafe top: one row
+        assert warm.hit[cold.feasible].all() and warm.value_rows + warm.grad_rows <= 3 * B
+
+
+def test_warm_search_without_the_top_check_may_differ_only_in_feasibility_where_not_monotone():
+    vhat, _ = tiny_models()
+    grid = ZGrid(vhat.z_max, 10)
+    obs = torch.cat([observations(200, seed=3), observations(40, seed=4, overlap=True)])
+    _, values = dense_grid_values(vhat, obs, grid.steps)
+    cold = cold_search(vhat, obs, grid)
+    warm = warm_search(vhat, obs, grid, cold.index, check_top=False)
+    rows = _monotone_with_margin(values, cold.feasible)
+    assert torch.equal(warm.index[rows], cold.index[rows]) and torch.equal(warm.feasible[rows], cold.feasible[rows])
+    assert warm.value_rows < warm_search(vhat, obs, grid, cold.index).value_rows
+
+
+def test_predicted_index_extrapolates_linearly_within_the_grid():
+    last, before = torch.tensor([5, 10, 1024, 1, 7]), torch.tensor([6, 8, 1000, 3, 7])
+    assert predict_index(last, before, 1024).tolist() == [4, 12, 1024, 1, 7]
+    assert predict_index(last, None, 1024).tolist() == last.tolist()
+    with pytest.raises(ValueError, match="z_tolerance"):
+        bisection_steps(0.0)
+
+
+def test_policy_warm_start_keeps_the_cold_episode():
+    """Closed loop, double integrator, value neighbours: the warm-started policy steps through the
+    same states as the cold one (same z* every step where V̂ is monotone; checked on the whole
+    episode's controls) and needs fewer V̂ rows per agent-step."""
+    vhat, vs = tiny_models()
+    state, goals = scenario(S=2, N=6, seed=3)
+    runs = {}
+    for warm in (True, False):
+        pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, MadPinnSettings(warm_start=warm), 0.0025)
+        sim = make_backend("double_integrator", load_config([REPO / "config.yaml", SMOKE]), torch.device("cpu"), torch.float32)
+        result, _ = run_episode(sim, pol, state[..., 0:2], goals, 60, 0.1, progress=False)
+        runs[warm] = (result, MadPinnPolicy.summarise_stats(pol.stats))
+    (rw, sw), (rc, sc) = runs[True], runs[False]
+    assert sc["vhat_evals_per_agent_step"] == 12.0 and sw["vhat_evals_per_agent_step"] < 6.0
+    assert sw["warm_hit_rate"] > 0.3
+    assert (rw.collided == rc.collided).all()
+    assert abs(rw.cost - rc.cost).max() < 1e-3 * max(1.0, abs(rc.cost).max())
 
 
 def policy(strategy="nearest", update_every=5, dtype=torch.float32, seed=0):

@@ -66,3 +66,30 @@ def test_mean_and_std_across_seeds():
     assert agg["safety_rate_std"] == pytest.approx(0.1)
     assert agg["cost_std"] == pytest.approx(1.0)
     assert agg["n_seeds"] == 3
+
+
+def test_time_averaged_and_all_agent_costs():
+    """T = 10 steps × 0.1 s = 1 s here, so ÷T must equal the integral; the all-agent variant
+    keeps the collided agents that the paper's (collision-free) cost drops."""
+    pos, goals, dt = _straight_line_world()
+    pos[4, 1, 1] = pos[4, 1, 0] + torch.tensor([0.1, 0.0], dtype=torch.float64)   # agents 0, 1 collide in scenario 1
+    df = scenario_metrics(record_trajectory(pos, goals, dt, collision_radius=0.1))
+    assert df["episode_s"].tolist() == pytest.approx([1.0, 1.0])
+    assert df["cost_safe_time_avg"].tolist() == pytest.approx(df["cost_safe_mean"].tolist())
+    assert df["cost_all_mean"][1] > df["cost_safe_mean"][1] + 0.1   # agent 0 (cost ≈ 0.5) counted
+    s = seed_summary(df)
+    assert s["cost_time_avg"] == pytest.approx(s["cost"])
+    assert s["cost_all"] > s["cost"]
+
+
+def test_time_average_divides_by_the_episode_length():
+    pos, goals, _ = _straight_line_world()
+    df = scenario_metrics(record_trajectory(pos, goals, 0.3, collision_radius=0.1))   # T = 3 s
+    assert df["cost_safe_time_avg"].to_numpy() == pytest.approx(df["cost_safe_mean"].to_numpy() / 3.0)
+
+
+def test_old_result_rows_without_time_averaged_columns_still_summarise():
+    pos, goals, dt = _straight_line_world()
+    df = scenario_metrics(record_trajectory(pos, goals, dt, 0.1)).drop(columns=["cost_safe_time_avg", "cost_all_time_avg", "episode_s"])
+    s = seed_summary(df)
+    assert s["cost"] == pytest.approx(0.5 / 3) and np.isnan(s["cost_time_avg"])

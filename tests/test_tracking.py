@@ -1,12 +1,19 @@
+import json
+import os
+import signal
 import time
+from dataclasses import replace
+from pathlib import Path
 
 import pytest
+import torch
 from mlflow.entities import ViewType
 from mlflow.tracking import MlflowClient
 
 from madpinn.config import deep_merge
 from madpinn.commands.evaluate import evaluate
-from madpinn.tracking import TrackingError, init_store, log_job
+from madpinn.tracking import JobKilled, TrackingError, TrackingSettings, flush_pending, init_store, job_run, log_job
+from madpinn.tracking.record import pending_path
 
 
 def _cfg(paper_cfg, tmp_path, uri=None):
@@ -31,7 +38,7 @@ def _runs(uri, name, view=ViewType.ACTIVE_ONLY):
 def test_rerun_replaces_the_run(paper_cfg, tmp_path, monkeypatch):
     monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
     cfg = _cfg(paper_cfg, tmp_path)
-    info = init_store(cfg)
+    info = init_store(TrackingSettings.from_config(cfg))
     art = tmp_path / "a.json"
     art.write_text("{}")
     for value in (1.0, 2.0):
@@ -52,7 +59,7 @@ def test_unreachable_server_fails_init_early_and_never_loses_results(paper_cfg, 
     monkeypatch.setenv("MLFLOW_TRACKING_URI", "http://127.0.0.1:9")
     cfg = _cfg(paper_cfg, tmp_path)
     with pytest.raises(TrackingError, match="unreachable"):
-        init_store(cfg)
+        init_store(TrackingSettings.from_config(cfg))
     out = tmp_path / "results" / "n3_seed0.parquet"
     summary = evaluate(cfg, "main", "nominal", 3, 0, out, progress=False, track=True)
     assert out.is_file() and out.with_suffix(".json").is_file()
@@ -63,3 +70,127 @@ def test_tracking_disabled_logs_nothing(paper_cfg, tmp_path):
     cfg = deep_merge(_cfg(paper_cfg, tmp_path), {"tracking": {"enabled": False}})
     assert log_job(cfg, "job/z", "rule", {}) is None
     assert not (tmp_path / "mlflow").exists()
+
+
+# ---- live runs (issue 17), pending runs (issue 18.3), permanent replacement (issue 18.8) ----------
+
+
+def _settings(paper_cfg, tmp_path, monkeypatch, source="workflow", **kw):
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    monkeypatch.setenv("MADPINN_TRACKING_SOURCE", source)
+    s = TrackingSettings.from_config(_cfg(paper_cfg, tmp_path))
+    return replace(s, **kw)
+
+
+def _all_runs(settings, job=None):
+    c = MlflowClient(settings.uri)
+    exp = c.get_experiment_by_name(settings.experiment)
+    runs = c.search_runs([exp.experiment_id], run_view_type=ViewType.ALL)
+    return [r for r in runs if job is None or r.data.tags["madpinn.job"] == job]
+
+
+def test_live_run_has_real_status_duration_and_step_curve(paper_cfg, tmp_path, monkeypatch):
+    s = _settings(paper_cfg, tmp_path, monkeypatch, flush_every_s=0.0)
+    out = tmp_path / "result.json"
+    with job_run(s, job_key="train/x", rule="train_x", params={"a": {"b": 2}}) as run:
+        c = MlflowClient(s.uri)
+        assert c.get_run(run.run_id).info.status == "RUNNING"      # open while the job runs
+        for step in range(1, 6):
+            time.sleep(0.02)
+            run.log_metrics({"loss": 1.0 / step}, step=step)
+        assert len(c.get_metric_history(run.run_id, "loss")) == 5  # sent during the job (flush_every_s=0)
+        time.sleep(0.3)
+        out.write_text("{}")
+        run.finish(metrics={"final": 0.5}, artifacts=[out], models={"net": torch.nn.Linear(2, 1)})
+    info = c.get_run(run.run_id).info
+    assert info.status == "FINISHED" and info.end_time - info.start_time >= 400
+    hist = sorted(c.get_metric_history(run.run_id, "loss"), key=lambda m: m.step)
+    assert [m.step for m in hist] == [1, 2, 3, 4, 5] and len({m.timestamp for m in hist}) == 5
+    import mlflow.pytorch
+
+    net = mlflow.pytorch.load_model(f"runs:/{run.run_id}/net")
+    assert isinstance(net, torch.nn.Linear)
+    assert c.get_run(run.run_id).data.params["a.b"] == "2"
+
+
+def test_failed_and_killed_jobs_close_their_runs_with_that_status(paper_cfg, tmp_path, monkeypatch):
+    s = _settings(paper_cfg, tmp_path, monkeypatch)
+    with pytest.raises(ValueError):
+        with job_run(s, job_key="job/fail", rule="r") as failed:
+            raise ValueError("diverged")
+    with pytest.raises(JobKilled):
+        with job_run(s, job_key="job/kill", rule="r") as killed:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)   # the handler interrupts this
+    c = MlflowClient(s.uri)
+    assert c.get_run(failed.run_id).info.status == "FAILED"
+    assert c.get_run(killed.run_id).info.status == "KILLED"
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL   # handler restored
+
+
+def test_rerun_leaves_exactly_one_run_counting_deleted_and_manual_runs_apart(paper_cfg, tmp_path, monkeypatch):
+    art = tmp_path / "a.json"
+    art.write_text("{}")
+    wf = _settings(paper_cfg, tmp_path, monkeypatch, source="workflow")
+    first = log_job(wf, "evaluate/x", "evaluate", {}, artifacts=[art])
+    first_artifacts = Path(MlflowClient(wf.uri).get_run(first).info.artifact_uri.removeprefix("file://"))
+    assert (first_artifacts / "a.json").is_file()
+    for _ in range(2):
+        log_job(wf, "evaluate/x", "evaluate", {}, artifacts=[art])
+    manual = replace(wf, source="manual")
+    for _ in range(2):
+        log_job(manual, "evaluate/x", "evaluate", {}, artifacts=[art])
+    runs = _all_runs(wf, "evaluate/x")     # ViewType.ALL: soft-deleted runs would count
+    assert sorted(r.data.tags["madpinn.source"] for r in runs) == ["manual", "workflow"]
+    assert all(r.info.lifecycle_stage == "active" for r in runs)
+    assert not first_artifacts.exists()    # purged with its artifacts, as `mlflow gc` does
+
+
+def test_store_failure_mid_job_keeps_results_and_is_logged_exactly_once_later(paper_cfg, tmp_path, monkeypatch):
+    good = _settings(paper_cfg, tmp_path, monkeypatch)
+    init_store(good)
+    down = replace(good, uri="http://127.0.0.1:9")
+    out = tmp_path / "model.csv"
+    with job_run(down, job_key="train/y", rule="train_y", params={"p": 1}) as run:
+        for step in range(3):
+            run.log_metrics({"loss": 3.0 - step}, step=step)
+            time.sleep(0.01)
+        out.write_text("loss\n1\n")                         # results first
+        run.finish(metrics={"final": 1.0}, artifacts=[out], models={"net": torch.nn.Linear(1, 1)})
+    assert out.is_file() and run.run_id is None
+    pending = pending_path(good, "train/y", "workflow")
+    rec = json.loads(pending.read_text())
+    assert rec["status"] == "FINISHED" and len(rec["metrics"]) == 4
+    assert flush_pending(good) == {"logged": 1, "dropped": 0, "failed": 0}
+    assert not pending.exists() and flush_pending(good)["logged"] == 0   # exactly once
+    (r,) = _all_runs(good, "train/y")
+    c = MlflowClient(good.uri)
+    assert r.info.status == "FINISHED" and r.info.start_time == rec["start_ms"] and r.info.end_time == rec["end_ms"]
+    assert [m.value for m in sorted(c.get_metric_history(r.info.run_id, "loss"), key=lambda m: m.step)] == [3.0, 2.0, 1.0]
+    assert {a.path for a in c.list_artifacts(r.info.run_id)} == {"model.csv", "net"}
+    # a later successful run of the job supersedes its pending record
+    with job_run(down, job_key="train/y", rule="train_y"):
+        pass
+    assert pending.exists()
+    newer = log_job(good, "train/y", "train_y", {})
+    assert not pending.exists() and flush_pending(good)["logged"] == 0
+    assert [r.info.run_id for r in _all_runs(good, "train/y")] == [newer]
+
+
+def test_check_store_is_read_only(paper_cfg, tmp_path, monkeypatch):
+    from madpinn.tracking import check_store
+
+    s = _settings(paper_cfg, tmp_path, monkeypatch)
+    check_store(s)
+    assert not (tmp_path / "mlflow").exists()
+    with pytest.raises(TrackingError, match="unreachable"):
+        check_store(replace(s, uri="http://127.0.0.1:9"))
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if not os.access(ro, os.W_OK):   # root ignores permissions
+            with pytest.raises(TrackingError, match="unreachable"):
+                check_store(replace(s, uri=f"sqlite:///{ro / 'sub' / 'mlflow.db'}"))
+    finally:
+        ro.chmod(0o700)

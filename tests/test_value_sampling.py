@@ -57,3 +57,22 @@ def test_invalid_conflict_sampling_is_rejected():
     cfg = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vhat": {"conflict_sampling": {"fraction": 2.0}}}})
     with pytest.raises(ConfigError, match="conflict_sampling"):
         validate_config(cfg)
+
+
+def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
+    import math
+
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.value_functions.sampling import ConflictSampling, place_pair_conflicts
+
+    system = PairSystem()
+    x = system.sample(4000, torch.Generator().manual_seed(101))
+    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSampling(0.0, 0.3), torch.Generator()), x)
+    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSampling(1.0, 0.3), torch.Generator().manual_seed(7))
+    assert torch.equal(out[:, 2:], x[:, 2:]) and out[:, :2].abs().max() <= system.p_range
+    unclipped = out[:, :2].abs().amax(-1) < system.p_range
+    # constant-velocity closest approach within [0, T] of the unclipped rows is inside the 0.3-m disk
+    p, v = out[unclipped, :2].double(), out[unclipped, 2:].double()
+    tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(0.0, system.horizon)
+    closest = torch.linalg.vector_norm(p + v * tau[:, None], dim=-1)
+    assert unclipped.sum() > 400 and bool((closest <= 0.3 + 1e-5).all()) and not math.isnan(float(closest.max()))

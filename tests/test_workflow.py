@@ -42,6 +42,12 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
     table = pd.read_csv(figs / "table_safety_scaling.csv")
     assert set(table["n_agents"]) == {3, 16}
     assert (table["n_seeds"] == 2).all()
+    oracle = table[table["run"] == "oracle"]
+    assert len(oracle) == 2 and (oracle["cost_mean"] > 0).all()
+    report = __import__("json").loads((figs / "reproduction.json").read_text())
+    assert set(report) == {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation",
+                           "table_update_ablation", "provenance"}
+    assert report["table_safety_scaling"]["madpinn"]["16"]["paper_safety"] == 0.983
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
     assert len(evals) == _expected_evaluations(smoke_cfg) and set(counts.values()) == {1}

@@ -19,8 +19,9 @@ from madpinn.commands.errors import debug_requested, run_reporting
 COMMAND_MODULES = [
     "madpinn.commands.setup",  # validate-config, tracking-init
     "madpinn.commands.evaluate",  # evaluate
-    "madpinn.commands.outputs",  # table, figure
-    "madpinn.commands.value_functions",  # train-value, validate-vs, validate-vhat, fig-value-heatmap
+    "madpinn.commands.outputs",  # table, figure, oracle, reproduction
+    "madpinn.commands.value_functions",  # train-value, validate-vs, validate-vhat, fig-value-heatmap, solve-vs-grid,
+    #                                     validate-vs-grid, verify-vhat, ship-models, install-shipped
     "madpinn.commands.mujoco",  # render-clip
     "madpinn.commands.safemarl",  # train-safemarl-nominal
     "madpinn.commands.defmarl",  # train-defmarl

@@ -1,7 +1,8 @@
 """``train-defmarl``: one DEF-MARL model (``methods.defmarl`` merged with a variant).
 
-Files first — checkpoint, learning-curve CSV, JSON summary — then one MLflow run with the
-learning curves, constraint-violation rates and z statistics as step metrics.
+One live MLflow run: learning curves, constraint-violation rates and z statistics logged per
+iteration as they happen; files first — checkpoint, learning-curve CSV, JSON summary — then the
+files and the actor (``mlflow.pytorch``).
 """
 
 from __future__ import annotations

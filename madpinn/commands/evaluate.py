@@ -6,10 +6,11 @@ from pathlib import Path
 from typing import Mapping
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models
-from madpinn.commands.finish import JobRecord, finish
+from madpinn.commands.finish import JobRecord, finish, job
 
-ECHO = ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "elapsed_s")
-LOGGED = ("safety_rate", "safe_scenarios", "cost", "elapsed_s", "policy_us_per_agent_step")
+ECHO = ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")
+LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg", "elapsed_s",
+          "policy_us_per_agent_step")
 
 
 def evaluate(
@@ -26,23 +27,26 @@ def evaluate(
     track: bool = True,
     echo: bool = False,
 ) -> dict:
-    """Run one cell, write its files, log them; return the summary."""
+    """Run one cell inside its live MLflow run (opened before the simulation), write its files,
+    log them; return the summary."""
     from madpinn.config import method_config
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     cs = CellSettings.from_config(cfg, study, run)
-    cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
-    files = write_cell(cell, out)
-    s = cell.summary
     method, mcfg = method_config(cfg, run)
-    backend = s["backend"]
-    finish(cfg, JobRecord(
-        job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate", artifacts=files,
+    backend = backend or cfg["sim"]["backend"]
+    record = JobRecord(
+        job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
         wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
-        params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][s["arena"]],
+        params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
                 "scenarios": cs.scenarios, "sim": cfg["sim"], "observation": cfg["observation"]},
-        metrics={**{k: s[k] for k in LOGGED}, **{f"policy_{k}": v for k, v in s.get("policy_stats", {}).items()}},
-    ), track, echo={k: s[k] for k in ECHO} if echo else None)
+    )
+    with job(cfg, record, track) as tracker:
+        cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
+        record.artifacts = write_cell(cell, out)
+        s = cell.summary
+        record.metrics = {**{k: s[k] for k in LOGGED}, **{f"policy_{k}": v for k, v in s.get("policy_stats", {}).items()}}
+        finish(tracker, record, echo={k: s[k] for k in ECHO} if echo else None)
     return s
 
 

@@ -1,15 +1,19 @@
-"""The one ending of every job: result files first, then one MLflow run (SPEC §11).
+"""The one ending of every job: result files first, then its MLflow run (SPEC §11).
 
-A job computes, writes its result files, and hands them here; tracking can never lose them
-because it runs only after they exist.
+A job opens its live MLflow run when it starts (:func:`job`: real start time, curves logged
+as they happen, closed with the job's real status — FINISHED, FAILED, KILLED), computes,
+writes its result files, and hands them to :func:`finish`, which checks they exist and only
+then logs them; tracking can never lose them (a store failure leaves a pending run, see
+:mod:`madpinn.tracking`).
 """
 
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 
 @dataclass
@@ -17,7 +21,7 @@ class JobRecord:
     """What one workflow job reports to MLflow."""
 
     job_key: str
-    """unique key of the job (its MLflow run replaces earlier runs with the same key)"""
+    """unique key of the job (its MLflow run replaces earlier runs with the same key and source)"""
     rule: str
     """workflow rule name (MLflow tag)"""
     artifacts: Sequence[str | Path] = ()
@@ -25,11 +29,13 @@ class JobRecord:
     wildcards: Mapping[str, Any] = field(default_factory=dict)
     """the rule's wildcards (MLflow tags)"""
     params: Mapping[str, Any] = field(default_factory=dict)
-    """settings the result depends on (flattened into MLflow params)"""
+    """settings the result depends on (flattened into MLflow params, logged when the run opens)"""
     metrics: Mapping[str, Any] = field(default_factory=dict)
-    """scalar results"""
-    step_metrics: Mapping[str, Sequence[float]] | None = None
-    """curves logged with their step index (learning curves)"""
+    """scalar results (logged at ``step``)"""
+    step: int = 0
+    """step index of the final metrics (iterations done, for training jobs)"""
+    models: Mapping[str, Any] = field(default_factory=dict)
+    """``torch.nn.Module`` s logged with the ``mlflow.pytorch`` flavour"""
 
 
 def write_json(path: str | Path, obj: Any) -> Path:
@@ -40,18 +46,26 @@ def write_json(path: str | Path, obj: Any) -> Path:
     return path
 
 
-def finish(cfg: Mapping, record: JobRecord, track: bool, echo: Any = None) -> int:
-    """End a job whose files are written: check they exist, log one MLflow run unless
-    ``track`` is false, print ``echo`` (JSON, or lines for a list of paths); return exit code 0."""
+@contextmanager
+def job(cfg: Mapping, record: JobRecord, track: bool) -> Iterator[Any]:
+    """The job's live MLflow run (:class:`madpinn.tracking.JobRun`; logs nothing when ``track``
+    is false or tracking is disabled): wrap the whole job in it, log curves with
+    ``run.log_metrics(..., step=i)``, end with :func:`finish`."""
+    from madpinn.tracking import job_run
+
+    with job_run(cfg, job_key=record.job_key, rule=record.rule, wildcards=dict(record.wildcards),
+                 params=dict(record.params), track=track) as run:
+        yield run
+
+
+def finish(run: Any, record: JobRecord, echo: Any = None) -> int:
+    """End a job whose files are written: check they exist, log metrics, files and models to
+    ``run`` (from :func:`job`), print ``echo`` (JSON, or lines for a list of paths); return 0."""
     missing = [str(p) for p in record.artifacts if not Path(p).exists()]
     if missing:
         raise FileNotFoundError(f"job {record.job_key} did not write {missing}")
-    if track:
-        from madpinn.tracking import log_job
-
-        log_job(cfg, job_key=record.job_key, rule=record.rule, wildcards=dict(record.wildcards),
-                params=dict(record.params), metrics=dict(record.metrics), artifacts=list(record.artifacts),
-                step_metrics=dict(record.step_metrics) if record.step_metrics else None)
+    run.finish(metrics=dict(record.metrics), artifacts=list(record.artifacts), models=dict(record.models),
+               step=record.step)
     if echo is not None:
         print("\n".join(map(str, echo)) if isinstance(echo, list) else json.dumps(echo))
     return 0

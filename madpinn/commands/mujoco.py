@@ -6,11 +6,10 @@ Without an offscreen GL context the command succeeds, writes its status JSON wit
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of
-from madpinn.commands.finish import JobRecord, finish, write_json
+from madpinn.commands.finish import JobRecord, finish, job, write_json
 
 
 def _render_clip(args) -> int:
@@ -24,15 +23,16 @@ def _render_clip(args) -> int:
     out = Path(args.out)
     clip = out.with_suffix(".gif")
     ok, detail = gl_context_available()
-    status = {"traj": str(traj), "rendered": ok, "detail": detail}
-    if ok:
-        render_clip(traj, clip, altitude=MujocoSettings.from_config(cfg["sim"].get("mujoco")).altitude)
-        status["clip"] = str(clip)
-    write_json(out, status)
-    print(json.dumps(status))
-    return finish(cfg, JobRecord(job_key=f"render_clip/{args.key or traj.stem}", rule="render_clip",
-                                 artifacts=[clip, out] if ok else [out],
-                                 wildcards={"traj": str(traj)}, params={"traj": str(traj)}), ok and not args.no_track)
+    record = JobRecord(job_key=f"render_clip/{args.key or traj.stem}", rule="render_clip",
+                       wildcards={"traj": str(traj)}, params={"traj": str(traj)})
+    with job(cfg, record, ok and not args.no_track) as run:
+        status = {"traj": str(traj), "rendered": ok, "detail": detail}
+        if ok:
+            render_clip(traj, clip, altitude=MujocoSettings.from_config(cfg["sim"].get("mujoco")).altitude)
+            status["clip"] = str(clip)
+        write_json(out, status)
+        record.artifacts = [clip, out] if ok else [out]
+        return finish(run, record, echo=status)
 
 
 def register(sub) -> None:

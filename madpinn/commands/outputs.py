@@ -1,36 +1,78 @@
-"""``table`` and ``figure``: paper tables and figures assembled from result files."""
+"""``table``, ``figure``, ``oracle`` and ``reproduction``: paper tables, figures, the cost lower
+bound and the reproduction report, assembled from result files."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of
-from madpinn.commands.finish import JobRecord, finish
+from madpinn.commands.finish import JobRecord, finish, job
 
 
 def _table(args) -> int:
     from madpinn.evaluation.tables import write_table
 
     cfg = config_of(args)
-    files = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir)
-    return finish(cfg, JobRecord(job_key=f"table/{args.name}", rule=args.name, artifacts=files,
-                                 params={"kind": args.kind, "inputs": len(args.inputs)}), not args.no_track, echo=list(files))
+    record = JobRecord(job_key=f"table/{args.name}", rule=args.name, params={"kind": args.kind, "inputs": len(args.inputs)})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = write_table(args.name, args.kind, args.inputs, cfg, args.out_dir, oracle_paths=args.oracle or ())
+        return finish(run, record, echo=list(record.artifacts))
 
 
 def _figure(args) -> int:
     cfg = config_of(args)
-    if args.name == "fig_cost_safety":
-        from madpinn.figures.cost_safety import plot_cost_safety
+    record = JobRecord(job_key=f"figure/{args.name}", rule=args.name, params={"inputs": len(args.inputs)})
+    with job(cfg, record, not args.no_track) as run:
+        if args.name == "fig_cost_safety":
+            from madpinn.figures.cost_safety import plot_cost_safety
 
-        files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name)
-    else:  # fig_trajectories (argparse restricts the choices)
-        from madpinn.evaluation.tables import label_of
-        from madpinn.figures.trajectories import plot_trajectories
+            files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name, oracle_paths=args.oracle or ())
+        else:  # fig_trajectories (argparse restricts the choices)
+            from madpinn.evaluation.tables import label_of
+            from madpinn.figures.trajectories import plot_trajectories
 
-        labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
-        files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
-    return finish(cfg, JobRecord(job_key=f"figure/{args.name}", rule=args.name, artifacts=files,
-                                 params={"inputs": len(args.inputs)}), not args.no_track, echo=list(files))
+            labels = [label_of(cfg, Path(p).parent.name) for p in args.inputs]
+            files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
+        record.artifacts = files
+        return finish(run, record, echo=list(files))
+
+
+def _oracle(args) -> int:
+    from madpinn.evaluation.oracle import OracleSettings, write_bounds
+    from madpinn.scenarios import Arena
+
+    cfg = config_of(args)
+    arena = Arena.from_config(cfg, args.arena)
+    settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
+                              dt=arena.episode_s / cfg["oracle"]["steps"])
+    print(write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"], settings))
+    return 0
+
+
+def _reproduction(args) -> int:
+    import pandas as pd
+
+    from madpinn.config import ConfigError
+    from madpinn.evaluation.reproduction import write_report
+    from madpinn.tracking.mlflow_store import git_commit
+
+    cfg = config_of(args)
+    study_of = {}
+    for kv in args.tables:   # table name -> study
+        name, sep, study = kv.partition("=")
+        if not sep or not name or not study:
+            raise ConfigError(f"--tables expects NAME=STUDY, got '{kv}'")
+        study_of[name] = study
+    by_study: dict[str, list[str]] = {}
+    for p in args.inputs:
+        for study in pd.read_parquet(p, columns=["study"])["study"].unique():
+            by_study.setdefault(str(study), []).append(p)
+    tables = {name: by_study[study] for name, study in study_of.items() if study in by_study}
+    record = JobRecord(job_key="report/reproduction", rule="reproduction_report", params={"tables": sorted(tables)})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = write_report(args.out_dir, tables, cfg, oracle_paths=args.oracle or (),
+                                        model_paths=args.models or (), commit=git_commit())
+        return finish(run, record, echo=list(record.artifacts))
 
 
 def register(sub) -> None:
@@ -39,14 +81,35 @@ def register(sub) -> None:
     p.add_argument("--name", required=True)
     p.add_argument("--kind", required=True, choices=["safety_by_n", "summary"])
     p.add_argument("--inputs", nargs="+", required=True)
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files: adds the lower-bound rows")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table)
+
+    p = sub.add_parser("reproduction", help="reproduction report: every table beside the paper's values")
+    add_config_arg(p)
+    p.add_argument("--tables", nargs="+", required=True, help="NAME=STUDY pairs")
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of those studies")
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (oracle rows)")
+    p.add_argument("--models", nargs="*", default=None, help="model files whose sha256 the provenance lists")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_reproduction)
+
+    p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
+    add_config_arg(p)
+    p.add_argument("--arena", required=True)
+    p.add_argument("--n-agents", type=int, required=True)
+    p.add_argument("--seed", type=int, required=True)
+    p.add_argument("--scenarios", type=int, required=True)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=_oracle)
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")
     add_config_arg(p)
     p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories"])
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
+    p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_figure)

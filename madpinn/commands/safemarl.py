@@ -1,8 +1,8 @@
 """``train-safemarl-nominal``: SafeMARL's nominal goal-reaching PPO policy (small arena).
 
 Config: ``methods.safemarl.nominal`` (arena, agent counts, seed, env, network, reward, ppo).
-Files first — checkpoint, learning curve CSV, JSON summary — then one MLflow run with the
-learning curves as step metrics.
+One live MLflow run: learning curves logged per iteration as they happen; files first —
+checkpoint, learning curve CSV, JSON summary — then the files and the actor (``mlflow.pytorch``).
 """
 
 from __future__ import annotations

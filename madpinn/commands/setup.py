@@ -15,12 +15,12 @@ def _validate(args) -> int:
 
 
 def _tracking_init(args) -> int:
-    from madpinn.tracking import init_store
+    from madpinn.tracking import TrackingSettings, init_store
 
-    cfg = config_of(args)
-    info = {"enabled": bool(cfg["tracking"]["enabled"])}
-    if info["enabled"]:
-        info.update(init_store(cfg))
+    settings = TrackingSettings.from_config(config_of(args))
+    info = {"enabled": settings.enabled}
+    if settings.enabled:
+        info.update(init_store(settings))
     write_json(args.out, info)
     print(json.dumps(info))
     return 0

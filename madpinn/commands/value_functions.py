@@ -3,7 +3,13 @@
 - ``train-value --kind vhat|vs``: train (resumable), write the model, loss CSV/figure, MLflow run;
 - ``validate-vs``: rollout verification JSON + V_s slices figure;
 - ``validate-vhat``: held-out HJB residual statistics JSON;
-- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png).
+- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png);
+- ``solve-vs-grid``: the hj_reachability grid reference of V_s (.npz) with its convergence check;
+- ``validate-vs-grid``: V_s against the grid reference (JSON + zero-level-set figure);
+- ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states);
+- ``ship-models`` / ``install-shipped``: ``models/`` + ``manifest.json``; sha256-checked install.
+
+Every job but the last two runs in one live MLflow run (:mod:`madpinn.commands.finish`).
 """
 
 from __future__ import annotations
@@ -12,10 +18,12 @@ import json
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models, single_model
-from madpinn.commands.finish import JobRecord, finish, write_json
+from madpinn.commands.finish import JobRecord, finish, job, write_json
 
 KINDS = ("vhat", "vs")
 """value functions: V̂ (epigraph PINN) and V_s (pairwise safety)"""
+LIVE_POINTS = 1000
+"""training curves: at most this many live MLflow points per run"""
 
 
 def _setup(cfg: dict, threads: int | None):
@@ -23,19 +31,6 @@ def _setup(cfg: dict, threads: int | None):
 
     seed_everything(int(cfg["value_functions"]["seed"]), threads or int(cfg["value_functions"]["threads"]))
     return resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
-
-
-def decimate(history, points: int = 5000) -> list[float]:
-    """Window means of the per-iteration loss (≤ ``points`` values) for MLflow step metrics."""
-    import numpy as np
-
-    h = np.asarray(history, dtype=float)
-    w = max(1, int(np.ceil(h.size / points)))
-    n = h.size // w
-    out = h[: n * w].reshape(n, w).mean(1).tolist()
-    if h.size > n * w:
-        out.append(float(h[n * w:].mean()))
-    return out
 
 
 def figure_of(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
@@ -46,16 +41,29 @@ def figure_of(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
 
 
 def _train(args) -> int:
+    from madpinn.value_functions.build import training_hash
+
+    cfg = config_of(args)
+    kind = args.kind
+    vcfg = cfg["value_functions"][kind]
+    record = JobRecord(job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
+                       params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
+                               "config_hash": training_hash(cfg, kind)})
+    with job(cfg, record, not args.no_track) as run:
+        return _train_job(cfg, kind, args, run, record)
+
+
+def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
+    """The training job inside its live run: the loss curve is logged as it trains (window means,
+    ≤ :data:`LIVE_POINTS` points)."""
     import numpy as np
 
     from madpinn.tracking.mlflow_store import git_commit
     from madpinn.value_functions import figures
-    from madpinn.value_functions.build import problem_from_config, training_hash
+    from madpinn.value_functions.build import problem_from_config
     from madpinn.value_functions.model import model_from_payload, model_payload, save_atomic
     from madpinn.value_functions.train import TrainSettings, fine_tune, residual_stats, train
 
-    cfg = config_of(args)
-    kind = args.kind
     device, dtype = _setup(cfg, args.threads)
     problem = problem_from_config(cfg, kind)
     vcfg = cfg["value_functions"][kind]
@@ -65,17 +73,22 @@ def _train(args) -> int:
         settings.init_from = str(models["init"])
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{kind}.ckpt.pt"
-    chash = training_hash(cfg, kind)
+    chash = record.params["config_hash"]
     progress = not args.no_progress
+    total = settings.iterations + int((vcfg.get("fine_tune") or {}).get("iterations", 0))
+    every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     net, info = train(problem, settings, ckpt, chash, device=device, dtype=dtype, progress=progress,
-                      stop_after=args.stop_after)
+                      stop_after=args.stop_after, on_iteration=run.curve("loss", every))
     if not info["completed"]:
+        run.log_params({"completed": False})
         print(f"{kind}: stopped after {info['iterations']} of {settings.iterations} iterations; checkpoint {ckpt}")
         return 0
     if vcfg.get("fine_tune"):
         net, info = fine_tune(problem, settings, net, info, vcfg["fine_tune"], out.with_name(f"{out.stem}_stage1.pt"),
-                              ckpt, chash, device, dtype, progress=progress, stop_after=args.stop_after)
+                              ckpt, chash, device, dtype, progress=progress, stop_after=args.stop_after,
+                              on_iteration=run.curve("loss", every, offset=info["iterations"]))
         if not info["completed"]:
+            run.log_params({"completed": False})
             return 0
     history = info["history"]
     meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
@@ -94,12 +107,11 @@ def _train(args) -> int:
     summary = {"kind": kind, "iterations": info["iterations"], "wall_s": info["wall_s"], "final_loss": meta["final_loss"],
                **meta["residual"]}
     write_json(stem.with_name(stem.name + "_train.json"), summary)
-    return finish(cfg, JobRecord(
-        job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind}, artifacts=artifacts,
-        params={"settings": meta["settings"], "config_hash": chash},
-        metrics={k: v for k, v in summary.items() if isinstance(v, (int, float))},
-        step_metrics={"loss": decimate(history)},
-    ), not args.no_track, echo=summary)
+    record.artifacts = artifacts
+    record.metrics = {k: v for k, v in summary.items() if isinstance(v, (int, float))}
+    record.step = info["iterations"]
+    record.models = {f"{kind}_network": net}
+    return finish(run, record, echo=summary)
 
 
 def _validate_vs(args) -> int:
@@ -107,19 +119,19 @@ def _validate_vs(args) -> int:
     from madpinn.value_functions.validation import vs_rollouts
 
     cfg = config_of(args)
-    device, dtype = _setup(cfg, args.threads)
-    vs = load_vs(single_model(args.model, "vs"), device=device, dtype=dtype)
-    val = cfg["value_functions"]["vs"]["validation"]
-    stats = vs_rollouts(vs, int(val["rollout_samples"]), float(val["rollout_dt"]), seed=int(cfg["value_functions"]["seed"]))
-    stats["target_false_safe_rate"] = 0.01
-    stats["model_iterations"] = vs.meta.get("iterations")
-    stats["residual"] = vs.meta.get("residual")
-    out = write_json(args.out, stats)
-    figs = figure_of(vs, cfg, "vs", Path(args.fig_stem))
-    return finish(cfg, JobRecord(
-        job_key="validate/vs", rule="validate_vs", artifacts=[out, *figs],
-        metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))},
-    ), not args.no_track, echo={k: stats[k] for k in ("false_safe_rate", "mean_abs_error", "predicted_safe_fraction")})
+    record = JobRecord(job_key="validate/vs", rule="validate_vs")
+    with job(cfg, record, not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        vs = load_vs(single_model(args.model, "vs"), device=device, dtype=dtype)
+        val = cfg["value_functions"]["vs"]["validation"]
+        stats = vs_rollouts(vs, int(val["rollout_samples"]), float(val["rollout_dt"]), seed=int(cfg["value_functions"]["seed"]))
+        stats["target_false_safe_rate"] = 0.01
+        stats["model_iterations"] = vs.meta.get("iterations")
+        stats["residual"] = vs.meta.get("residual")
+        out = write_json(args.out, stats)
+        record.artifacts = [out, *figure_of(vs, cfg, "vs", Path(args.fig_stem))]
+        record.metrics = {k: v for k, v in stats.items() if isinstance(v, (int, float))}
+        return finish(run, record, echo={k: stats[k] for k in ("false_safe_rate", "mean_abs_error", "predicted_safe_fraction")})
 
 
 def _validate_vhat(args) -> int:
@@ -127,27 +139,118 @@ def _validate_vhat(args) -> int:
     from madpinn.value_functions.train import residual_stats
 
     cfg = config_of(args)
-    device, dtype = _setup(cfg, args.threads)
-    vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
-    samples = int(cfg["value_functions"]["vhat"]["validation"]["samples"])
-    stats = residual_stats(vhat.problem, vhat, samples, seed=int(cfg["value_functions"]["seed"]) + 1)
-    stats.update({"model_iterations": vhat.meta.get("iterations"), "z_max": vhat.z_max, "horizon": vhat.horizon})
-    out = write_json(args.out, stats)
-    return finish(cfg, JobRecord(
-        job_key="validate/vhat", rule="validate_vhat", artifacts=[out],
-        metrics={k: v for k, v in stats.items() if isinstance(v, (int, float))},
-    ), not args.no_track, echo=stats)
+    record = JobRecord(job_key="validate/vhat", rule="validate_vhat")
+    with job(cfg, record, not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
+        samples = int(cfg["value_functions"]["vhat"]["validation"]["samples"])
+        stats = residual_stats(vhat.problem, vhat, samples, seed=int(cfg["value_functions"]["seed"]) + 1)
+        stats.update({"model_iterations": vhat.meta.get("iterations"), "z_max": vhat.z_max, "horizon": vhat.horizon})
+        record.artifacts = [write_json(args.out, stats)]
+        record.metrics = {k: v for k, v in stats.items() if isinstance(v, (int, float))}
+        return finish(run, record, echo=stats)
 
 
 def _heatmap(args) -> int:
     from madpinn.value_functions import load_vhat
 
     cfg = config_of(args)
-    device, dtype = _setup(cfg, args.threads)
-    vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
-    files = figure_of(vhat, cfg, "vhat", Path(args.out_stem))
-    return finish(cfg, JobRecord(job_key="figure/fig_value_heatmap", rule="fig_value_heatmap", artifacts=files),
-                  not args.no_track, echo=list(files))
+    record = JobRecord(job_key="figure/fig_value_heatmap", rule="fig_value_heatmap")
+    with job(cfg, record, not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
+        record.artifacts = figure_of(vhat, cfg, "vhat", Path(args.out_stem))
+        return finish(run, record, echo=list(record.artifacts))
+
+
+def _solve_vs_grid(args) -> int:
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.value_functions.grid_reference import GridSettings, save_solution, solve_reference
+
+    cfg = config_of(args)
+    record = JobRecord(job_key="validate/vs_grid_solution", rule="solve_vs_grid")
+    with job(cfg, record, not args.no_track) as run:
+        system = PairSystem.from_config(cfg)
+        settings = GridSettings.from_dict(cfg["value_functions"]["vs"]["validation"]["grid"])
+        fine, coarse, conv = solve_reference(system, settings, progress=not args.no_progress)
+        extra = {"convergence": conv, "coarse_nodes": coarse.meta["nodes"], "wall_s_coarse": coarse.wall_s}
+        save_solution(args.out, fine, system, settings, extra)
+        record.metrics = {"nodes": settings.nodes, "wall_s": fine.wall_s, "wall_s_coarse": coarse.wall_s,
+                          **{f"coarse_mae_t{t}": m["mae"] for t, m in conv.items()}}
+        return finish(run, record, echo=dict(record.metrics))
+
+
+def _validate_vs_grid(args) -> int:
+    import torch
+
+    from madpinn.value_functions import figures, load_vs
+    from madpinn.value_functions.grid_reference import compare_vs, load_solution
+
+    cfg = config_of(args)
+    record = JobRecord(job_key="validate/vs_grid", rule="validate_vs_grid")
+    with job(cfg, record, not args.no_track) as run:
+        _setup(cfg, args.threads)
+        vs = load_vs(single_model(args.model, "vs"), dtype=torch.float64)
+        solution, header = load_solution(args.grid)
+        report = compare_vs(vs, solution, header)
+        out = write_json(args.out, report)
+        figs = figures.vs_grid_figure(solution, vs, (-3.0, 0.0), Path(args.fig_stem))
+        record.artifacts = [out, *figs]
+        record.metrics = {f"{k}_t{t}": m[k] for t, m in report["vs_vs_grid"].items() for k in ("mae", "unsafe_called_safe")}
+        return finish(run, record, echo={"meets_target": report["meets_target"], **record.metrics})
+
+
+def _verify_vhat(args) -> int:
+    from madpinn.value_functions import load_vhat
+    from madpinn.value_functions.verification import ScenarioSettings, verify
+
+    cfg = config_of(args)
+    record = JobRecord(job_key="validate/vhat_scenario", rule="verify_vhat")
+    with job(cfg, record, not args.no_track) as run:
+        device, dtype = _setup(cfg, args.threads)
+        settings = ScenarioSettings.from_dict(cfg["value_functions"]["vhat"]["validation"]["scenario"])
+        model = single_model(args.model, "vhat")
+        vhat = load_vhat(model, device=device, dtype=dtype)
+        report = {"model": str(model), "model_iterations": vhat.meta.get("iterations"),
+                  "model_config_hash": vhat.meta.get("config_hash"), "horizon": vhat.horizon,
+                  "uniform": verify(vhat, settings, conflict=False), "conflict": verify(vhat, settings, conflict=True)}
+        record.artifacts = [write_json(args.out, report)]
+        record.metrics = {f"{d}_{k}_rate": report[d][k]["rate"] for d in ("uniform", "conflict") for k in ("safety", "any")}
+        return finish(run, record, echo=dict(record.metrics))
+
+
+def _pairs(items: list[str] | None, what: str) -> dict[str, list[str]]:
+    """``["a=x", "a=y", "b=z"]`` -> ``{"a": ["x", "y"], "b": ["z"]}`` (repeatable NAME=PATH options)."""
+    from madpinn.config import ConfigError
+
+    out: dict[str, list[str]] = {}
+    for item in items or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise ConfigError(f"{what} expects NAME=PATH, got '{item}'")
+        out.setdefault(name, []).append(path)
+    return out
+
+
+def _ship_models(args) -> int:
+    from madpinn.value_functions.shipping import ship
+
+    from madpinn.config import ConfigError
+
+    models = {k: str(p) for k, p in parse_models(args.model).items()}
+    if not models:
+        raise ConfigError("pass at least one --model NAME=PATH")
+    manifest = ship(models, args.out_dir, _pairs(args.validation, "--validation"), device=args.device)
+    print(json.dumps({k: {f: e[f] for f in ("sha256", "bytes", "iterations", "samples")}
+                      for k, e in manifest["models"].items()}, indent=2))
+    return 0
+
+
+def _install_shipped(args) -> int:
+    from madpinn.value_functions.shipping import install
+
+    print(install(args.dir, args.name, args.out))
+    return 0
 
 
 def register(sub) -> None:
@@ -180,3 +283,34 @@ def register(sub) -> None:
     common(p, "vhat")
     p.add_argument("--out-stem", required=True, help="figure path without extension (.pdf and .png written)")
     p.set_defaults(func=_heatmap)
+
+    p = sub.add_parser("solve-vs-grid", help="grid reference of V_s (hj_reachability) with its convergence check")
+    add_config_arg(p)
+    add_job_args(p, threads_default=None)
+    p.add_argument("--out", required=True, help="solution file (.npz)")
+    p.set_defaults(func=_solve_vs_grid)
+
+    p = sub.add_parser("validate-vs-grid", help="V_s against the grid reference: MAE, sign agreement, false safe")
+    common(p, "vs")
+    p.add_argument("--grid", required=True, help="solution file of solve-vs-grid (.npz)")
+    p.add_argument("--out", required=True, help="JSON report")
+    p.add_argument("--fig-stem", required=True, help="figure path without extension (.pdf and .png written)")
+    p.set_defaults(func=_validate_vs_grid)
+
+    p = sub.add_parser("verify-vhat", help="scenario-based (ε, β) verification of V̂ in the exact 3-agent dynamics")
+    common(p, "vhat")
+    p.add_argument("--out", required=True, help="JSON report")
+    p.set_defaults(func=_verify_vhat)
+
+    p = sub.add_parser("ship-models", help="copy trained models into models/ and record them in models/manifest.json")
+    add_model_arg(p, ("vs", "vhat", "safemarl_nominal", "defmarl_<variant>", "..."))
+    p.add_argument("--validation", action="append", help="NAME=JSON report stored with the entry (repeatable)")
+    p.add_argument("--out-dir", default="models", help="shipped-models directory (default models/)")
+    p.add_argument("--device", default=None, help="device the models were trained on, when the checkpoint does not say")
+    p.set_defaults(func=_ship_models)
+
+    p = sub.add_parser("install-shipped", help="copy a shipped model to OUT after checking its sha256")
+    p.add_argument("--dir", default="models", help="shipped-models directory with manifest.json")
+    p.add_argument("--name", required=True, help="model name in the manifest (vs, vhat, safemarl_nominal, ...)")
+    p.add_argument("--out", required=True, help="destination, e.g. results/models/vs.pt")
+    p.set_defaults(func=_install_shipped)

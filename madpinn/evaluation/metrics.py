@@ -1,8 +1,13 @@
 """Metrics of SPEC §3.
 
 Per scenario: safety rate (fraction of agents that never collide), whether the scenario is safe
-(no agent collides), mean cumulative cost over collision-free agents. Per seed: mean over
-scenarios (safe scenarios = fraction of safe scenarios). Tables: mean ± std across seeds.
+(no agent collides), mean cumulative cost over collision-free agents (the paper's definition)
+and over all agents (SPEC §3 caveat), each also divided by the episode length T (the
+time-averaged cost, the quantity the paper's cost figures match). Per seed: mean over scenarios
+(safe scenarios = fraction of safe scenarios). Tables: mean ± std across seeds.
+
+Result files written before the time-averaged columns existed still load: their missing figures
+are NaN.
 """
 
 from __future__ import annotations
@@ -12,7 +17,10 @@ import pandas as pd
 
 from madpinn.simulation.recorder import EpisodeResult
 
-SEED_METRICS = ("safety_rate", "safe_scenarios", "cost")
+SEED_METRICS = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg")
+# seed figure -> per-scenario column it averages (costs: NaN-aware mean over scenarios)
+COST_COLUMNS = {"cost": "cost_safe_mean", "cost_time_avg": "cost_safe_time_avg",
+                "cost_all": "cost_all_mean", "cost_all_time_avg": "cost_all_time_avg"}
 
 
 def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFrame:
@@ -23,6 +31,7 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
     n_safe = safe_agents.sum(axis=1)
     cost_safe = np.where(safe_agents, result.cost, 0.0).sum(axis=1) / np.maximum(n_safe, 1)
     cost_safe = np.where(n_safe > 0, cost_safe, np.nan)
+    episode_s = result.n_steps * result.dt   # T (s)
     return pd.DataFrame(
         {
             "scenario": np.arange(first_index, first_index + S),
@@ -32,6 +41,9 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
             "safe": ~collided.any(axis=1),
             "cost_safe_mean": cost_safe,
             "cost_all_mean": result.cost.mean(axis=1),
+            "episode_s": episode_s,
+            "cost_safe_time_avg": cost_safe / episode_s,
+            "cost_all_time_avg": result.cost.mean(axis=1) / episode_s,
             "final_distance_mean": result.final_distance.mean(axis=1),
             "min_separation": result.min_separation.min(axis=1),
         }
@@ -40,13 +52,12 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
 
 def seed_summary(df: pd.DataFrame) -> dict:
     """Aggregate one seed's scenario rows into the reported figures."""
-    cost = df["cost_safe_mean"].to_numpy(dtype=float)
-    return {
-        "safety_rate": float(df["safety_rate"].mean()),
-        "safe_scenarios": float(df["safe"].mean()),
-        "cost": float(np.nanmean(cost)) if np.isfinite(cost).any() else float("nan"),
-        "n_scenarios": int(len(df)),
-    }
+    out = {"safety_rate": float(df["safety_rate"].mean()), "safe_scenarios": float(df["safe"].mean())}
+    for name, col in COST_COLUMNS.items():
+        vals = df[col].to_numpy(dtype=float) if col in df else np.full(len(df), np.nan)
+        out[name] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+    out["n_scenarios"] = int(len(df))
+    return out
 
 
 def across_seeds(per_seed: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -57,7 +68,7 @@ def across_seeds(per_seed: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
         row = dict(zip(keys, group))
         row["n_seeds"] = int(len(g))
         for m in SEED_METRICS:
-            vals = g[m].to_numpy(dtype=float)
+            vals = g[m].to_numpy(dtype=float) if m in g else np.full(len(g), np.nan)   # older result files
             row[f"{m}_mean"] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
             row[f"{m}_std"] = float(np.nanstd(vals, ddof=1)) if np.isfinite(vals).sum() > 1 else 0.0
         rows.append(row)

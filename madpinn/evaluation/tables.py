@@ -2,10 +2,17 @@
 
 Kinds:
 - ``safety_by_n``: paper Table I layout — one row per run, for each agent count the safety
-  rate and the safe-scenario percentage (mean ± std over seeds).
-- ``summary``: one row per (run, N) — cumulative cost, safety rate, safe scenarios.
+  rate and the safe-scenario percentage, then both costs (mean ± std over seeds).
+- ``summary``: one row per (run, N) — time-averaged cost (the paper's figures), cumulative cost,
+  safety rate, safe scenarios (paper Tables II–IV).
 
-Each table is written as ``.csv`` (numeric mean/std columns), ``.md`` and ``.tex``.
+Both costs are the mean over collision-free agents (SPEC §3); "÷T" is the cumulative cost
+divided by the episode length T. Given oracle files (:mod:`madpinn.evaluation.oracle`), each
+table ends with an oracle row per agent count: the lone-agent cost lower bound on the same
+scenarios. Single-seed studies show the mean alone (no "± 0.00").
+
+Each table is written as ``.csv`` (numeric mean/std columns, oracle rows with run ``oracle``),
+``.md`` and ``.tex``.
 """
 
 from __future__ import annotations
@@ -19,6 +26,10 @@ from madpinn.config import method_config
 from madpinn.evaluation.metrics import across_seeds, seed_summary
 
 KINDS = ("safety_by_n", "summary")
+ORACLE_RUN, ORACLE_LABEL = "oracle", "Oracle (lone-agent lower bound)"
+# first-column header of the ``summary`` tables (what a row is), by table name
+ROW_HEADERS = {"table_update_ablation": "Update period k (steps)", "table_neighbour_ablation": "Neighbour selection"}
+COST_HEADER, CUM_HEADER = "Cost ÷T (time-avg.)", "Cumulative cost ∫ (m·s)"
 
 
 def load_results(paths: Iterable[str | Path]) -> pd.DataFrame:
@@ -47,6 +58,36 @@ def summarize(df: pd.DataFrame, cfg: dict) -> pd.DataFrame:
     return agg.sort_values(["_o", "n_agents"]).drop(columns="_o").reset_index(drop=True)
 
 
+def load_oracle(paths: Iterable[str | Path]) -> pd.DataFrame:
+    """Concatenated oracle cache files (rows per arena, N, seed, scenario)."""
+    paths = list(paths)
+    missing = [str(p) for p in paths if not Path(p).is_file()]
+    if missing:
+        raise FileNotFoundError(f"missing oracle files: {missing[:5]}{' …' if len(missing) > 5 else ''}")
+    return pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+
+
+def oracle_summary(oracle: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:
+    """Oracle figures on exactly the (N, seed, scenario) cells of ``results``, aggregated like a
+    run: mean over scenarios per seed, then mean ± std over seeds; one row per N (run ``oracle``).
+    Its safety columns are NaN (a lone agent has no one to collide with)."""
+    keys = ["n_agents", "seed", "scenario"]
+    cells = results[keys + (["arena"] if "arena" in results else [])].drop_duplicates()
+    on = keys + (["arena"] if "arena" in results and "arena" in oracle else [])
+    merged = cells.merge(oracle, on=on, how="left")
+    if merged["oracle_cost"].isna().any():
+        lack = merged[merged["oracle_cost"].isna()][keys].drop_duplicates().head(3).to_dict("records")
+        raise ValueError(f"oracle files lack scenarios of the results, e.g. {lack}")
+    seeds = merged.groupby(["n_agents", "seed"], as_index=False)[["oracle_cost", "oracle_cost_time_avg"]].mean()
+    seeds = seeds.rename(columns={"oracle_cost": "cost", "oracle_cost_time_avg": "cost_time_avg"})
+    seeds["run"] = ORACLE_RUN
+    for m in ("safety_rate", "safe_scenarios", "cost_all", "cost_all_time_avg"):
+        seeds[m] = float("nan")
+    agg = across_seeds(seeds, ["run", "n_agents"])
+    agg.insert(1, "label", ORACLE_LABEL)
+    return agg
+
+
 def label_of(cfg: dict, run: str) -> str:
     try:
         return method_config(cfg, run)[1].get("label", run)
@@ -54,15 +95,27 @@ def label_of(cfg: dict, run: str) -> str:
         return run
 
 
-def _pct(mean: float, std: float) -> str:
-    return f"{100 * mean:.1f}% ± {100 * std:.1f}%"
+def _pct(mean: float, std: float, n_seeds: int = 2) -> str:
+    if pd.isna(mean):
+        return "–"
+    return f"{100 * mean:.1f}%" if n_seeds < 2 else f"{100 * mean:.1f}% ± {100 * std:.1f}%"
 
 
-def _cost(mean: float, std: float) -> str:
-    return "n/a" if pd.isna(mean) else f"{mean:.2f} ± {std:.2f}"
+def _cost(mean: float, std: float, n_seeds: int = 2) -> str:
+    if pd.isna(mean):
+        return "n/a"
+    return f"{mean:.2f}" if n_seeds < 2 else f"{mean:.2f} ± {std:.2f}"
 
 
-def format_table(agg: pd.DataFrame, kind: str) -> pd.DataFrame:
+def _fmt(r, metric: str) -> str:
+    f = _pct if metric in ("safety_rate", "safe_scenarios") else _cost
+    return f(r[f"{metric}_mean"], r[f"{metric}_std"], int(r["n_seeds"]))
+
+
+def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd.DataFrame:
+    """Display table of ``agg`` (:func:`summarize`, oracle rows appended); ``row_header`` names
+    the first column of ``summary`` tables (e.g. "Update period k (steps)")."""
+    cols = (("safety_rate", "Safety"), ("safe_scenarios", "Safe Sc."), ("cost_time_avg", "Cost ÷T"), ("cost", "Cum. cost"))
     if kind == "safety_by_n":
         counts = sorted(agg["n_agents"].unique())
         rows = []
@@ -70,24 +123,21 @@ def format_table(agg: pd.DataFrame, kind: str) -> pd.DataFrame:
             row = {"Method": label}
             by_n = g.set_index("n_agents")
             for n in counts:
-                if n in by_n.index:
-                    r = by_n.loc[n]
-                    row[f"{n} agents · Safety"] = _pct(r["safety_rate_mean"], r["safety_rate_std"])
-                    row[f"{n} agents · Safe Sc."] = _pct(r["safe_scenarios_mean"], r["safe_scenarios_std"])
-                else:
-                    row[f"{n} agents · Safety"] = row[f"{n} agents · Safe Sc."] = "–"
+                for metric, head in cols:
+                    row[f"{n} agents · {head}"] = _fmt(by_n.loc[n], metric) if n in by_n.index else "–"
             rows.append(row)
         return pd.DataFrame(rows)
     if kind == "summary":
-        return pd.DataFrame(
-            {
-                "Method": agg["label"],
-                "Number of Agents": agg["n_agents"],
-                "Cumulative Cost": [_cost(m, s) for m, s in zip(agg["cost_mean"], agg["cost_std"])],
-                "Safety Rate": [_pct(m, s) for m, s in zip(agg["safety_rate_mean"], agg["safety_rate_std"])],
-                "Safe Scenarios": [_pct(m, s) for m, s in zip(agg["safe_scenarios_mean"], agg["safe_scenarios_std"])],
-            }
-        )
+        table = {row_header: agg["label"]}
+        if agg["n_agents"].nunique() > 1 or row_header == "Method":
+            table["Number of Agents"] = agg["n_agents"]
+        table.update({
+            COST_HEADER: [_fmt(r, "cost_time_avg") for _, r in agg.iterrows()],
+            CUM_HEADER: [_fmt(r, "cost") for _, r in agg.iterrows()],
+            "Safety Rate": [_fmt(r, "safety_rate") for _, r in agg.iterrows()],
+            "Safe Scenarios": [_fmt(r, "safe_scenarios") for _, r in agg.iterrows()],
+        })
+        return pd.DataFrame(table)
     raise ValueError(f"unknown table kind '{kind}' (have {KINDS})")
 
 
@@ -100,7 +150,11 @@ def to_markdown(table: pd.DataFrame) -> str:
 
 def to_latex(table: pd.DataFrame, caption: str) -> str:
     def esc(s) -> str:
-        return str(s).replace("%", r"\%").replace("±", r"$\pm$").replace("·", "--").replace("_", r"\_")
+        s = str(s).replace("%", r"\%").replace("±", r"$\pm$").replace("_", r"\_")
+        for a, b in (("÷", r"$\div$"), ("∫", r"$\int$"), ("‖", r"$\|$"), ("−", "-"), ("∞", r"$\infty$"),
+                     ("m·s", r"m$\cdot$s"), ("·", "--")):
+            s = s.replace(a, b)
+        return s
 
     cols = list(table.columns)
     spec = "l" + "c" * (len(cols) - 1)
@@ -112,14 +166,28 @@ def to_latex(table: pd.DataFrame, caption: str) -> str:
     )
 
 
-def write_table(name: str, kind: str, result_paths: Iterable[str | Path], cfg: dict, out_dir: str | Path) -> list[Path]:
-    agg = summarize(load_results(result_paths), cfg)
-    table = format_table(agg, kind)
+def table_data(result_paths: Iterable[str | Path], cfg: dict, oracle_paths: Iterable[str | Path] = ()) -> pd.DataFrame:
+    """:func:`summarize` of the result files, with the oracle rows appended when given."""
+    df = load_results(result_paths)
+    agg = summarize(df, cfg)
+    oracle_paths = list(oracle_paths)
+    if oracle_paths:
+        agg = pd.concat([agg, oracle_summary(load_oracle(oracle_paths), df)], ignore_index=True)
+    return agg
+
+
+def write_table(name: str, kind: str, result_paths: Iterable[str | Path], cfg: dict, out_dir: str | Path,
+                oracle_paths: Iterable[str | Path] = ()) -> list[Path]:
+    agg = table_data(result_paths, cfg, oracle_paths)
+    table = format_table(agg, kind, ROW_HEADERS.get(name, "Method"))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     csv, md, tex = (out_dir / f"{name}.{ext}" for ext in ("csv", "md", "tex"))
     agg.to_csv(csv, index=False)
     md.write_text(to_markdown(table))
-    caption = f"{name.replace('_', ' ')} (mean ± std over seeds; {cfg['experiment']})"
+    seeds = int(agg["n_seeds"].max())
+    spread = "mean ± std over seeds" if seeds > 1 else "one seed"
+    caption = (f"{name.replace('_', ' ')} ({spread}; {cfg['experiment']}). Costs over collision-free agents: "
+               f"Cost ÷T = cumulative cost ∫‖p−g‖dt + ‖p(T)−g‖ divided by the episode length T")
     tex.write_text(to_latex(table, caption))
     return [csv, md, tex]

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Sequence
+from typing import Callable, Sequence
 
 import torch
 from tqdm.auto import tqdm
@@ -169,13 +169,17 @@ class PPOTrainer:
         self.history.append(stats)
         return stats
 
-    def train(self, iterations: int | None = None, progress: bool = True, desc: str = "PPO") -> list[dict]:
+    def train(self, iterations: int | None = None, progress: bool = True, desc: str = "PPO",
+              on_iteration: Callable[[dict], None] | None = None) -> list[dict]:
+        """Run ``iterations`` steps; ``on_iteration(stats)`` after each (e.g. live curves)."""
         iterations = self.ppo.iterations if iterations is None else int(iterations)
         bar = tqdm(range(iterations), desc=desc, disable=not progress, mininterval=2.0)
         for _ in bar:
             s = self.step()
             if not math.isfinite(s["episode_return"]):
                 raise FloatingPointError(f"non-finite episode return at iteration {s['iteration']}")
+            if on_iteration is not None:
+                on_iteration(s)
             bar.set_postfix(N=s["n_agents"], ret=f"{s['episode_return']:.3f}", dist=f"{s['final_distance']:.3f}",
                             coll=f"{s['collision_rate']:.3f}")
         return self.history

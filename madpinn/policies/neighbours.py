@@ -15,7 +15,7 @@ Pruning (:func:`pair_scores`): since out-of-domain pairs score ``+∞`` by defin
 in-domain pairs need a network evaluation; they are found with cheap coordinate tests (an
 ``O(N²)`` boolean mask, no network work) and evaluated in one batch (chunked to bound memory).
 Every in-domain pair gets exactly the brute-force score and every other pair ``+∞`` in both
-paths, so the selections are identical. With the large-arena density (4 agents/m²) an agent has
+paths, so the selections are identical. At 256 agents in the large arena (4 agents/m²; 64 and 128 agents are 1 and 2/m²) an agent has
 about ``(2·p_range)² · 4 ≈ 64`` in-domain partners whatever N, so the network work per agent is
 constant instead of ``N − 1``.
 """

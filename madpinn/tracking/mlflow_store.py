@@ -1,33 +1,30 @@
-"""One MLflow run per workflow job, in one experiment per workflow configuration.
+"""The MLflow store: reachability, one experiment per configuration, replaying a run record, and
+permanent removal of replaced runs.
 
-- Store: ``MLFLOW_TRACKING_URI`` if set, else ``tracking.uri`` from the config, else an embedded
-  SQLite store ``mlflow/mlflow.db`` in the working directory (artifacts in ``mlflow/artifacts``).
+- :func:`check_store` is read-only (runs at every workflow start, dry runs included).
 - :func:`init_store` creates the store and the experiment once, before the fan-out (parallel
-  first writers race on SQLite schema creation), and fails early and clearly when a remote
-  server cannot be reached.
-- :func:`log_job` replaces any earlier run of the same job (tag ``madpinn.job``), retries on
-  transient errors (SQLite lock contention), and never raises: a tracking failure is reported
-  on stderr and the caller's result files stay the source of truth.
+  first writers race on SQLite schema creation).
+- :func:`purge_runs` deletes runs permanently on a store that allows it (SQLite and other
+  database stores: what ``mlflow gc --run-ids`` does — metadata and artifacts); a tracking
+  server only accepts soft deletes, so on a server run ``mlflow gc --backend-store-uri <its
+  store>`` there (docs: README, MLflow section).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import subprocess
-import sys
-import time
 from pathlib import Path
-from typing import Mapping, Sequence
 
-from madpinn.config import REPO_ROOT, config_hash
+from madpinn.config import REPO_ROOT
+from madpinn.tracking.settings import TrackingSettings
 
 JOB_TAG = "madpinn.job"
-DEFAULT_DIR = "mlflow"
+SOURCE_TAG = "madpinn.source"
 
 # Fail fast against an unreachable server instead of MLflow's minutes of exponential backoff.
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "2")
-os.environ.setdefault("MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR", "0.5")
+os.environ.setdefault("MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR", "1")   # an int in MLflow 3.17
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", "15")
 
 
@@ -35,69 +32,110 @@ class TrackingError(RuntimeError):
     """The tracking store cannot be used (e.g. unreachable server)."""
 
 
-def tracking_uri(cfg: Mapping) -> str:
-    env = os.environ.get("MLFLOW_TRACKING_URI")
-    if env:
-        return env
-    uri = (cfg.get("tracking") or {}).get("uri")
-    if uri:
-        return uri
-    return f"sqlite:///{Path.cwd() / DEFAULT_DIR / 'mlflow.db'}"
+def _sqlite_path(uri: str) -> Path | None:
+    return Path(uri[len("sqlite:///"):]) if uri.startswith("sqlite:///") else None
 
 
-def _artifact_location(uri: str, experiment: str) -> str | None:
-    if uri.startswith("sqlite:///"):
-        return (Path(uri[len("sqlite:///"):]).parent / "artifacts" / experiment).as_uri()
-    return None  # server decides
+def check_store(settings: TrackingSettings, timeout_s: float = 5.0) -> None:
+    """Raise :class:`TrackingError` if the store cannot be used; writes nothing.
 
-
-def _check_reachable(uri: str) -> None:
-    if not uri.startswith(("http://", "https://")):
+    Server: ``GET /health`` answers. SQLite: the database file is a readable and writable file,
+    or the nearest existing parent directory is writable (the store is created by tracking_init).
+    """
+    if not settings.enabled:
         return
-    import urllib.request
+    uri = settings.uri
+    fix = ("Start it, fix MLFLOW_TRACKING_URI / tracking.uri, or set tracking.enabled: false "
+           "to run without tracking.")
+    if settings.is_remote:
+        import urllib.request
 
-    try:
-        with urllib.request.urlopen(uri.rstrip("/") + "/health", timeout=10) as resp:
-            if resp.status >= 400:
-                raise TrackingError(f"MLflow server {uri} answered HTTP {resp.status}")
-    except TrackingError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - any transport failure means unreachable
-        raise TrackingError(
-            f"MLflow tracking server {uri} is unreachable ({exc}). Start it, fix MLFLOW_TRACKING_URI, "
-            f"or unset it to use the embedded store; set tracking.enabled: false to run without tracking."
-        ) from exc
+        try:
+            with urllib.request.urlopen(uri.rstrip("/") + "/health", timeout=timeout_s) as resp:
+                if resp.status >= 400:
+                    raise TrackingError(f"MLflow tracking server {uri} is unreachable (HTTP {resp.status}). {fix}")
+        except TrackingError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - any transport failure means unreachable
+            raise TrackingError(f"MLflow tracking server {uri} is unreachable ({exc}). {fix}") from exc
+        return
+    db = _sqlite_path(uri)
+    if db is None:
+        return   # other database URIs: checked by init_store when the workflow runs
+    if db.exists():
+        if not db.is_file() or not os.access(db, os.R_OK | os.W_OK):
+            raise TrackingError(f"MLflow store {db} is unreachable (not a readable and writable file). {fix}")
+        return
+    parent = db.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise TrackingError(f"MLflow store {db} is unreachable (cannot create it under {parent}). {fix}")
 
 
-def _client(uri: str):
+def client(settings: TrackingSettings):
     import mlflow
     from mlflow.tracking import MlflowClient
 
-    mlflow.set_tracking_uri(uri)
-    return MlflowClient(tracking_uri=uri)
+    mlflow.set_tracking_uri(settings.uri)
+    return MlflowClient(tracking_uri=settings.uri)
 
 
-def _get_or_create_experiment(client, name: str, uri: str) -> str:
-    exp = client.get_experiment_by_name(name)
+def _artifact_location(settings: TrackingSettings) -> str | None:
+    db = _sqlite_path(settings.uri)
+    return (db.parent / "artifacts" / settings.experiment).as_uri() if db else None   # a server decides itself
+
+
+def experiment_id(c, settings: TrackingSettings) -> str:
+    exp = c.get_experiment_by_name(settings.experiment)
     if exp is not None:
         if exp.lifecycle_stage == "deleted":
-            client.restore_experiment(exp.experiment_id)
+            c.restore_experiment(exp.experiment_id)
         return exp.experiment_id
-    return client.create_experiment(name, artifact_location=_artifact_location(uri, name))
+    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings))
 
 
-def init_store(cfg: Mapping) -> dict:
-    """Create the store and the configuration's experiment; return ``{uri, experiment, id}``."""
-    uri = tracking_uri(cfg)
-    _check_reachable(uri)
-    if uri.startswith("sqlite:///"):
-        Path(uri[len("sqlite:///"):]).parent.mkdir(parents=True, exist_ok=True)
+def init_store(settings: TrackingSettings) -> dict:
+    """Create the store and the configuration's experiment; return ``{uri, experiment, experiment_id}``."""
+    check_store(settings)
+    db = _sqlite_path(settings.uri)
+    if db is not None:
+        db.parent.mkdir(parents=True, exist_ok=True)
     try:
-        client = _client(uri)
-        exp_id = _get_or_create_experiment(client, cfg["experiment"], uri)
+        exp_id = experiment_id(client(settings), settings)
     except Exception as exc:  # noqa: BLE001
-        raise TrackingError(f"cannot initialise MLflow store {uri}: {exc}") from exc
-    return {"uri": uri, "experiment": cfg["experiment"], "experiment_id": exp_id}
+        raise TrackingError(f"cannot initialise MLflow store {settings.uri}: {exc}") from exc
+    return {"uri": settings.uri, "experiment": settings.experiment, "experiment_id": exp_id}
+
+
+def job_runs(c, exp_id: str, job_key: str, source: str) -> list:
+    """Every run of ``job_key`` from ``source`` (active and soft-deleted). Runs from before the
+    source tag existed count as workflow runs."""
+    from mlflow.entities import ViewType
+
+    key = job_key.replace("'", "\\'")
+    runs = c.search_runs([exp_id], filter_string=f"tags.`{JOB_TAG}` = '{key}'", run_view_type=ViewType.ALL,
+                         max_results=1000)
+    return [r for r in runs if r.data.tags.get(SOURCE_TAG, "workflow") == source]
+
+
+def purge_runs(c, settings: TrackingSettings, runs) -> None:
+    """Delete ``runs`` permanently where the store allows it (metadata and artifacts, as
+    ``mlflow gc --run-ids``), else soft-delete them (tracking server: ``mlflow gc`` there)."""
+    from mlflow.store.artifact.artifact_repository_registry import get_artifact_repository
+    from mlflow.tracking._tracking_service.utils import _get_store
+
+    store = _get_store(settings.uri)
+    hard = hasattr(store, "_hard_delete_run")
+    for run in runs:
+        if run.info.lifecycle_stage != "deleted":
+            c.delete_run(run.info.run_id)
+        if hard:
+            try:
+                get_artifact_repository(run.info.artifact_uri).delete_artifacts()
+            except Exception:  # noqa: BLE001 - no artifacts, or already gone (as mlflow gc)
+                pass
+            store._hard_delete_run(run.info.run_id)
 
 
 def git_commit() -> str:
@@ -112,85 +150,3 @@ def git_commit() -> str:
         return (sha or "unknown") + ("-dirty" if dirty else "")
     except Exception:  # noqa: BLE001
         return "unknown"
-
-
-def _flat(d: Mapping, prefix: str = "") -> dict:
-    out = {}
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, Mapping):
-            out.update(_flat(v, key + "."))
-        else:
-            out[key] = v
-    return out
-
-
-def _log_once(cfg, uri, job_key, tags, params, metrics, artifacts, step_metrics) -> str:
-    from mlflow.entities import Metric, Param, RunTag
-
-    client = _client(uri)
-    exp_id = _get_or_create_experiment(client, cfg["experiment"], uri)
-    for old in client.search_runs([exp_id], filter_string=f"tags.`{JOB_TAG}` = '{job_key}'", max_results=1000):
-        client.delete_run(old.info.run_id)
-    run = client.create_run(exp_id, run_name=job_key, tags={JOB_TAG: job_key, **tags})
-    run_id = run.info.run_id
-    try:
-        now = int(time.time() * 1000)
-        plist = [Param(k, str(v)[:6000]) for k, v in _flat(params).items()]
-        mlist = [Metric(k, float(v), now, 0) for k, v in metrics.items() if v is not None and math.isfinite(float(v))]
-        for name, values in (step_metrics or {}).items():
-            mlist += [Metric(name, float(v), now, i) for i, v in enumerate(values) if math.isfinite(float(v))]
-        for i in range(0, max(len(plist), len(mlist)), 500):
-            client.log_batch(run_id, metrics=mlist[i : i + 500], params=plist[i : i + 500], tags=[])
-        for path in artifacts:
-            if Path(path).is_file():
-                client.log_artifact(run_id, str(path))
-        client.set_terminated(run_id, "FINISHED")
-    except Exception:
-        client.set_terminated(run_id, "FAILED")
-        raise
-    return run_id
-
-
-def log_job(
-    cfg: Mapping,
-    job_key: str,
-    rule: str,
-    wildcards: Mapping[str, object],
-    params: Mapping | None = None,
-    metrics: Mapping[str, float] | None = None,
-    artifacts: Sequence[str | Path] = (),
-    step_metrics: Mapping[str, Sequence[float]] | None = None,
-    attempts: int | None = None,
-) -> str | None:
-    """Log one job as one run (replacing earlier runs of the same job). Never raises.
-
-    Retries cover SQLite lock contention between parallel jobs; an HTTP store is tried once
-    (MLflow's client already retries HTTP requests).
-    """
-    if not (cfg.get("tracking") or {}).get("enabled", True):
-        return None
-    uri = tracking_uri(cfg)
-    if attempts is None:
-        attempts = 1 if uri.startswith(("http://", "https://")) else 4
-    tags = {
-        "madpinn.rule": rule,
-        "madpinn.config_hash": config_hash(cfg),
-        "madpinn.experiment_config": cfg["experiment"],
-        "mlflow.source.git.commit": git_commit(),
-        **{f"wildcard.{k}": str(v) for k, v in wildcards.items()},
-    }
-    last = None
-    for attempt in range(attempts):
-        try:
-            return _log_once(cfg, uri, job_key, tags, params or {}, metrics or {}, artifacts, step_metrics)
-        except Exception as exc:  # noqa: BLE001
-            last = exc
-            if attempt + 1 < attempts:
-                time.sleep(0.5 * 2**attempt)
-    print(
-        f"WARNING: MLflow logging of job '{job_key}' to {uri} failed after {attempts} attempts: {last}. "
-        f"The job's result files are complete; re-run the job to log it.",
-        file=sys.stderr,
-    )
-    return None

@@ -16,7 +16,7 @@ def problem_from_config(cfg: dict, kind: str):
     if kind == "vhat":
         return EpigraphProblem(EpigraphSystem.from_config(cfg),
                                ConflictSampling.from_config(cfg["value_functions"]["vhat"]))
-    return PairProblem(PairSystem.from_config(cfg))
+    return PairProblem(PairSystem.from_config(cfg), ConflictSampling.from_config(cfg["value_functions"]["vs"]))
 
 
 def training_hash(cfg: dict, kind: str) -> str:

@@ -94,3 +94,28 @@ def validation_figure(model, kind: str, half_width: float, slice_velocities, ste
         return value_heatmap(axis, z_star, feasible, stem)
     axis, values = validation.vs_slices(model, slice_velocities)
     return vs_slices_figure(axis, values, slice_velocities, model.collision_radius, stem)
+
+
+def vs_grid_figure(solution, vs, velocity, stem: Path) -> list[Path]:
+    """Zero level sets of the grid reference (black) and of the PINN V_s (red, dashed) on the
+    relative-position plane at the relative velocity nearest ``velocity`` (m/s), one panel per time."""
+    import torch
+
+    iv = [int(np.argmin(np.abs(solution.v_axis - c))) for c in velocity]
+    p = solution.p_axis
+    yy, xx = np.meshgrid(p, p, indexing="ij")
+    x = np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, solution.v_axis[iv[0]]),
+                  np.full(xx.size, solution.v_axis[iv[1]])], -1)
+    k = len(solution.times)
+    fig, axes = plt.subplots(1, k, figsize=(3.0 * k, 3.1), squeeze=False)
+    for ax, t, ref in zip(axes[0], solution.times, solution.values):
+        pred = vs.value(torch.as_tensor(x, dtype=torch.float64), t=float(t)).double().cpu().numpy().reshape(yy.shape)
+        ax.contour(p, p, ref[:, :, iv[0], iv[1]].T, levels=[0.0], colors="k")
+        ax.contour(p, p, pred, levels=[0.0], colors="r", linestyles="--")
+        ax.set_title(f"t = {t:g} s")
+        ax.set_aspect("equal")
+        ax.set_xlabel("p_x (m)")
+    axes[0][0].set_ylabel("p_y (m)")
+    fig.suptitle(f"V_s = 0: grid (black) vs PINN (red), v = ({solution.v_axis[iv[0]]:.2f}, {solution.v_axis[iv[1]]:.2f}) m/s",
+                 fontsize=9)
+    return _save(fig, stem)

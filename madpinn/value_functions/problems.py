@@ -20,7 +20,7 @@ import torch
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.observation import ObservationSpec
-from madpinn.value_functions.sampling import ConflictSampling, place_conflicts
+from madpinn.value_functions.sampling import ConflictSampling, place_conflicts, place_pair_conflicts
 
 
 class PINNProblem:
@@ -125,14 +125,21 @@ class PairProblem(PINNProblem):
 
     kind = "vs"
 
-    def __init__(self, system: PairSystem):
+    def __init__(self, system: PairSystem, conflict: ConflictSampling | None = None):
         self.system = system
+        self.conflict = conflict or ConflictSampling()
         self.horizon = system.horizon
         hw = system.half_widths()
         super().__init__(torch.zeros_like(hw), hw)
 
     def sample_states(self, batch, generator, dtype):
         return self.system.sample(batch, generator, dtype)
+
+    def sample_training_states(self, batch, generator, dtype):
+        """Uniform states with ``conflict.fraction`` of them on near-collision courses
+        (:func:`madpinn.value_functions.sampling.place_pair_conflicts`)."""
+        s = self.sample_states(batch, generator, dtype)
+        return place_pair_conflicts(s, self.system.horizon, self.system.p_range, self.conflict, generator)
 
     def boundary_and_grad(self, s):
         return self.system.target_and_grad(s)

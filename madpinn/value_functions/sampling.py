@@ -72,3 +72,22 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     out[rows, cols] = pc[:, 0]
     out[rows, cols + 1] = pc[:, 1]
     return out
+
+
+def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampling: ConflictSampling,
+                         generator: torch.Generator) -> torch.Tensor:
+    """Return the relative pair states ``x [B, 4] = [p, v]`` with the first ``round(fraction·B)``
+    rows moved onto a near-collision course: ``p = −v·τ + d``, ``τ ~ U[0, T]``, ``d`` uniform in
+    the disk of radius ρ, clipped to ``|p| ≤ p_range`` (V_s's training domain). Velocities stay
+    uniform; ``fraction = 0`` returns ``x`` unchanged. Pure function of the generator state."""
+    m = int(round(sampling.fraction * x.shape[0]))
+    if m == 0:
+        return x
+    dtype, device = x.dtype, x.device
+    tau = horizon * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
+    out = x.clone()
+    out[:m, 0:2] = (-x[:m, 2:4] * tau[:, None] + d).clamp(-p_range, p_range)
+    return out

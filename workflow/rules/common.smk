@@ -56,9 +56,11 @@ def study_results(study):
 
 
 def run_models(wildcards):
-    """{name: path} of the trained files run ``wildcards.run`` loads (full run name first, then method)."""
+    """{name: path} of the trained files run ``wildcards.run`` loads (full run name first, then method).
+    Plain strings: a ``rules.X.output`` reference would pin the file's producer to rule X, and the
+    shipped overlay (workflow/configs/shipped.yaml) provides it by its install rule instead."""
     models = METHOD_MODELS.get(wildcards.run, METHOD_MODELS.get(wildcards.run.split("-")[0]))
-    return models(wildcards) if models else {}
+    return {k: str(v) for k, v in models(wildcards).items()} if models else {}
 
 
 def model_args(wildcards):
@@ -139,6 +141,7 @@ SOURCES = {
     "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
             "observation.py", "scenarios.py", "device.py", "settings.py"],
     "tables": ["evaluation", "figures"],
+    "oracle": ["evaluation/oracle.py", "scenarios.py"],
     "render": ["simulation"],
 }
 _SOURCE_HASHES = {}
@@ -235,3 +238,31 @@ def traj_inputs(wildcards=None):
 def run_labels(study):
     """Labels the tables and figures print for a study's runs (part of their params hash)."""
     return {run: method_config(config, run)[1].get("label", run) for run in config["studies"][study]["runs"]}
+
+
+# --- oracle (oracle.smk) and reproduction report (report.smk) helpers ---
+
+ORACLE_DIR = f"{RESULTS}/oracle"
+
+
+def oracle_scenarios(arena, n, seed):
+    """Scenarios 0..S-1 of (arena, N, seed) that any study evaluates (S: the largest count)."""
+    counts = [st["scenarios"] for st in config["studies"].values()
+              if st["arena"] == arena and int(n) in st["agent_counts"] and int(seed) in st["seeds"]]
+    if not counts:
+        raise ValueError(f"no study evaluates arena {arena}, N={n}, seed {seed}")
+    return max(counts)
+
+
+def oracle_inputs(study):
+    st = config["studies"][study]
+    return [f"{ORACLE_DIR}/{st['arena']}/n{n}_seed{seed}.parquet" for n in st["agent_counts"] for seed in st["seeds"]]
+
+
+def study_models(study):
+    """Model files the runs of a study load (for checksums in the report); plain strings, so that
+    the shipped overlay's install rule may provide them."""
+    from types import SimpleNamespace
+
+    return sorted({str(m) for run in config["studies"][study]["runs"]
+                   for m in run_models(SimpleNamespace(run=run)).values()})

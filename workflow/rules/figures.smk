@@ -9,6 +9,7 @@ if "main" in config["studies"]:
         input:
             tracking=TRACKING,
             results=study_results("main"),
+            oracle=oracle_inputs("main"),
         output:
             png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst", category="Figures"),
             pdf=f"{FIGURES}/fig_cost_safety.pdf",
@@ -26,7 +27,7 @@ if "main" in config["studies"]:
             f"{LOGS}/fig_cost_safety.log",
         shell:
             "python -m madpinn figure --config {params.config:q} --name fig_cost_safety --inputs {input.results:q}"
-            " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+            " --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
     EXTRA_TARGETS += expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS)
 

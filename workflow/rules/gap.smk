@@ -6,8 +6,8 @@ GAP = config["gap_decomposition"]
 
 rule gap_decomposition:
     input:
-        vhat=rules.train_vhat.output.model,
-        vs=rules.train_vs.output.model,
+        vhat=str(rules.train_vhat.output.model),
+        vs=str(rules.train_vs.output.model),
     output:
         csv=f"{RESULTS}/gap/decomposition.csv",
         md=f"{RESULTS}/gap/decomposition.md",

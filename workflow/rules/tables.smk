@@ -9,6 +9,7 @@ for _name, (_study, _kind) in TABLES.items():
         input:
             tracking=TRACKING,
             results=study_results(_study),
+            oracle=oracle_inputs(_study),
         output:
             csv=report(f"{FIGURES}/{_name}.csv", caption=f"../report/{_name}.rst", category="Tables"),
             md=f"{FIGURES}/{_name}.md",
@@ -29,7 +30,7 @@ for _name, (_study, _kind) in TABLES.items():
             f"{LOGS}/{_name}.log",
         shell:
             "python -m madpinn table --config {params.config:q} --name {params.name:q} --kind {params.kind:q}"
-            " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+            " --inputs {input.results:q} --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
 ALL_TARGETS = all_targets() + EXTRA_TARGETS

@@ -1,10 +1,46 @@
-# The MLflow store and this configuration's experiment are created once, before the fan-out:
-# parallel first writers race while creating a SQLite schema.
+# MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
+from madpinn.tracking import TrackingError, TrackingSettings, check_store
+
+# Jobs started by this workflow tag their runs madpinn.source=workflow; runs started by hand
+# (manual) never replace them.
+os.environ["MADPINN_TRACKING_SOURCE"] = "workflow"
+TRACKING_SETTINGS = TrackingSettings.from_config(config)
+
+# Every start, dry runs included, stops here when the store is unreachable (read-only check).
+try:
+    check_store(TRACKING_SETTINGS)
+except TrackingError as exc:
+    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
+    raise SystemExit(1)
+
+# Snakemake keeps one onstart handler: this one runs common.smk's (run lock, config.resolved.yaml)
+# first, then logs the runs whose logging failed during an earlier job, once, before any job
+# (onstart never runs on a dry run).
+_COMMON_ONSTART = workflow._onstart
+
+
+onstart:
+    _COMMON_ONSTART(log)
+    if TRACKING_SETTINGS.enabled and TRACKING_SETTINGS.pending_dir.is_dir():
+        from madpinn.tracking import flush_pending
+
+        counts = flush_pending(TRACKING_SETTINGS)
+        sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
+
+
+# The store and this configuration's experiment are created once, before the fan-out (parallel
+# first writers race while creating a SQLite schema); it reruns when the tracking URI changes.
+# Jobs take the marker as ancient(): a new store does not rerun finished jobs.
+TRACKING_STORE = TRACKING
+TRACKING = ancient(TRACKING_STORE)
+
+
 rule tracking_init:
     output:
-        TRACKING,
+        TRACKING_STORE,
     params:
         config=RESOLVED,
+        uri=TRACKING_SETTINGS.uri if TRACKING_SETTINGS.enabled else "disabled",
     resources:
         mem_mb=1000,
         runtime=10,

@@ -65,7 +65,7 @@ rule train_vs:
 rule validate_vs:
     input:
         tracking=TRACKING,
-        model=rules.train_vs.output.model,
+        model=str(rules.train_vs.output.model),  # str(): see run_models (shipped overlay)
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
         png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst", category="Value functions"),
@@ -91,7 +91,7 @@ rule validate_vs:
 rule validate_vhat:
     input:
         tracking=TRACKING,
-        model=rules.train_vhat.output.model,
+        model=str(rules.train_vhat.output.model),  # str(): see run_models (shipped overlay)
     output:
         report=f"{RESULTS}/validation/vhat_residuals.json",
     params:
@@ -114,7 +114,7 @@ rule validate_vhat:
 rule fig_value_heatmap:
     input:
         tracking=TRACKING,
-        model=rules.train_vhat.output.model,
+        model=str(rules.train_vhat.output.model),  # str(): see run_models (shipped overlay)
     output:
         png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
                    category="Value functions"),

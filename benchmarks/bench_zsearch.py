@@ -1,0 +1,134 @@
+"""V̂ evaluations per agent-step of the MAD-PINN z* search, warm vs cold, in closed-loop episodes.
+
+Real episodes on the double integrator (``sim.dt`` 2.5 ms, policy every step, value-based
+neighbours updated every 5 steps, ``z_tolerance`` 1e-3 as in config.yaml) for two cells:
+12 agents in the small arena (3 s) and 64 agents in the large arena (6 s), scenarios of a
+validation seed (default 100, never the protocol seeds 0–4).
+
+For each cell the episode runs twice, warm-started (:func:`madpinn.policies.z_search.warm_search`)
+and cold (the paper's bisection), and prints per agent-step: V̂ network rows (all, and with
+gradient; the cold search needs 1 + steps + 1 = 12), the warm hit rate, policy CPU time
+(process time, so other jobs on the machine do not count), and the episode outcomes of both
+runs (collided agents, mean cost). With ``--verify`` every warm step also runs the cold search on
+the same observations and counts answers that differ (index, feasibility), and how many of
+those rows have a V̂ that is not monotone in z between the two answers.
+
+    PYTHONPATH=$PWD python benchmarks/bench_zsearch.py --vhat results/models/vhat.pt --vs results/models/vs.pt --verify
+
+Last line: ``warm_vhat_evals_per_agent_step: X`` (mean over the cells).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.observation import ObservationSpec, build_observation
+from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
+from madpinn.policies.neighbours import make_selector
+from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search
+from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.simulation import run_episode
+from madpinn.simulation.backend import DoubleIntegratorBackend
+from madpinn.value_functions import load_vhat, load_vs
+
+SPEC = ObservationSpec()
+DT = 0.0025
+CELLS = {"small": (12, Arena("small", 1.0, 3.0)), "large": (64, Arena("large", 4.0, 6.0))}
+
+
+class VerifiedPolicy(MadPinnPolicy):
+    """Warm-started policy that also runs the cold search on every step's observations."""
+
+    def reset(self, state, goals):
+        super().reset(state, goals)
+        self.check = {"rows": 0, "index_diff": 0, "feasible_diff": 0, "diff_not_monotone": 0}
+
+    def act(self, state, goals, t):
+        u = super().act(state, goals, t)
+        S, N, _ = state.shape
+        obs = build_observation(state, goals, self.neighbours, self.spec).reshape(S * N, -1)
+        grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
+        cold, warm = cold_search(self.vhat, obs, grid), self.last_search
+        diff = (cold.index != warm.index).nonzero(as_tuple=True)[0]
+        self.check["rows"] += obs.shape[0]
+        self.check["index_diff"] += int(diff.numel())
+        self.check["feasible_diff"] += int((cold.feasible != warm.feasible).sum())
+        for i in diff.tolist():  # V̂ on the grid between the two answers: not non-increasing?
+            a, b = sorted((int(cold.index[i]), int(warm.index[i])))
+            idx = torch.arange(max(a - 1, 1), b + 1)
+            v = self.vhat.value(obs[i].expand(idx.numel(), -1), grid.z(idx, obs.dtype), 0.0)
+            self.check["diff_not_monotone"] += int(bool((v[1:] > v[:-1]).any()))
+        return u
+
+
+def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bool, verify: bool) -> dict:
+    starts, goals = generate_scenarios(arena, N, seed, scenarios, SPEC.collision_radius)
+    cls = VerifiedPolicy if (warm and verify) else MadPinnPolicy
+    pol = cls(vhat, make_selector("value", SPEC.n_neighbours, vs=vs), SPEC,
+              MadPinnSettings(warm_start=warm), DT)
+    t_search = time.process_time()
+    backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
+    # policy CPU time: run_episode times the policy in wall time; we take process time around it
+    steps = int(round(arena.episode_s / DT))
+    result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
+    cpu = time.process_time() - t_search
+    s = MadPinnPolicy.summarise_stats(pol.stats)
+    out = {"evals": s["vhat_evals_per_agent_step"], "grad_evals": s["vhat_grad_evals_per_agent_step"],
+           "hit": s["warm_hit_rate"], "infeasible": s["infeasible_fraction"],
+           "cpu_us_per_agent_step": 1e6 * cpu / (steps * scenarios * N),
+           "policy_wall_share": stats["policy_s"] / stats["wall_s"],
+           "collided_agents": int(result.collided.sum()), "cost": float(result.cost.mean()), "result": result}
+    if warm and verify:
+        out["check"] = pol.check
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--vhat", default="results/models/vhat.pt")
+    ap.add_argument("--vs", default="results/models/vs.pt")
+    ap.add_argument("--cells", nargs="+", default=["small", "large"], choices=sorted(CELLS))
+    ap.add_argument("--scenarios", type=int, nargs=2, default=[20, 2], metavar=("SMALL", "LARGE"))
+    ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
+    ap.add_argument("--episode-s", type=float, default=None, help="shorter episodes than the arenas' (s)")
+    ap.add_argument("--verify", action="store_true", help="also run the cold search at every warm step")
+    ap.add_argument("--threads", type=int, default=1)
+    args = ap.parse_args()
+    torch.set_num_threads(args.threads)
+    vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
+    print(f"models: {args.vhat} {args.vs}; torch threads {args.threads}; seed {args.seed}; CPU process time; "
+          f"episodes {args.episode_s or 'of the arenas'} s")
+    means = []
+    with torch.no_grad():
+        for name in args.cells:
+            N, arena = CELLS[name]
+            if args.episode_s:
+                arena = Arena(arena.name, arena.half_width, args.episode_s)
+            S = args.scenarios[0 if name == "small" else 1]
+            runs = {}
+            for warm in (True, False):
+                r = runs[warm] = run_cell(vhat, vs, N, arena, S, args.seed, warm, args.verify)
+                label = "warm" if warm else "cold"
+                print(f"{name:5s} N={N:3d} S={S:3d} {label}: vhat_evals/agent-step={r['evals']:6.3f} "
+                      f"(with grad {r['grad_evals']:.3f}) hit={r['hit']:.3f} infeasible={r['infeasible']:.3f} "
+                      f"episode_cpu={r['cpu_us_per_agent_step']:7.1f}us/agent-step policy_share={r['policy_wall_share']:.2f} "
+                      f"collided_agents={r['collided_agents']} cost={r['cost']:.6f}", flush=True)
+                if "check" in r:
+                    c = r["check"]
+                    print(f"      verify: {c['rows']} agent-steps, index differs {c['index_diff']} "
+                          f"(of which V̂ not monotone in between: {c['diff_not_monotone']}), "
+                          f"feasibility differs {c['feasible_diff']}", flush=True)
+                if warm:
+                    means.append(r["evals"])
+            a, b = runs[True]["result"], runs[False]["result"]
+            print(f"      warm vs cold episodes: same collision flags {bool((a.collided == b.collided).all())}, "
+                  f"max |cost difference| {abs(a.cost - b.cost).max():.2e} (mean cost {b.cost.mean():.4f})", flush=True)
+    print(f"warm_vhat_evals_per_agent_step: {sum(means) / len(means):.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,186 @@
+"""Reproduction report: every paper table, our mean ± std beside the paper's value.
+
+:func:`build_report` turns result files (and oracle cache files) into
+``{table: {run: {N: {safety, safety_std, safe_scenarios, safe_scenarios_std, cost, cost_std,
+cost_time_avg, cost_time_avg_std, cost_all, cost_all_time_avg, n_seeds, paper_safety,
+paper_safety_std, paper_safe_scenarios, paper_safe_scenarios_std, paper_cost}}}}`` plus
+``provenance`` (commit, config hash, sha256 of every model file) and per-table notes;
+:func:`write_report` writes it as ``reproduction.json`` and ``reproduction.md``.
+
+Paper values come from ``paper_values.yaml`` (one transcription, citing the .tex lines). The
+paper's costs are compared with our *time-averaged* cost (SPEC §3): "Δ cost" is ours ÷T minus the
+paper's. Oracle rows (run ``oracle``) carry only costs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import pandas as pd
+import yaml
+
+from madpinn.config import config_hash
+from madpinn.evaluation.tables import ORACLE_LABEL, ORACLE_RUN, load_results, oracle_summary, load_oracle, summarize
+
+PAPER_VALUES = Path(__file__).with_name("paper_values.yaml")
+_OURS = ("safety", "safety_std", "safe_scenarios", "safe_scenarios_std", "cost", "cost_std",
+         "cost_time_avg", "cost_time_avg_std", "cost_all", "cost_all_time_avg")
+_FROM_AGG = {"safety": "safety_rate_mean", "safety_std": "safety_rate_std", "safe_scenarios": "safe_scenarios_mean",
+             "safe_scenarios_std": "safe_scenarios_std", "cost": "cost_mean", "cost_std": "cost_std",
+             "cost_time_avg": "cost_time_avg_mean", "cost_time_avg_std": "cost_time_avg_std",
+             "cost_all": "cost_all_mean", "cost_all_time_avg": "cost_all_time_avg_mean"}
+
+
+def paper_values(path: str | Path = PAPER_VALUES) -> dict:
+    """``{table: {"note", "tex_lines", "runs": {run: {"label", "tex_line", "n": {N: {metric: value}}}}}}``."""
+    raw = yaml.safe_load(Path(path).read_text())
+    out = {}
+    for table, t in raw["tables"].items():
+        runs = {}
+        for run, r in t["runs"].items():
+            cells = {}
+            for n, v in r["n"].items():
+                cells[int(n)] = dict(zip(t["columns"], v)) if isinstance(v, list) else dict(v)
+            runs[run] = {"label": r["label"], "tex_line": r["tex_line"], "n": cells}
+        out[table] = {"note": t.get("note", ""), "tex_lines": t["tex_lines"], "runs": runs}
+    return out
+
+
+def sha256(path: str | Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _num(x) -> float | None:
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
+
+
+def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_paths: Iterable[str | Path] = (),
+                 model_paths: Iterable[str | Path] = (), commit: str = "unknown",
+                 paper: dict | None = None) -> dict:
+    """``tables``: table name -> its result files (.parquet). Runs of the paper that we did not
+    run keep their paper values with our figures null; runs we have and the paper lacks get null
+    paper values."""
+    paper = paper_values() if paper is None else paper
+    oracle = load_oracle(oracle_paths) if list(oracle_paths := list(oracle_paths)) else None
+    report, notes = {}, {}
+    for name, paths in tables.items():
+        df = load_results(paths)
+        agg = summarize(df, cfg)
+        if oracle is not None:
+            agg = pd.concat([agg, oracle_summary(oracle, df)], ignore_index=True)
+        ref = paper.get(name, {"runs": {}, "note": "not a table of the paper", "tex_lines": None})
+        notes[name] = {"paper_note": ref["note"], "tex_lines": ref["tex_lines"]}
+        table: dict = {}
+        for _, r in agg.iterrows():
+            run, n = str(r["run"]), int(r["n_agents"])
+            p = ref["runs"].get(run, {}).get("n", {}).get(n, {})
+            cell = {k: _num(r[col]) for k, col in _FROM_AGG.items()}
+            cell.update(label=str(r["label"]), n_seeds=int(r["n_seeds"]), paper_safety=_num(p.get("safety")),
+                        paper_safety_std=_num(p.get("safety_std")), paper_safe_scenarios=_num(p.get("safe_scenarios")),
+                        paper_safe_scenarios_std=_num(p.get("safe_scenarios_std")), paper_cost=_num(p.get("cost")))
+            table.setdefault(run, {})[str(n)] = cell
+        for run, pr in ref["runs"].items():   # paper rows we did not run
+            for n, p in pr["n"].items():
+                if str(n) not in table.get(run, {}):
+                    cell = {k: None for k in _OURS}
+                    cell.update(label=pr["label"], n_seeds=0, paper_safety=_num(p.get("safety")),
+                                paper_safety_std=_num(p.get("safety_std")), paper_safe_scenarios=_num(p.get("safe_scenarios")),
+                                paper_safe_scenarios_std=_num(p.get("safe_scenarios_std")), paper_cost=_num(p.get("cost")))
+                    table.setdefault(run, {})[str(n)] = cell
+        report[name] = table
+    models = sorted({str(p) for p in model_paths})
+    report["provenance"] = {
+        "commit": commit,
+        "experiment": cfg.get("experiment"),
+        "config_hash": config_hash(cfg),
+        "backend": cfg["sim"]["backend"],
+        "models": {p: sha256(p) for p in models},
+        "paper_values": f"madpinn/evaluation/{PAPER_VALUES.name} (from {paper_values_source()})",
+        "cost_definition": "cost: mean over collision-free agents of ∫‖p−g‖dt + ‖p(T)−g‖ (m·s + m); "
+                           "cost_time_avg: the same ÷ episode length T (compared with the paper's cost); "
+                           "cost_all*: over all agents; oracle: lone-agent lower bound on the same scenarios",
+        "tables": notes,
+    }
+    return report
+
+
+def paper_values_source() -> str:
+    return yaml.safe_load(PAPER_VALUES.read_text())["source"]
+
+
+def _pct(x, std=None, n_seeds=2) -> str:
+    if x is None:
+        return "–"
+    return f"{100 * x:.1f}%" + (f" ± {100 * std:.1f}%" if std is not None and n_seeds > 1 else "")
+
+
+def _val(x, std=None, n_seeds=2) -> str:
+    if x is None:
+        return "–"
+    return f"{x:.2f}" + (f" ± {std:.2f}" if std is not None and n_seeds > 1 else "")
+
+
+def _diff(ours, paper, pct: bool) -> str:
+    if ours is None or paper is None:
+        return "–"
+    d = ours - paper
+    return f"{100 * d:+.1f} pp" if pct else f"{d:+.2f}"
+
+
+def to_markdown(report: dict) -> str:
+    prov = report["provenance"]
+    lines = [
+        "# Reproduction report",
+        "",
+        "Generated by the workflow (`snakemake -j2 reproduction_report`; madpinn/evaluation/reproduction.py) from the "
+        "result files. Ours: mean ± std over seeds (single-seed studies: the mean). Paper: its tables "
+        f"({prov['paper_values']}). The paper's cost is compared with our **cost ÷T** (the cumulative cost divided by "
+        "the episode length, SPEC §3); **cum.** is the integral ∫‖p−g‖dt + ‖p(T)−g‖ itself. Costs are over "
+        "collision-free agents. The oracle row is the lone-agent lower bound on the same scenarios "
+        "(madpinn/evaluation/oracle.py). Δ: ours − paper (pp: percentage points).",
+        "",
+        f"- commit `{prov['commit']}`, experiment `{prov['experiment']}`, config hash `{prov['config_hash']}`, "
+        f"backend `{prov['backend']}`",
+    ]
+    for path, digest in prov["models"].items():
+        lines.append(f"- model `{path}`: sha256 `{digest}`")
+    head = ("Run", "N", "Safety (ours)", "Safety (paper)", "Δ", "Safe sc. (ours)", "Safe sc. (paper)", "Δ",
+            "Cost ÷T (ours)", "Cost (paper)", "Δ", "Cum. cost (ours)")
+    for name, table in report.items():
+        if name == "provenance":
+            continue
+        note = prov["tables"][name]
+        lines += ["", f"## {name}", "", f"Paper: tex lines {note['tex_lines']}. {note['paper_note']}".strip(), "",
+                  "| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
+        for run, cells in table.items():
+            for n, c in cells.items():
+                k = c["n_seeds"]
+                row = (c["label"] if run != ORACLE_RUN else f"**{ORACLE_LABEL}**", n,
+                       _pct(c["safety"], c["safety_std"], k), _pct(c["paper_safety"], c["paper_safety_std"]),
+                       _diff(c["safety"], c["paper_safety"], True),
+                       _pct(c["safe_scenarios"], c["safe_scenarios_std"], k),
+                       _pct(c["paper_safe_scenarios"], c["paper_safe_scenarios_std"]),
+                       _diff(c["safe_scenarios"], c["paper_safe_scenarios"], True),
+                       _val(c["cost_time_avg"], c["cost_time_avg_std"], k), _val(c["paper_cost"]),
+                       _diff(c["cost_time_avg"], c["paper_cost"], False), _val(c["cost"], c["cost_std"], k))
+                lines.append("| " + " | ".join(map(str, row)) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_report(out_dir: str | Path, tables: Mapping[str, Iterable[str | Path]], cfg: dict, **kwargs) -> list[Path]:
+    """Write ``reproduction.json`` and ``reproduction.md`` into ``out_dir``; kwargs: :func:`build_report`."""
+    report = build_report(tables, cfg, **kwargs)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    js, md = out_dir / "reproduction.json", out_dir / "reproduction.md"
+    js.write_text(json.dumps(report, indent=2, ensure_ascii=False))
+    md.write_text(to_markdown(report))
+    return [js, md]

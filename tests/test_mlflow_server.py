@@ -1,0 +1,172 @@
+"""A real ``mlflow server`` on 127.0.0.1 (free port, started and stopped here) used by smoke jobs
+of the real workflow: live runs with real durations and step curves (issue 17); a server that
+goes away mid-job loses no result and its run is logged exactly once by the next workflow start
+(issue 18.3); a workflow start against a stopped server stops, dry runs included, writing nothing."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+import torch
+from mlflow.entities import ViewType
+from mlflow.tracking import MlflowClient
+
+from conftest import REPO, SMOKE, run_snakemake, subprocess_env
+
+START_TIMEOUT_S = 240   # the server imports its whole app in a subprocess: ~15 s idle, 90 s seen on a loaded 2-core box
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Server:
+    """``mlflow server`` with a SQLite backend and proxied artifacts under ``root``."""
+
+    def __init__(self, root: Path):
+        self.root, self.port, self.proc = root, _free_port(), None
+        self.uri = f"http://127.0.0.1:{self.port}"
+
+    def start(self) -> "Server":
+        self.root.mkdir(parents=True, exist_ok=True)
+        cmd = [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(self.port),
+               "--workers", "1", "--backend-store-uri", f"sqlite:///{self.root / 'mlflow.db'}",
+               "--artifacts-destination", str(self.root / "artifacts")]
+        self.proc = subprocess.Popen(cmd, cwd=self.root, stdout=open(self.root / "server.log", "ab"),
+                                     stderr=subprocess.STDOUT, start_new_session=True,
+                                     env=subprocess_env({"MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}))
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"mlflow server exited: {(self.root / 'server.log').read_text()[-3000:]}")
+            try:
+                with urllib.request.urlopen(self.uri + "/health", timeout=2) as r:
+                    if r.status == 200:
+                        return self
+            except OSError:
+                time.sleep(0.5)
+        self.stop()
+        raise RuntimeError(f"mlflow server did not answer within {START_TIMEOUT_S} s")
+
+    def stop(self) -> None:
+        if self.proc is None or self.proc.poll() is not None:
+            return
+        os.killpg(self.proc.pid, signal.SIGTERM)
+        try:
+            self.proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait(timeout=30)
+
+
+@pytest.fixture
+def server(tmp_path):
+    srv = Server(tmp_path / "server").start()
+    yield srv
+    srv.stop()
+
+
+def _overlay(tmp_path: Path, vs_iterations: int) -> Path:
+    p = tmp_path / "vs_iterations.yaml"
+    p.write_text(f"value_functions:\n  vs:\n    iterations: {vs_iterations}\n    checkpoint_every: {vs_iterations}\n")
+    return p
+
+
+def _job_runs(uri: str, job: str):
+    c = MlflowClient(uri)
+    exp = c.get_experiment_by_name("madpinn-smoke")
+    runs = c.search_runs([exp.experiment_id], filter_string=f"tags.`madpinn.job` = '{job}'", run_view_type=ViewType.ALL)
+    return c, runs
+
+
+def test_live_runs_on_a_tracking_server_show_real_durations_curves_and_models(server, tmp_path):
+    work = tmp_path / "work"
+    target = "results/smoke/models/vs.pt"
+    t0 = time.monotonic()
+    run_snakemake(work, "-j1", target, configfiles=(SMOKE, _overlay(tmp_path, 300)), env={"MLFLOW_TRACKING_URI": server.uri})
+    workflow_wall_ms = 1000 * (time.monotonic() - t0)
+    c, runs = _job_runs(server.uri, "train/vs")
+    (run,) = runs
+    info = run.info
+    assert info.status == "FINISHED" and run.data.tags["madpinn.source"] == "workflow"
+    train_ms = 1000 * json.loads((work / "results/smoke/models/vs_train.json").read_text())["wall_s"]
+    duration = info.end_time - info.start_time
+    assert train_ms <= duration <= workflow_wall_ms      # the run spans the training, not a post-hoc moment
+    hist = c.get_metric_history(info.run_id, "loss")
+    assert sorted(m.step for m in hist) == list(range(1, 301))
+    stamps = sorted(m.timestamp for m in hist)
+    assert len(set(stamps)) > 10 and stamps[-1] - stamps[0] >= 0.5 * train_ms   # logged as training ran
+    assert info.start_time <= stamps[0] and stamps[-1] <= info.end_time
+    import mlflow.pytorch
+
+    mlflow.set_tracking_uri(server.uri)
+    net = mlflow.pytorch.load_model(f"runs:/{info.run_id}/vs_network")
+    saved = torch.load(work / target, weights_only=True)["state_dict"]
+    assert all(torch.equal(v, saved[k]) for k, v in net.state_dict().items())
+    assert {"vs.pt", "vs_loss.csv"} <= {a.path for a in c.list_artifacts(info.run_id)}
+
+
+def _popen_snakemake(work: Path, *args, configfiles, env):
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(work),
+           "--configfile", str(REPO / "config.yaml"), *map(str, configfiles), *args]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=subprocess_env(env))
+
+
+def _tree(root: Path) -> dict:
+    return {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file() and ".snakemake" not in p.parts}
+
+
+def test_server_lost_mid_job_keeps_results_and_the_next_start_logs_the_run_once(server, tmp_path):
+    work = tmp_path / "work"
+    overlay = (SMOKE, _overlay(tmp_path, 2000))   # seconds on an idle core: the server is stopped meanwhile
+    env = {"MLFLOW_TRACKING_URI": server.uri}
+    proc = _popen_snakemake(work, "-j1", "results/smoke/models/vs.pt", configfiles=overlay, env=env)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:     # wait until the job's live run is open
+        exp = MlflowClient(server.uri).get_experiment_by_name("madpinn-smoke")
+        if exp and _job_runs(server.uri, "train/vs")[1]:
+            break
+        time.sleep(0.5)
+    (live,) = _job_runs(server.uri, "train/vs")[1]
+    assert live.info.status == "RUNNING"
+    server.stop()
+    out, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 0, out[-4000:]                        # the job succeeded: results kept
+    assert (work / "results/smoke/models/vs.pt").is_file()
+    pending = list((work / "results/smoke/tracking/pending").glob("*.json"))
+    assert [p.name for p in pending] == ["workflow__train__vs.json"]
+
+    # server down: every start stops before any job, a dry run too, and nothing is written
+    before = _tree(work)
+    for extra in (("-n",), ()):
+        proc = run_snakemake(work, "-j1", "all", *extra, configfiles=overlay, env=env, check=False)
+        assert proc.returncode != 0 and "unreachable" in proc.stdout + proc.stderr
+    assert _tree(work) == before
+
+    server.start()
+    for _ in range(2):          # the first start logs the pending run, the second finds nothing to log
+        run_snakemake(work, "-j1", "results/smoke/models/vs.pt", configfiles=overlay, env=env)
+    assert not list((work / "results/smoke/tracking/pending").glob("*.json"))
+    c, runs = _job_runs(server.uri, "train/vs")
+    (run,) = [r for r in runs if r.info.lifecycle_stage == "active"]
+    assert run.info.status == "FINISHED" and run.info.start_time == live.info.start_time
+    assert len(c.get_metric_history(run.info.run_id, "loss")) == 1000       # every curve point, none twice
+    assert "vs.pt" in {a.path for a in c.list_artifacts(run.info.run_id)}
+
+    # a new tracking URI re-creates the store (tracking_init reruns) but reruns no finished job
+    other = work / "other" / "mlflow.db"
+    proc = run_snakemake(work, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=overlay,
+                         env={"MLFLOW_TRACKING_URI": f"sqlite:///{other}"})
+    out = proc.stdout + proc.stderr
+    assert "rule tracking_init" in out and "rule train_vs" not in out and not other.parent.exists()

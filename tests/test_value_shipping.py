@@ -1,0 +1,52 @@
+"""Shipped checkpoints: models/ + manifest.json, sha256-checked install, workflow overlay (issue 15)."""
+
+import json
+
+import pytest
+
+from conftest import SMOKE, run_snakemake
+from madpinn.commands import main
+from madpinn.value_functions import load_vs
+from madpinn.value_functions.shipping import ShippedModelError, install, read_manifest, sha256, verify
+from policy_models import tiny_model_dir
+
+
+def _ship(tmp_path):
+    models = tmp_path / "models"
+    report = tmp_path / "vs_grid.json"
+    report.write_text(json.dumps({"meets_target": False}))
+    assert main(["ship-models", "--model", f"vs={tiny_model_dir() / 'vs.pt'}", "--validation", f"vs={report}",
+                 "--out-dir", str(models), "--device", "cpu"]) == 0
+    return models
+
+
+def test_manifest_records_the_file_and_its_training(tmp_path):
+    models = _ship(tmp_path)
+    entry = read_manifest(models)["models"]["vs"]
+    assert entry["file"] == "vs.pt" and entry["sha256"] == sha256(models / "vs.pt") == sha256(tiny_model_dir() / "vs.pt")
+    assert entry["iterations"] == 30 and entry["device"] == "cpu"
+    assert entry["validation"] == {"vs_grid": {"meets_target": False}}
+    out = install(models, "vs", tmp_path / "results" / "vs.pt")
+    assert load_vs(out).meta["iterations"] == 30
+
+
+def test_changed_or_unknown_model_is_refused(tmp_path):
+    models = _ship(tmp_path)
+    with pytest.raises(ShippedModelError, match="no model 'vhat'"):
+        verify(models, "vhat")
+    with open(models / "vs.pt", "ab") as f:
+        f.write(b"x")
+    with pytest.raises(ShippedModelError, match="sha256"):
+        install(models, "vs", tmp_path / "out.pt")
+    assert not (tmp_path / "out.pt").exists()
+
+
+def test_shipped_overlay_installs_instead_of_training(tmp_path):
+    _ship(tmp_path)
+    overlay = tmp_path / "shipped.yaml"
+    overlay.write_text("shipped_models: {enabled: true, dir: models, names: [vs]}\n")
+    proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=(SMOKE, overlay))
+    out = proc.stdout + proc.stderr
+    assert "install_shipped_model" in out and "train_vs" not in out and "train_vhat" in out
+    run_snakemake(tmp_path, "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
+    assert sha256(tmp_path / "results/smoke/models/vs.pt") == sha256(tmp_path / "models/vs.pt")

@@ -1,0 +1,127 @@
+# Independent validation of the value functions (issue 15): V_s against a grid HJ solution
+# (hj_reachability), V̂ by scenario-based verification in the exact 3-agent dynamics.
+
+
+rule solve_vs_grid:
+    input:
+        tracking=TRACKING,
+    output:
+        solution=f"{RESULTS}/validation/vs_grid_solution.npz",
+    params:
+        config=RESOLVED,
+        settings=settings_hash("agents", "value_functions.vs.validation.grid"),
+        source=source_hash("value"),
+    threads: 2
+    resources:
+        mem_mb=4000,
+        runtime=60,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/solve_vs_grid.log",
+    shell:
+        "python -m madpinn solve-vs-grid --config {params.config:q} --out {output.solution:q} --no-progress 2>&1 | tee {log:q}"
+
+
+rule validate_vs_grid:
+    input:
+        tracking=TRACKING,
+        # str(): a rules.X reference pins the producer to X; the shipped overlay's install rule must
+        # be able to provide the model instead
+        model=str(rules.train_vs.output.model),
+        grid=rules.solve_vs_grid.output.solution,
+    output:
+        report=f"{RESULTS}/validation/vs_grid.json",
+        png=f"{FIGURES}/fig_vs_grid.png",
+        pdf=f"{FIGURES}/fig_vs_grid.pdf",
+    params:
+        config=RESOLVED,
+        stem=stem_of("png"),
+        source=source_hash("value"),
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/validate_vs_grid.log",
+    shell:
+        "python -m madpinn validate-vs-grid --config {params.config:q} --model vs={input.model:q} --grid {input.grid:q}"
+        " --out {output.report:q} --fig-stem {params.stem:q} --threads {threads} 2>&1 | tee {log:q}"
+
+
+EXTRA_TARGETS += [
+    f"{RESULTS}/validation/vs_grid.json",
+    *[f"{FIGURES}/fig_vs_grid.{ext}" for ext in ("pdf", "png")],
+]
+
+
+rule verify_vhat:
+    input:
+        tracking=TRACKING,
+        model=str(rules.train_vhat.output.model),  # str(): see validate_vs_grid
+    output:
+        report=f"{RESULTS}/validation/vhat_scenario.json",
+    params:
+        config=RESOLVED,
+        settings=settings_hash("value_functions.vhat.validation.scenario", "value_functions.seed", "dtype"),
+        source=source_hash("value"),
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=60,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/verify_vhat.log",
+    shell:
+        "python -m madpinn verify-vhat --config {params.config:q} --model vhat={input.model:q} --out {output.report:q}"
+        " --threads {threads} 2>&1 | tee {log:q}"
+
+
+EXTRA_TARGETS += [f"{RESULTS}/validation/vhat_scenario.json"]
+
+
+# Shipped checkpoints (workflow/configs/shipped.yaml): results/models/<name>.pt comes from the
+# sha256-checked models/<name>.pt instead of its training rule.
+SHIPPED = config.get("shipped_models") or {}
+if SHIPPED.get("enabled") and SHIPPED.get("names"):
+
+    rule install_shipped_model:
+        input:
+            manifest=f"{SHIPPED['dir']}/manifest.json",
+            model=f"{SHIPPED['dir']}/{{name}}.pt",
+        output:
+            f"{RESULTS}/models/{{name}}.pt",
+        wildcard_constraints:
+            name="|".join(SHIPPED["names"]),
+        params:
+            dir=SHIPPED["dir"],
+        threads: 1
+        resources:
+            mem_mb=500,
+            runtime=5,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/install_shipped_{{name}}.log",
+        shell:
+            "python -m madpinn install-shipped --dir {params.dir:q} --name {wildcards.name:q} --out {output:q} 2>&1 | tee {log:q}"
+
+    # one ruleorder per shipped name (a ruleorder naming a rule this configuration lacks disables it)
+    if "vs" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_vs
+
+    if "vhat" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_vhat
+
+    if "safemarl_nominal" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_safemarl_nominal
+
+    if any(n.startswith("defmarl_") for n in SHIPPED["names"]):
+
+        ruleorder: install_shipped_model > train_defmarl
