@@ -171,7 +171,7 @@ def _solve_vs_grid(args) -> int:
     record = JobRecord(job_key="validate/vs_grid_solution", rule="solve_vs_grid")
     with job(cfg, record, not args.no_track) as run:
         system = PairSystem.from_config(cfg)
-        settings = GridSettings.from_dict(cfg["value_functions"]["vs"]["validation"]["grid"])
+        settings = GridSettings.from_config(cfg["value_functions"]["vs"]["validation"]["grid"])
         fine, coarse, conv = solve_reference(system, settings, progress=not args.no_progress)
         extra = {"convergence": conv, "coarse_nodes": coarse.meta["nodes"], "wall_s_coarse": coarse.wall_s}
         save_solution(args.out, fine, system, settings, extra)
@@ -208,7 +208,7 @@ def _verify_vhat(args) -> int:
     record = JobRecord(job_key="validate/vhat_scenario", rule="verify_vhat")
     with job(cfg, record, not args.no_track) as run:
         device, dtype = _setup(cfg, args.threads)
-        settings = ScenarioSettings.from_dict(cfg["value_functions"]["vhat"]["validation"]["scenario"])
+        settings = ScenarioSettings.from_config(cfg["value_functions"]["vhat"]["validation"]["scenario"])
         model = single_model(args.model, "vhat")
         vhat = load_vhat(model, device=device, dtype=dtype)
         report = {"model": str(model), "model_iterations": vhat.meta.get("iterations"),

@@ -44,7 +44,7 @@ class GridSettings:
             raise ValueError("the interior box must lie inside the grid (0 < interior_p ≤ p_range, 0 < interior_v ≤ v_range)")
 
     @classmethod
-    def from_dict(cls, d: dict) -> "GridSettings":
+    def from_config(cls, d: dict) -> "GridSettings":
         d = dict(d)
         if "times" in d:
             d["times"] = tuple(float(t) for t in d["times"])

@@ -47,7 +47,7 @@ class ScenarioSettings:
             raise ValueError(f"every β must lie in (0, 1), got {self.betas}")
 
     @classmethod
-    def from_dict(cls, d: dict) -> "ScenarioSettings":
+    def from_config(cls, d: dict) -> "ScenarioSettings":
         d = dict(d)
         if "betas" in d:
             d["betas"] = tuple(float(b) for b in d["betas"])
