@@ -74,7 +74,7 @@ def test_workflow_target_runs_the_command_and_is_not_part_of_all(tmp_path):
 
     target = run_snakemake(tmp_path, "-n", "-p", "gap_decomposition").stdout
     assert "rule gap_decomposition" in target and "madpinn gap-decomposition" in target
-    assert "--model vhat=results/smoke/models/vhat.pt vs=results/smoke/models/vs.pt" in target
+    assert "--model vhat=results/smoke/models/vhat.pt --model vs=results/smoke/models/vs.pt" in target
     assert "--seeds 100 " in target and "--margin-sweep 0.1" in target
     assert "gap_decomposition" not in run_snakemake(tmp_path, "-n", "all").stdout
 

@@ -134,7 +134,9 @@ def test_policy_warm_start_keeps_the_cold_episode():
     runs = {}
     for warm in (True, False):
         pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, MadPinnSettings(warm_start=warm), 0.0025)
-        sim = make_backend("double_integrator", load_config([REPO / "config.yaml", SMOKE]), torch.device("cpu"), torch.float32)
+        cfg = load_config([REPO / "config.yaml", SMOKE])
+        sim = make_backend("double_integrator", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
+                           torch.device("cpu"), torch.float32)
         result, _ = run_episode(sim, pol, state[..., 0:2], goals, 60, 0.1, progress=False)
         runs[warm] = (result, MadPinnPolicy.summarise_stats(pol.stats))
     (rw, sw), (rc, sc) = runs[True], runs[False]

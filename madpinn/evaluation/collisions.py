@@ -50,7 +50,7 @@ class CollisionProbe:
         S, N, _ = d.shape
         eye = torch.eye(N, dtype=torch.bool)
         mad = getattr(self.policy, "nominal", self.policy)   # madpinn-filtered wraps the MAD-PINN policy
-        infeasible = (mad._z_prev >= mad.vhat.z_max * (1 - 1e-9)).reshape(S, N).cpu()
+        infeasible = (mad.last_search.z >= mad.vhat.z_max * (1 - 1e-9)).reshape(S, N).cpu()   # z* = z_max
         self.infeasible_since = torch.where(infeasible, torch.where(self.infeasible_since < 0, t, self.infeasible_since),
                                             torch.full_like(self.infeasible_since, -1.0))
         touch = (d <= self.r) & ~eye
