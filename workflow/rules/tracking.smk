@@ -1,9 +1,10 @@
 # MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
 from madpinn.tracking import TrackingError, TrackingSettings, check_store
+from madpinn.tracking.settings import SOURCE_ENV
 
 # Jobs started by this workflow tag their runs madpinn.source=workflow; runs started by hand
 # (manual) never replace them.
-os.environ["MADPINN_TRACKING_SOURCE"] = "workflow"
+os.environ.update({SOURCE_ENV: "workflow"})   # MADPINN_TRACKING_SOURCE, set here (not required of the user)
 TRACKING_SETTINGS = TrackingSettings.from_config(config)
 
 # Every start, dry runs included, stops here when the store is unreachable (read-only check).
