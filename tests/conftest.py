@@ -16,6 +16,21 @@ REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "workflow" / "configs" / "smoke.yaml"
 
 
+@pytest.fixture(autouse=True)
+def isolated_tracking_uri():
+    """A test that points MLflow at a store (``mlflow.set_tracking_uri`` exports
+    ``MLFLOW_TRACKING_URI``) must not send later tests' subprocesses there."""
+    import mlflow
+
+    env = os.environ.get("MLFLOW_TRACKING_URI")
+    yield
+    mlflow.set_tracking_uri(env)
+    if env is None:
+        os.environ.pop("MLFLOW_TRACKING_URI", None)
+    else:
+        os.environ["MLFLOW_TRACKING_URI"] = env
+
+
 @pytest.fixture
 def one_thread():
     """Tiny tensors: one intra-op thread is fastest and keeps float reductions reproducible."""

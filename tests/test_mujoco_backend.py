@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from madpinn.config import REPO_ROOT, load_config
+from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import make_backend as make_registered_backend
 from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, PhysicsDivergedError
 from mujoco_helpers import DT, bang_bang, make_backend
@@ -22,7 +23,8 @@ def _run(backend, accel):
 
 def test_registered_backend_returns_planar_state_on_requested_dtype():
     cfg = load_config([REPO_ROOT / "config.yaml"])
-    backend = make_registered_backend("mujoco", cfg, torch.device("cpu"), torch.float32)
+    backend = make_registered_backend("mujoco", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
+                                      torch.device("cpu"), torch.float32)
     assert isinstance(backend, MujocoBackend) and backend.dt == cfg["sim"]["dt"]
     starts = torch.rand(2, 5, 2)
     state = backend.reset(starts, torch.zeros_like(starts))

@@ -2,13 +2,13 @@
 ``render-clip`` command (renders where offscreen GL exists, records why not elsewhere)."""
 
 import json
-import os
 import subprocess
 import sys
 
 import numpy as np
 import yaml
 
+from conftest import subprocess_env
 from madpinn.commands import main
 from madpinn.config import REPO_ROOT
 from madpinn.simulation.mujoco.render import gl_context_available
@@ -23,7 +23,7 @@ def test_dag_on_mujoco_with_clips(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "snakemake", "-n", "-j1", "all", "--snakefile", str(REPO_ROOT / "Snakefile"),
          "--directory", str(tmp_path), "--configfile", str(REPO_ROOT / "workflow/configs/smoke.yaml"), str(overlay)],
-        capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO_ROOT)}, timeout=300,
+        capture_output=True, text=True, env=subprocess_env(), timeout=300,
     )
     assert proc.returncode == 0, proc.stderr[-3000:] + proc.stdout[-3000:]
     out = proc.stdout + proc.stderr

@@ -45,9 +45,10 @@ def test_training_setting_reruns_that_training_and_its_downstream_only(done):
     jobs = _dry(done, {"value_functions": {"vhat": {"iterations": 31}}})
     # V̂ feeds the madpinn cells (main, both ablations), V̂'s validation and heatmap, and the tables
     # and figures built from those cells; V_s, the nominal cells and V_s's checks stay.
-    assert jobs == {"train_vhat": 1, "evaluate": 3, "validate_vhat": 1, "fig_value_heatmap": 1,
+    # The reproduction report lists the models' checksums and every table: it reruns too.
+    assert jobs == {"train_vhat": 1, "evaluate": 3, "validate_vhat": 1, "verify_vhat": 1, "fig_value_heatmap": 1,
                     "table_safety_scaling": 1, "table_neighbour_ablation": 1, "table_update_ablation": 1,
-                    "fig_cost_safety": 1, "fig_trajectories": 1, "all": 1}, jobs
+                    "fig_cost_safety": 1, "fig_trajectories": 1, "reproduction_report": 1, "all": 1}, jobs
 
 
 def test_unrelated_changes_rerun_nothing(done):
@@ -61,7 +62,8 @@ def test_unrelated_changes_rerun_nothing(done):
 
 def test_study_setting_reruns_that_study_only(done):
     jobs = _dry(done, {"studies": {"ablation_neighbours": {"scenarios": 2}}})
-    assert jobs == {"evaluate": 1, "table_neighbour_ablation": 1, "all": 1}, jobs
+    # its cells, the oracle bounds of the new scenario count, its table and the report
+    assert jobs == {"evaluate": 1, "oracle": 1, "table_neighbour_ablation": 1, "reproduction_report": 1, "all": 1}, jobs
 
 
 def _edit_and_dry(copy, rel):
@@ -121,7 +123,7 @@ def test_report_holds_every_table_and_figure_with_captions(done):
 
 def test_shell_lines_quote_every_config_derived_field():
     """Every ``{field}`` in a ``shell:`` string is ``:q``-quoted, except numbers (threads, N, seed)."""
-    numeric = {"threads", "wildcards.n", "wildcards.seed"}
+    numeric = {"threads", "wildcards.n", "wildcards.seed", "wildcards.scenarios"}  # digits only (wildcard_constraints)
     repo = Path(__file__).resolve().parents[1]
     for smk in sorted((repo / "workflow" / "rules").glob("*.smk")):
         text = smk.read_text()

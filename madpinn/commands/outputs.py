@@ -38,6 +38,8 @@ def _figure(args) -> int:
 
 
 def _oracle(args) -> int:
+    import pandas as pd
+
     from madpinn.evaluation.oracle import OracleSettings, write_bounds
     from madpinn.scenarios import Arena
 
@@ -45,8 +47,15 @@ def _oracle(args) -> int:
     arena = Arena.from_config(cfg, args.arena)
     settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
                               dt=arena.episode_s / cfg["oracle"]["steps"])
-    print(write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"], settings))
-    return 0
+    wildcards = {"arena": args.arena, "n": args.n_agents, "seed": args.seed, "scenarios": args.scenarios}
+    record = JobRecord(job_key=f"oracle/{args.arena}/n{args.n_agents}/seed{args.seed}/s{args.scenarios}", rule="oracle",
+                       wildcards=wildcards, params={"scenarios": args.scenarios, "steps": cfg["oracle"]["steps"]})
+    with job(cfg, record, not args.no_track) as run:
+        out = write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"],
+                           settings)
+        record.artifacts = [out]
+        record.metrics = {"oracle_cost_mean": float(pd.read_parquet(out)["oracle_cost"].mean())}
+        return finish(run, record, echo=[out])
 
 
 def _reproduction(args) -> int:
@@ -103,6 +112,7 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--scenarios", type=int, required=True)
     p.add_argument("--out", required=True)
+    p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_oracle)
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")

@@ -14,7 +14,6 @@ paper's. Oracle rows (run ``oracle``) carry only costs.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Iterable, Mapping
 import pandas as pd
 import yaml
 
+from madpinn.checksum import sha256
 from madpinn.config import config_hash
 from madpinn.evaluation.tables import ORACLE_LABEL, ORACLE_RUN, load_results, oracle_summary, load_oracle, summarize
 
@@ -48,14 +48,6 @@ def paper_values(path: str | Path = PAPER_VALUES) -> dict:
             runs[run] = {"label": r["label"], "tex_line": r["tex_line"], "n": cells}
         out[table] = {"note": t.get("note", ""), "tex_lines": t["tex_lines"], "runs": runs}
     return out
-
-
-def sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _num(x) -> float | None:

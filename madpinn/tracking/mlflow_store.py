@@ -77,7 +77,14 @@ def client(settings: TrackingSettings):
     import mlflow
     from mlflow.tracking import MlflowClient
 
-    mlflow.set_tracking_uri(settings.uri)
+    # mlflow.set_tracking_uri also exports MLFLOW_TRACKING_URI, which would then override
+    # tracking.uri for every later job in this process: keep the environment as it was.
+    previous = os.environ.get("MLFLOW_TRACKING_URI")
+    mlflow.set_tracking_uri(settings.uri)   # model logging (mlflow.pytorch) uses the global URI
+    if previous is None:
+        os.environ.pop("MLFLOW_TRACKING_URI", None)
+    else:
+        os.environ["MLFLOW_TRACKING_URI"] = previous
     return MlflowClient(tracking_uri=settings.uri)
 
 

@@ -11,24 +11,17 @@ clear error instead of silently evaluating another model.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 from pathlib import Path
+
+from madpinn.checksum import sha256
 
 MANIFEST = "manifest.json"
 
 
 class ShippedModelError(RuntimeError):
     """A shipped model is missing from the manifest or its file does not match its sha256."""
-
-
-def sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def describe_checkpoint(path: str | Path) -> dict:

@@ -141,6 +141,7 @@ SOURCES = {
     "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
             "observation.py", "scenarios.py", "device.py", "settings.py"],
     "tables": ["evaluation", "figures"],
+    "report": ["evaluation"],
     "oracle": ["evaluation/oracle.py", "scenarios.py"],
     "render": ["simulation"],
 }
@@ -182,6 +183,13 @@ onstart:
 
 
 # --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
+
+def pending_runs(settings):
+    """Names of the runs whose logging failed during an earlier job (``settings.pending_dir``);
+    tracking_init's params, so that a start with pending runs always runs `onstart`'s flush."""
+    d = settings.pending_dir
+    return sorted(p.name for p in d.glob("*.json")) if settings.enabled and d.is_dir() else []
+
 
 def stem_of(key):
     """A params function: the named output's path without its extension (figure stems)."""
@@ -245,18 +253,13 @@ def run_labels(study):
 ORACLE_DIR = f"{RESULTS}/oracle"
 
 
-def oracle_scenarios(arena, n, seed):
-    """Scenarios 0..S-1 of (arena, N, seed) that any study evaluates (S: the largest count)."""
-    counts = [st["scenarios"] for st in config["studies"].values()
-              if st["arena"] == arena and int(n) in st["agent_counts"] and int(seed) in st["seeds"]]
-    if not counts:
-        raise ValueError(f"no study evaluates arena {arena}, N={n}, seed {seed}")
-    return max(counts)
-
-
 def oracle_inputs(study):
+    """Oracle files of a study: scenarios 0..S-1 of each (arena, N, seed) cell, S the study's count
+    (studies with the same cells and count share them; another count is another file, so a change
+    of one study's scenario count reruns nothing of another study)."""
     st = config["studies"][study]
-    return [f"{ORACLE_DIR}/{st['arena']}/n{n}_seed{seed}.parquet" for n in st["agent_counts"] for seed in st["seeds"]]
+    return [f"{ORACLE_DIR}/{st['arena']}/n{n}_seed{seed}_s{st['scenarios']}.parquet"
+            for n in st["agent_counts"] for seed in st["seeds"]]
 
 
 def study_models(study):

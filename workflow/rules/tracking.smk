@@ -30,7 +30,10 @@ onstart:
 
 
 # The store and this configuration's experiment are created once, before the fan-out (parallel
-# first writers race while creating a SQLite schema); it reruns when the tracking URI changes.
+# first writers race while creating a SQLite schema); it reruns when the tracking URI changes, and
+# when runs are pending: Snakemake calls `onstart` only when some job runs, so a start whose targets
+# are all up to date still runs tracking_init and, with it, the flush above (pending_runs: common.smk) (the start after the
+# flush reruns it once more, as its pending list changed back).
 # Jobs take the marker as ancient(): a new store does not rerun finished jobs.
 TRACKING_STORE = TRACKING
 TRACKING = ancient(TRACKING_STORE)
@@ -42,6 +45,7 @@ rule tracking_init:
     params:
         config=RESOLVED,
         uri=TRACKING_SETTINGS.uri if TRACKING_SETTINGS.enabled else "disabled",
+        pending=" ".join(pending_runs(TRACKING_SETTINGS)),
     resources:
         mem_mb=1000,
         runtime=10,
