@@ -164,9 +164,21 @@ def test_server_lost_mid_job_keeps_results_and_the_next_start_logs_the_run_once(
     assert len(c.get_metric_history(run.info.run_id, "loss")) == 1000       # every curve point, none twice
     assert "vs.pt" in {a.path for a in c.list_artifacts(run.info.run_id)}
 
-    # a new tracking URI re-creates the store (tracking_init reruns) but reruns no finished job
+    # a new tracking URI: a dry run writes nothing; the next real start creates the store there
+    # before any job, reruns no finished job, and still runs every job its targets need in the
+    # same start (a rerun of tracking_init would have hidden them: Snakemake's ancient() masking)
     other = work / "other" / "mlflow.db"
-    proc = run_snakemake(work, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=overlay,
-                         env={"MLFLOW_TRACKING_URI": f"sqlite:///{other}"})
+    env2 = {"MLFLOW_TRACKING_URI": f"sqlite:///{other}"}
+    targets = ("results/smoke/models/vs.pt", "results/smoke/models/vhat.pt")
+    proc = run_snakemake(work, "-n", "-j1", *targets, configfiles=overlay, env=env2)
     out = proc.stdout + proc.stderr
-    assert "rule tracking_init" in out and "rule train_vs" not in out and not other.parent.exists()
+    assert "rule tracking_init" not in out and "rule train_vs" not in out and not other.parent.exists()
+    proc = run_snakemake(work, "-j1", *targets, configfiles=overlay, env=env2)
+    out = proc.stdout + proc.stderr
+    assert "rule train_vs" not in out and "rule train_vhat" in out
+    assert (work / "results/smoke/models/vhat.pt").is_file() and other.is_file()
+    marker = json.loads((work / "results/smoke/tracking/store.json").read_text())
+    assert marker["uri"] == f"sqlite:///{other}"
+    c2 = MlflowClient(f"sqlite:///{other}")
+    exp = c2.get_experiment_by_name("madpinn-smoke")
+    assert [r.data.tags["madpinn.job"] for r in c2.search_runs([exp.experiment_id])] == ["train/vhat"]

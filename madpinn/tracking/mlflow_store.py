@@ -157,3 +157,26 @@ def git_commit() -> str:
         return (sha or "unknown") + ("-dirty" if dirty else "")
     except Exception:  # noqa: BLE001
         return "unknown"
+
+
+def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
+    """At a real workflow start: when the store marker ``marker`` (JSON of :func:`init_store`)
+    exists but names another tracking URI or experiment, create the store and experiment now and
+    rewrite the marker (jobs take it as an ancient input, so nothing reruns); return the new
+    marker content, or None when nothing changed (a missing marker is tracking_init's job)."""
+    import json
+
+    from madpinn.atomic import atomic_write
+
+    marker = Path(marker)
+    if not settings.enabled or not marker.is_file():
+        return None
+    try:
+        old = json.loads(marker.read_text())
+    except ValueError:
+        old = {}
+    if old.get("uri") == settings.uri and old.get("experiment") == settings.experiment:
+        return None
+    info = {"enabled": True, **init_store(settings)}
+    atomic_write(marker, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
+    return info

@@ -169,8 +169,7 @@ _RUN_LOCK = []
 
 
 onstart:
-    lock_path = Path(".snakemake") / "madpinn.lock"
-    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    lock_path = _lock_path()
     fh = open(lock_path, "a")
     try:
         fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -184,11 +183,29 @@ onstart:
 
 # --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
 
-def pending_runs(settings):
-    """Names of the runs whose logging failed during an earlier job (``settings.pending_dir``);
-    tracking_init's params, so that a start with pending runs always runs `onstart`'s flush."""
-    d = settings.pending_dir
-    return sorted(p.name for p in d.glob("*.json")) if settings.enabled and d.is_dir() else []
+def start_tracking(settings, marker):
+    """At a real start, under the run lock (skipped when another run holds it: this start then
+    stops in `onstart`): the store follows a changed URI, and pending runs are logged once."""
+    from madpinn.tracking import flush_pending, follow_store
+
+    if not settings.enabled:
+        return
+    with open(_lock_path(), "a") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return
+        if follow_store(settings, marker):
+            sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
+        if settings.pending_dir.is_dir():
+            sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
+
+
+def _lock_path():
+    """The kernel lock of one real run at a time (`onstart`)."""
+    path = Path(".snakemake") / "madpinn.lock"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def stem_of(key):

@@ -1,6 +1,7 @@
 # MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
 from madpinn.tracking import TrackingError, TrackingSettings, check_store
 from madpinn.tracking.settings import SOURCE_ENV
+from snakemake_interface_executor_plugins.settings import ExecMode
 
 # Jobs started by this workflow tag their runs madpinn.source=workflow; runs started by hand
 # (manual) never replace them.
@@ -14,27 +15,19 @@ except TrackingError as exc:
     sys.stderr.write(f"\nmadpinn: {exc}\n\n")
     raise SystemExit(1)
 
-# Snakemake keeps one onstart handler: this one runs common.smk's (run lock, config.resolved.yaml)
-# first, then logs the runs whose logging failed during an earlier job, once, before any job
-# (onstart never runs on a dry run).
-_COMMON_ONSTART = workflow._onstart
-
-
-onstart:
-    _COMMON_ONSTART(log)
-    if TRACKING_SETTINGS.enabled and TRACKING_SETTINGS.pending_dir.is_dir():
-        from madpinn.tracking import flush_pending
-
-        counts = flush_pending(TRACKING_SETTINGS)
-        sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
+# A real start (not a dry run, not a cluster job's own process) brings the store up to date while
+# the workflow is parsed, before any job: the store follows a changed tracking URI, and the runs
+# whose logging failed during an earlier job are logged, once. Done here and not in `onstart`,
+# which Snakemake skips when every target is up to date, and not by rerunning tracking_init, which
+# would hide the jobs downstream of it from that start (an ancient() input's producer masks its
+# consumers in Snakemake 9's needrun pass). A dry run writes nothing. (start_tracking: common.smk)
+if not workflow.output_settings.dryrun and workflow.exec_mode == ExecMode.DEFAULT:
+    start_tracking(TRACKING_SETTINGS, TRACKING)
 
 
 # The store and this configuration's experiment are created once, before the fan-out (parallel
-# first writers race while creating a SQLite schema); it reruns when the tracking URI changes, and
-# when runs are pending: Snakemake calls `onstart` only when some job runs, so a start whose targets
-# are all up to date still runs tracking_init and, with it, the flush above (pending_runs: common.smk) (the start after the
-# flush reruns it once more, as its pending list changed back).
-# Jobs take the marker as ancient(): a new store does not rerun finished jobs.
+# first writers race while creating a SQLite schema). Jobs take the marker as ancient(): a new
+# store does not rerun finished jobs.
 TRACKING_STORE = TRACKING
 TRACKING = ancient(TRACKING_STORE)
 
@@ -44,8 +37,6 @@ rule tracking_init:
         TRACKING_STORE,
     params:
         config=RESOLVED,
-        uri=TRACKING_SETTINGS.uri if TRACKING_SETTINGS.enabled else "disabled",
-        pending=" ".join(pending_runs(TRACKING_SETTINGS)),
     resources:
         mem_mb=1000,
         runtime=10,
