@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 
 from madpinn.commands.args import add_config_arg, config_of
-from madpinn.commands.finish import write_json
 
 
 def _validate(args) -> int:
@@ -15,13 +14,9 @@ def _validate(args) -> int:
 
 
 def _tracking_init(args) -> int:
-    from madpinn.tracking import TrackingSettings, init_store
+    from madpinn.tracking import TrackingSettings, write_marker
 
-    settings = TrackingSettings.from_config(config_of(args))
-    info = {"enabled": settings.enabled}
-    if settings.enabled:
-        info.update(init_store(settings))
-    write_json(args.out, info)
+    info = write_marker(TrackingSettings.from_config(config_of(args)), args.out)
     print(json.dumps(info))
     return 0
 

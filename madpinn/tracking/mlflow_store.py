@@ -159,14 +159,26 @@ def git_commit() -> str:
         return "unknown"
 
 
-def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
-    """At a real workflow start: when the store marker ``marker`` (JSON of :func:`init_store`)
-    exists but names another tracking URI or experiment, create the store and experiment now and
-    rewrite the marker (jobs take it as an ancient input, so nothing reruns); return the new
-    marker content, or None when nothing changed (a missing marker is tracking_init's job)."""
+def write_marker(settings: TrackingSettings, marker: str | Path) -> dict:
+    """Create the store and experiment (when tracking is enabled) and write the workflow's store
+    marker ``marker`` atomically: ``{enabled, uri, experiment, experiment_id}``; return it."""
     import json
 
     from madpinn.atomic import atomic_write
+
+    info = {"enabled": settings.enabled}
+    if settings.enabled:
+        info.update(init_store(settings))
+    atomic_write(marker, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
+    return info
+
+
+def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
+    """At a real workflow start: when the store marker ``marker`` (:func:`write_marker`) exists
+    but names another tracking URI or experiment, create the store and experiment now and rewrite
+    the marker (jobs take it as an ancient input, so nothing reruns); return the new marker
+    content, or None when nothing changed (a missing marker is tracking_init's job)."""
+    import json
 
     marker = Path(marker)
     if not settings.enabled or not marker.is_file():
@@ -177,6 +189,4 @@ def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
         old = {}
     if old.get("uri") == settings.uri and old.get("experiment") == settings.experiment:
         return None
-    info = {"enabled": True, **init_store(settings)}
-    atomic_write(marker, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
-    return info
+    return write_marker(settings, marker)

@@ -169,12 +169,9 @@ _RUN_LOCK = []
 
 
 onstart:
-    lock_path = _lock_path()
-    fh = open(lock_path, "a")
-    try:
-        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        sys.stderr.write(f"\nmadpinn: another snakemake run is active in {os.getcwd()} (it holds {lock_path}); "
+    fh = try_run_lock()
+    if fh is None:
+        sys.stderr.write(f"\nmadpinn: another snakemake run is active in {os.getcwd()} (it holds {RUN_LOCK_PATH}); "
                          "wait for it to finish or stop it.\n\n")
         raise SystemExit(1)
     _RUN_LOCK.append(fh)
@@ -190,22 +187,30 @@ def start_tracking(settings, marker):
 
     if not settings.enabled:
         return
-    with open(_lock_path(), "a") as fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            return
+    fh = try_run_lock()
+    if fh is None:
+        return
+    with fh:
         if follow_store(settings, marker):
             sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
         if settings.pending_dir.is_dir():
             sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
 
 
-def _lock_path():
-    """The kernel lock of one real run at a time (`onstart`)."""
-    path = Path(".snakemake") / "madpinn.lock"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path
+RUN_LOCK_PATH = Path(".snakemake") / "madpinn.lock"
+
+
+def try_run_lock():
+    """The kernel lock of one real run at a time, taken without waiting: the open lock file
+    (held until it is closed or the process dies), or None when another process holds it."""
+    RUN_LOCK_PATH.parent.mkdir(parents=True, exist_ok=True)
+    fh = open(RUN_LOCK_PATH, "a")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.close()
+        return None
+    return fh
 
 
 def stem_of(key):
