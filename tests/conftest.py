@@ -64,7 +64,18 @@ def run_snakemake(workdir: Path, *args: str, configfiles=(SMOKE,), env: dict | N
         sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir),
         "--configfile", str(REPO / "config.yaml"), *map(str, configfiles), *args,
     ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=subprocess_env(env), timeout=900)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=subprocess_env(env), timeout=1800)
     if check and proc.returncode != 0:
         raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-4000:]}\n{proc.stderr[-6000:]}")
     return proc
+
+
+# Longest files first, so that `pytest -n 2 --dist loadfile` (README) starts them at once instead
+# of leaving one to run alone at the end; order within a file is kept.
+LONG_FIRST = ("test_workflow.py", "test_workflow_recovery.py", "test_workflow_reruns.py", "test_mlflow_server.py",
+              "test_workflow_profiles.py")
+
+
+def pytest_collection_modifyitems(items):
+    rank = {name: i for i, name in enumerate(LONG_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONG_FIRST)))

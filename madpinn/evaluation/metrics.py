@@ -12,10 +12,13 @@ are NaN.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pandas as pd
 
-from madpinn.simulation.recorder import EpisodeResult
+if TYPE_CHECKING:   # annotations only: tables and figures run without importing torch
+    from madpinn.simulation.recorder import EpisodeResult
 
 SEED_METRICS = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg")
 # seed figure -> per-scenario column it averages (costs: NaN-aware mean over scenarios)
