@@ -76,3 +76,29 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
     tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(0.0, system.horizon)
     closest = torch.linalg.vector_norm(p + v * tau[:, None], dim=-1)
     assert unclipped.sum() > 400 and bool((closest <= 0.3 + 1e-5).all()) and not math.isnan(float(closest.max()))
+
+
+def test_near_rows_fill_the_inner_box_and_leave_the_rest():
+    from madpinn.value_functions.sampling import NearSampling, place_near
+
+    cfg = load_config([REPO / "config.yaml"])
+    cfg["value_functions"]["vs"]["conflict_sampling"] = {"fraction": 0.25, "radius": 0.3}
+    cfg["value_functions"]["vs"]["near_sampling"] = {"fraction": 0.5, "p_range": 1.0, "v_range": 3.0}
+    p = problem_from_config(cfg, "vs")
+    s = p.sample_training_states(4000, torch.Generator().manual_seed(3), torch.float64)
+    near, rest = s[2000:], s[:2000]
+    assert bool((near[:, :2].abs() <= 1.0).all()) and bool((near[:, 2:].abs() <= 3.0).all())
+    # uniform in the inner box: each half of each axis holds about half of the rows
+    assert bool(((near > 0).double().mean(0) - 0.5).abs().max() < 0.05)
+    assert float(near[:, 2:].abs().max()) > 2.9
+    # the other rows are the uniform + conflict batch of the same generator stream (v beyond the box)
+    assert float(rest[:, 2:].abs().max()) > 7.0
+    x = p.system.sample(64, torch.Generator().manual_seed(1))
+    assert torch.equal(place_near(x, 2.0, 8.0, NearSampling(0.0), torch.Generator()), x)
+    a = p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32)
+    assert torch.equal(a, p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32))
+    with pytest.raises(ValueError, match="fraction"):
+        NearSampling(fraction=-0.1)
+    bad = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vs": {"near_sampling": {"p_range": 0}}}})
+    with pytest.raises(ConfigError, match="near_sampling"):
+        validate_config(bad)

@@ -11,12 +11,13 @@ def problem_from_config(cfg: dict, kind: str):
     from madpinn.dynamics.epigraph import EpigraphSystem
     from madpinn.dynamics.pair import PairSystem
     from madpinn.value_functions.problems import EpigraphProblem, PairProblem
-    from madpinn.value_functions.sampling import ConflictSampling
+    from madpinn.value_functions.sampling import ConflictSampling, NearSampling
 
     if kind == "vhat":
         return EpigraphProblem(EpigraphSystem.from_config(cfg),
                                ConflictSampling.from_config(cfg["value_functions"]["vhat"]))
-    return PairProblem(PairSystem.from_config(cfg), ConflictSampling.from_config(cfg["value_functions"]["vs"]))
+    vs = cfg["value_functions"]["vs"]
+    return PairProblem(PairSystem.from_config(cfg), ConflictSampling.from_config(vs), NearSampling.from_config(vs))
 
 
 def training_hash(cfg: dict, kind: str) -> str:

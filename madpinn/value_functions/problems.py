@@ -20,7 +20,9 @@ import torch
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.observation import ObservationSpec
-from madpinn.value_functions.sampling import ConflictSampling, place_conflicts, place_pair_conflicts
+from madpinn.value_functions.sampling import (
+    ConflictSampling, NearSampling, place_conflicts, place_near, place_pair_conflicts,
+)
 
 
 class PINNProblem:
@@ -125,9 +127,10 @@ class PairProblem(PINNProblem):
 
     kind = "vs"
 
-    def __init__(self, system: PairSystem, conflict: ConflictSampling | None = None):
+    def __init__(self, system: PairSystem, conflict: ConflictSampling | None = None, near: NearSampling | None = None):
         self.system = system
         self.conflict = conflict or ConflictSampling()
+        self.near = near or NearSampling()
         self.horizon = system.horizon
         hw = system.half_widths()
         super().__init__(torch.zeros_like(hw), hw)
@@ -137,9 +140,12 @@ class PairProblem(PINNProblem):
 
     def sample_training_states(self, batch, generator, dtype):
         """Uniform states with ``conflict.fraction`` of them on near-collision courses
-        (:func:`madpinn.value_functions.sampling.place_pair_conflicts`)."""
+        (:func:`madpinn.value_functions.sampling.place_pair_conflicts`) and ``near.fraction`` of them
+        from the inner box (:func:`madpinn.value_functions.sampling.place_near`)."""
+        sy = self.system
         s = self.sample_states(batch, generator, dtype)
-        return place_pair_conflicts(s, self.system.horizon, self.system.p_range, self.conflict, generator)
+        s = place_pair_conflicts(s, sy.horizon, sy.p_range, self.conflict, generator)
+        return place_near(s, sy.p_range, sy.v_range, self.near, generator)
 
     def boundary_and_grad(self, s):
         return self.system.target_and_grad(s)

@@ -91,3 +91,43 @@ def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampli
     out = x.clone()
     out[:m, 0:2] = (-x[:m, 2:4] * tau[:, None] + d).clamp(-p_range, p_range)
     return out
+
+
+@dataclass(frozen=True)
+class NearSampling:
+    """fraction: share of each V_s training batch drawn uniformly from the inner box
+    ``|p| ≤ p_range``, ``|v| ≤ v_range`` per axis (m, m/s), where nearby, slow pairs sit — a small
+    corner of the uniform training box (|p| ≤ 2, |v| ≤ 8: the inner box 1 × 3 holds 3.5 % of it)
+    that carries the collision disk, the kink of ψ and most of the grid reference's unsafe states."""
+
+    fraction: float = 0.0
+    p_range: float = 1.0
+    v_range: float = 3.0
+
+    def __post_init__(self):
+        if not 0.0 <= self.fraction <= 1.0:
+            raise ValueError(f"near sampling fraction must be in [0, 1], got {self.fraction}")
+        if self.p_range <= 0.0 or self.v_range <= 0.0:
+            raise ValueError(f"near sampling box must be positive, got p {self.p_range} m, v {self.v_range} m/s")
+
+    @classmethod
+    def from_config(cls, vcfg: dict) -> "NearSampling":
+        c = vcfg.get("near_sampling") or {}
+        return cls(fraction=float(c.get("fraction", 0.0)), p_range=float(c.get("p_range", 1.0)),
+                   v_range=float(c.get("v_range", 3.0)))
+
+
+def place_near(x: torch.Tensor, p_range: float, v_range: float, sampling: NearSampling,
+               generator: torch.Generator) -> torch.Tensor:
+    """Return the relative pair states ``x [B, 4]`` with the last ``round(fraction·B)`` rows redrawn
+    uniformly from the inner box (clipped to the training box ``p_range``, ``v_range``); the first
+    rows (where :func:`place_pair_conflicts` works) are untouched. ``fraction = 0`` returns ``x``
+    unchanged without drawing. Pure function of the generator state."""
+    m = int(round(sampling.fraction * x.shape[0]))
+    if m == 0:
+        return x
+    half = torch.tensor([min(sampling.p_range, p_range)] * 2 + [min(sampling.v_range, v_range)] * 2, dtype=x.dtype)
+    u = torch.rand(m, 4, generator=generator, dtype=x.dtype)
+    out = x.clone()
+    out[x.shape[0] - m:] = ((2.0 * u - 1.0) * half).to(x.device)
+    return out
