@@ -27,7 +27,8 @@ def tiny_model_dir() -> Path:
         problem = problem_from_config(cfg, kind)
         settings = TrainSettings.from_config(cfg["value_functions"][kind], cfg["value_functions"]["seed"])
         net, _ = train(problem, settings, out / f"{kind}.ckpt.pt", training_hash(cfg, kind), progress=False)
-        save_atomic(model_payload(problem, net, settings.output_scale, {"iterations": settings.iterations}), out / f"{kind}.pt")
+        meta = {"iterations": settings.iterations, "config_hash": training_hash(cfg, kind)}   # as the train-value job writes
+        save_atomic(model_payload(problem, net, settings.output_scale, meta), out / f"{kind}.pt")
     return out
 
 

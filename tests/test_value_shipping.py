@@ -50,3 +50,15 @@ def test_shipped_overlay_installs_instead_of_training(tmp_path):
     assert "install_shipped_model" in out and "train_vs" not in out and "train_vhat" in out
     run_snakemake(tmp_path, "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
     assert sha256(tmp_path / "results/smoke/models/vs.pt") == sha256(tmp_path / "models/vs.pt")
+
+
+def test_shipped_value_function_of_another_configuration_stops_the_workflow_before_any_job(tmp_path):
+    _ship(tmp_path)
+    overlay = tmp_path / "shipped.yaml"
+    # a V_s setting the shipped model was not trained with
+    overlay.write_text("shipped_models: {enabled: true, dir: models, names: [vs]}\n"
+                       "value_functions: {vs: {iterations: 31}}\n")
+    proc = run_snakemake(tmp_path, "-j2", "all", configfiles=(SMOKE, overlay), check=False)
+    assert proc.returncode != 0
+    assert "shipped model 'vs'" in proc.stderr and "training hash" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "results").exists()

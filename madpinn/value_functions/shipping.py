@@ -95,6 +95,20 @@ def verify(directory: str | Path, name: str) -> Path:
     return path
 
 
+def check_training_hash(directory: str | Path, name: str, expected: str) -> None:
+    """Refuse a shipped value function trained for another configuration: its manifest entry's
+    ``training_config_hash`` must equal ``expected`` (:func:`madpinn.value_functions.build.training_hash`
+    of the configuration in use). A missing entry is left to :func:`verify`."""
+    entry = read_manifest(directory)["models"].get(name)
+    if entry is None or entry.get("training_config_hash") == expected:
+        return
+    raise ShippedModelError(
+        f"shipped model '{name}' ({Path(directory) / entry['file']}) was trained for configuration hash "
+        f"{entry.get('training_config_hash')}, this configuration's {name} training hash is {expected} "
+        f"(value_functions.{name}, agents, observation, seed or dtype changed since it was shipped); drop '{name}' "
+        "from shipped_models.names to train it, or re-ship a model trained with this configuration")
+
+
 def install(directory: str | Path, name: str, out: str | Path) -> Path:
     """Copy the verified shipped ``name`` to ``out`` (e.g. ``results/models/vs.pt``)."""
     src = verify(directory, name)

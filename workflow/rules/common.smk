@@ -291,3 +291,18 @@ def study_models(study):
 
     return sorted({str(m) for run in config["studies"][study]["runs"]
                    for m in run_models(SimpleNamespace(run=run)).values()})
+
+
+def check_shipped_value_functions(shipped):
+    """Stop at parse time when a shipped V̂ or V_s was trained for another configuration than this
+    one (madpinn.value_functions.shipping.check_training_hash)."""
+    from madpinn.value_functions.build import training_hash
+    from madpinn.value_functions.shipping import ShippedModelError, check_training_hash
+
+    for name in shipped["names"]:
+        if name in ("vhat", "vs"):
+            try:
+                check_training_hash(shipped["dir"], name, training_hash(config, name))
+            except (ShippedModelError, OSError, ValueError) as exc:
+                sys.stderr.write(f"\nmadpinn: {exc}\n\n")
+                raise SystemExit(1)

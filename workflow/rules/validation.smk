@@ -87,6 +87,7 @@ EXTRA_TARGETS += [f"{RESULTS}/validation/vhat_scenario.json"]
 # sha256-checked models/<name>.pt instead of its training rule.
 SHIPPED = config.get("shipped_models") or {}
 if SHIPPED.get("enabled") and SHIPPED.get("names"):
+    check_shipped_value_functions(SHIPPED)   # before any job: a model trained for another config stops here
 
     rule install_shipped_model:
         input:
