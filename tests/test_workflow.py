@@ -54,12 +54,14 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
     assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
 
 
-def test_rerun_replaces_runs_without_duplicates(smoke_run):
+def test_rerun_replaces_runs_without_duplicates(smoke_run, smoke_cfg):
     """Forced reruns of finished cells (here the cells of one table, run in parallel) replace
     their MLflow runs: one run per job afterwards, the same set of jobs."""
     before = _job_counts(smoke_run)
     proc = run_snakemake(smoke_run, "-j2", "table_ours_scaling", "--forcerun", "evaluate")
-    assert len(re.findall(r"^rule evaluate:", proc.stdout + proc.stderr, re.M)) >= 3
+    scaling = smoke_cfg["studies"]["scaling"]
+    cells = len(scaling["runs"]) * len(scaling["agent_counts"]) * len(scaling["seeds"])
+    assert len(re.findall(r"^(local)?rule evaluate:", proc.stdout + proc.stderr, re.M)) == cells
     after = _job_counts(smoke_run)
     assert after == before and set(after.values()) == {1}
 
@@ -68,16 +70,16 @@ def test_results_are_deterministic_across_reruns(smoke_run, smoke_cfg, tmp_path)
     """A fresh run with 4 parallel writers into a new store gives identical numbers.
 
     The trained models are copied over (training is covered by the first run) so that this run
-    is all evaluation jobs writing to MLflow concurrently: every cell of our method's scaling
-    table (both arenas) and one cell of every other method (each has its own random streams).
+    is all evaluation jobs writing to MLflow concurrently: the cells of the large-arena table and
+    one small-arena cell of every method (each has its own random streams).
     """
     models = smoke_run / "results" / "smoke" / "models"
     if models.is_dir():
         shutil.copytree(models, tmp_path / "results" / "smoke" / "models")
     main = smoke_cfg["studies"]["main"]
-    others = [f"results/smoke/eval/{smoke_cfg['sim']['backend']}/main/{run}/n{main['agent_counts'][0]}_seed1.parquet"
-              for run in main["runs"] if run != "madpinn"]
-    run_snakemake(tmp_path, "-j4", "table_ours_scaling", *others)
+    cells = [f"results/smoke/eval/{smoke_cfg['sim']['backend']}/main/{run}/n{main['agent_counts'][0]}_seed1.parquet"
+             for run in main["runs"]]
+    run_snakemake(tmp_path, "-j4", "table_ours_scaling", *cells)
     fresh = sorted((tmp_path / "results" / "smoke" / "eval").rglob("*.parquet"))
     runs = {f.relative_to(tmp_path / "results" / "smoke" / "eval").parts[1:3] for f in fresh}
     assert {("main", run) for run in main["runs"]} | {("scaling", "madpinn")} <= runs
