@@ -3,10 +3,12 @@
 import json
 
 import pytest
+import yaml
 
-from conftest import SMOKE, run_snakemake
+from conftest import REPO, SMOKE, run_snakemake
 from madpinn.commands import main
 from madpinn.value_functions import load_vs
+from madpinn.value_functions.build import KINDS, training_hash
 from madpinn.value_functions.shipping import ShippedModelError, install, read_manifest, sha256, verify
 from policy_models import tiny_model_dir
 
@@ -67,13 +69,10 @@ def test_shipped_value_function_of_another_configuration_stops_the_workflow_befo
 def test_committed_models_were_trained_for_config_yaml(paper_cfg):
     """`models/` is what `workflow/configs/shipped.yaml` installs: every shipped V̂ / V_s must carry
     config.yaml's training hash (else the shipped overlay stops, see the test above) and its sha256."""
-    from conftest import REPO
-    from madpinn.value_functions.build import training_hash
-
     shipped = read_manifest(REPO / "models")["models"]
-    names = __import__("yaml").safe_load((REPO / "workflow" / "configs" / "shipped.yaml").read_text())["shipped_models"]["names"]
+    names = yaml.safe_load((REPO / "workflow" / "configs" / "shipped.yaml").read_text())["shipped_models"]["names"]
     assert set(names) <= set(shipped)
-    for name in ("vhat", "vs"):
+    for name in KINDS:
         if name in shipped:
             assert shipped[name]["training_config_hash"] == training_hash(paper_cfg, name), name
             assert verify(REPO / "models", name).stat().st_size == shipped[name]["bytes"]

@@ -19,9 +19,8 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models, single_model
 from madpinn.commands.finish import JobRecord, finish, job, write_json
+from madpinn.value_functions.build import KINDS
 
-KINDS = ("vhat", "vs")
-"""value functions: V̂ (epigraph PINN) and V_s (pairwise safety)"""
 LIVE_POINTS = 1000
 """training curves: at most this many live MLflow points per run"""
 

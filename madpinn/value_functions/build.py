@@ -5,6 +5,9 @@ from __future__ import annotations
 from madpinn.config import config_hash
 from madpinn.observation import DEPLOYMENT_ONLY_KEYS
 
+KINDS = ("vhat", "vs")
+"""value functions: V̂ (epigraph PINN) and V_s (pairwise safety)"""
+
 
 def problem_from_config(cfg: dict, kind: str):
     """The PINN problem of V̂ (``kind="vhat"``, epigraph system) or V_s (``"vs"``, pair system)."""

@@ -296,11 +296,11 @@ def study_models(study):
 def check_shipped_value_functions(shipped):
     """Stop at parse time when a shipped V̂ or V_s was trained for another configuration than this
     one (madpinn.value_functions.shipping.check_training_hash)."""
-    from madpinn.value_functions.build import training_hash
+    from madpinn.value_functions.build import KINDS, training_hash
     from madpinn.value_functions.shipping import ShippedModelError, check_training_hash
 
     for name in shipped["names"]:
-        if name in ("vhat", "vs"):
+        if name in KINDS:
             try:
                 check_training_hash(shipped["dir"], name, training_hash(config, name))
             except (ShippedModelError, OSError, ValueError) as exc:
