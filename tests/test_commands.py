@@ -139,3 +139,13 @@ def test_cli_errors_are_one_line_with_the_fix(tmp_path):
     assert_one_line(madpinn(*args), "not found", "missing.pt", code=4)
     for res in (madpinn("--debug", *args), madpinn(*args, env={"MADPINN_DEBUG": "1"})):
         assert res.returncode != 0 and "Traceback" in res.stderr and "CheckpointError" in res.stderr
+
+
+def test_command_line_and_result_files_jobs_start_without_the_heavy_libraries():
+    """Every workflow job starts ``python -m madpinn``: building its parser, and the table, figure
+    and report code, import neither torch nor MLflow nor MuJoCo (≈ 2–4 s per job otherwise)."""
+    probe = ("import sys; from madpinn.commands import build_parser; build_parser(); "
+             "import madpinn.evaluation.tables, madpinn.evaluation.reproduction, madpinn.figures; "
+             "print(' '.join(m for m in ('torch', 'mlflow', 'mujoco', 'cvxpy') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, check=True)
+    assert proc.stdout.split() == []

@@ -1,9 +1,11 @@
-"""The PINN problem of ``value_functions.<kind>`` and the hash its trained weights depend on."""
+"""The PINN problem of ``value_functions.<kind>`` and the hash its trained weights depend on.
+
+Light at import (no torch): the command line's parser and the workflow's parse-time checks read
+``KINDS`` and ``training_hash``; the heavy modules are imported where they are used."""
 
 from __future__ import annotations
 
 from madpinn.config import config_hash
-from madpinn.observation import DEPLOYMENT_ONLY_KEYS
 
 KINDS = ("vhat", "vs")
 """value functions: V̂ (epigraph PINN) and V_s (pairwise safety)"""
@@ -25,6 +27,8 @@ def problem_from_config(cfg: dict, kind: str):
 
 def training_hash(cfg: dict, kind: str) -> str:
     """Hash of everything the trained weights depend on (not validation settings)."""
+    from madpinn.observation import DEPLOYMENT_ONLY_KEYS
+
     vcfg = {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
     if not vcfg.get("velocity_saturation", True):   # off = the dynamics every earlier model was trained with: same hash
         vcfg.pop("velocity_saturation")
