@@ -10,9 +10,12 @@ from __future__ import annotations
 import math
 import zlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 # Random sequential addition of disks jams near 54.7 % coverage; refuse well before it.
 _MAX_RSA_COVERAGE = 0.45
@@ -111,10 +114,14 @@ def generate_scenarios(
     count: int,
     collision_radius: float,
     device: torch.device | str = "cpu",
-    dtype: torch.dtype = torch.float32,
+    dtype: torch.dtype | None = None,
     first_index: int = 0,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Scenarios ``first_index … first_index+count-1``: ``(starts, goals)`` each ``[S, N, 2]``."""
+    """Scenarios ``first_index … first_index+count-1``: ``(starts, goals)`` each ``[S, N, 2]``
+    (``dtype`` None: float32)."""
+    import torch   # here, so that config validation (``max_agents``) does not import torch
+
+    dtype = torch.float32 if dtype is None else dtype
     if count < 1:
         raise ValueError(f"scenario count must be ≥ 1, got {count}")
     pairs = [generate_scenario(arena, n_agents, seed, first_index + i, collision_radius) for i in range(count)]

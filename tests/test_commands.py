@@ -142,9 +142,11 @@ def test_cli_errors_are_one_line_with_the_fix(tmp_path):
 
 
 def test_command_line_and_result_files_jobs_start_without_the_heavy_libraries():
-    """Every workflow job starts ``python -m madpinn``: building its parser, and the table, figure
-    and report code, import neither torch nor MLflow nor MuJoCo (≈ 2–4 s per job otherwise)."""
+    """Every workflow job starts ``python -m madpinn``: building its parser, loading and validating
+    the config (agent-count feasibility included), and the table, figure and report code import
+    neither torch nor MLflow nor MuJoCo (≈ 2–4 s per job otherwise)."""
     probe = ("import sys; from madpinn.commands import build_parser; build_parser(); "
+             f"from madpinn.config import load_config; load_config([{str(REPO / 'config.yaml')!r}, {str(SMOKE)!r}]); "
              "import madpinn.evaluation.tables, madpinn.evaluation.reproduction, madpinn.figures; "
              "print(' '.join(m for m in ('torch', 'mlflow', 'mujoco', 'cvxpy') if m in sys.modules))")
     proc = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, check=True)
