@@ -49,9 +49,9 @@ def value_heatmap(axis, z_star, feasible, stem: Path) -> list[Path]:
     ax_np = axis.numpy()
     z = np.where(feasible.numpy(), z_star.numpy(), np.nan)
     fig, ax = plt.subplots(figsize=(4.6, 4))
-    im = ax.pcolormesh(ax_np, ax_np, z, cmap="coolwarm", shading="auto")
+    im = ax.pcolormesh(ax_np, ax_np, z, cmap="coolwarm", shading="auto", rasterized=True)
     unsafe = np.ma.masked_where(feasible.numpy(), np.ones(z.shape))
-    ax.pcolormesh(ax_np, ax_np, unsafe, cmap=matplotlib.colors.ListedColormap(["0.35"]), shading="auto")
+    ax.pcolormesh(ax_np, ax_np, unsafe, cmap=matplotlib.colors.ListedColormap(["0.35"]), shading="auto", rasterized=True)
     ax.contour(ax_np, ax_np, feasible.numpy().astype(float), levels=[0.5], colors="k", linewidths=0.8)
     fig.colorbar(im, ax=ax, label=r"$V_d = z^*$ (cost)")
     for (x, y), (gx, gy) in zip(HEATMAP["neighbours"], HEATMAP["neighbour_goals"]):
@@ -73,7 +73,7 @@ def vs_slices_figure(axis, values, velocities, collision_radius: float, stem: Pa
     ax_np = axis.numpy()
     vmax = float(np.nanmax(np.abs(values.numpy())))
     for a, vel, val in zip(axes[0], velocities, values.numpy()):
-        im = a.pcolormesh(ax_np, ax_np, val, cmap="RdBu", vmin=-vmax, vmax=vmax, shading="auto")
+        im = a.pcolormesh(ax_np, ax_np, val, cmap="RdBu", vmin=-vmax, vmax=vmax, shading="auto", rasterized=True)
         a.contour(ax_np, ax_np, val, levels=[0.0], colors="k", linewidths=1.0)
         a.add_patch(plt.Circle((0, 0), collision_radius, fill=False, color="m", lw=0.8))
         a.set_title(f"v_rel = [{vel[0]:g}, {vel[1]:g}] m/s", fontsize=9)
