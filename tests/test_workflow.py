@@ -41,7 +41,7 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
             assert (figs / f"{name}.{ext}").stat().st_size > 1000
     table = pd.read_csv(figs / "table_safety_scaling.csv")
     assert set(table["n_agents"]) == {3, 16}
-    assert (table["n_seeds"] == 2).all()
+    assert (table["n_seeds"] == len(smoke_cfg["studies"]["main"]["seeds"])).all()
     oracle = table[table["run"] == "oracle"]
     assert len(oracle) == 2 and (oracle["cost_mean"] > 0).all()
     report = __import__("json").loads((figs / "reproduction.json").read_text())
@@ -71,15 +71,17 @@ def test_results_are_deterministic_across_reruns(smoke_run, smoke_cfg, tmp_path)
 
     The trained models are copied over (training is covered by the first run) so that this run
     is all evaluation jobs writing to MLflow concurrently: the cells of the large-arena table and
-    one small-arena cell of every method (each has its own random streams).
+    one small-arena cell of every method (each has its own random streams). The new directory has
+    no MLflow store or store marker: creating them must not retrain the finished models.
     """
     models = smoke_run / "results" / "smoke" / "models"
     if models.is_dir():
         shutil.copytree(models, tmp_path / "results" / "smoke" / "models")
     main = smoke_cfg["studies"]["main"]
-    cells = [f"results/smoke/eval/{smoke_cfg['sim']['backend']}/main/{run}/n{main['agent_counts'][0]}_seed1.parquet"
+    cells = [f"results/smoke/eval/{smoke_cfg['sim']['backend']}/main/{run}/n{main['agent_counts'][0]}_seed{main['seeds'][0]}.parquet"
              for run in main["runs"]]
-    run_snakemake(tmp_path, "-j4", "table_ours_scaling", *cells)
+    proc = run_snakemake(tmp_path, "-j4", "table_ours_scaling", *cells)
+    assert not re.findall(r"^(local)?rule (train_|tracking_init)", proc.stdout + proc.stderr, re.M)
     fresh = sorted((tmp_path / "results" / "smoke" / "eval").rglob("*.parquet"))
     runs = {f.relative_to(tmp_path / "results" / "smoke" / "eval").parts[1:3] for f in fresh}
     assert {("main", run) for run in main["runs"]} | {("scaling", "madpinn")} <= runs

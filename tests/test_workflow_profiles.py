@@ -1,6 +1,6 @@
 """Profiles and hygiene of the workflow: the default profile is loaded by the README command, the
 Slurm profile submits real sbatch jobs with the rules' resources, `snakemake --lint` is clean,
-config strings never reach a shell, and paths with spaces work."""
+and config strings never reach a shell (paths with spaces: tests/test_workflow_reruns.py)."""
 
 import os
 import shutil
@@ -14,7 +14,7 @@ import yaml
 
 from conftest import REPO, subprocess_env
 from madpinn.config import ConfigError, deep_merge, validate_config
-from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, write_overlay
+from workflow_helpers import copy_repo, run_in
 
 
 def _snakemake(*args, cwd=REPO, check=True):
@@ -95,15 +95,6 @@ def test_injected_path_never_runs(tmp_path):
     proc = _snakemake("-j1", "all", "-d", str(tmp_path), "--configfile", "config.yaml", str(bad), check=False)
     assert proc.returncode != 0 and "paths.results" in proc.stderr
     assert not list(tmp_path.rglob("pwned")) and not (REPO / "pwned").exists()
-
-
-def test_paths_with_spaces_work(tmp_path):
-    """A results directory with a space through training, evaluation and a table."""
-    copy = copy_repo(tmp_path / "my clone")
-    write_overlay(copy / "tiny.yaml", TINY, NO_TRACKING, {"paths": {"results": "my results", "figures": "my results/fig s"}})
-    run_in(copy, "-j2", "table_update_ablation", configfiles=("smoke.yaml", "tiny.yaml"))
-    assert (copy / "my results" / "fig s" / "table_update_ablation.csv").is_file()
-    assert planned_jobs(run_in(copy, "-n", "table_update_ablation", configfiles=("smoke.yaml", "tiny.yaml"))) == {}
 
 
 def test_a_second_concurrent_run_is_refused(tmp_path):

@@ -1,6 +1,7 @@
 """Reruns follow exactly what a change affects; dry runs write nothing; the report holds every
-table and figure. One real tiny run of the whole DAG in a copy of the repository, then
-``snakemake -n`` / ``--report`` against it."""
+table and figure; paths with spaces work. One real tiny run of the whole DAG in a copy of the
+repository whose directory and results paths contain spaces, then ``snakemake -n`` / ``--report``
+against it."""
 
 import re
 import zipfile
@@ -14,13 +15,15 @@ from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in,
 TRAININGS = {"train_vhat", "train_vs"}
 TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation"}
 FIGURES = {"fig_cost_safety", "fig_trajectories", "fig_value_heatmap", "fig_vs_slices"}
+SPACED = {"paths": {"results": "my results", "figures": "my results/fig s"}}   # quoting in every shell line
 
 
 @pytest.fixture(scope="module")
 def done(tmp_path_factory):
-    """A copy of the repository after a complete tiny run of ``all``."""
-    copy = copy_repo(tmp_path_factory.mktemp("clone"))
-    write_overlay(copy / "tiny.yaml", TINY, NO_TRACKING)
+    """A copy of the repository (in a directory with a space) after a complete tiny run of ``all``
+    into a results directory with a space."""
+    copy = copy_repo(tmp_path_factory.mktemp("clone") / "my clone")
+    write_overlay(copy / "tiny.yaml", TINY, NO_TRACKING, SPACED)
     run_in(copy, "-j2", "all", configfiles=("smoke.yaml", "tiny.yaml"))
     return copy
 
@@ -39,6 +42,15 @@ def _dry(copy, *overlays, targets=("all",)):
 
 def test_complete_run_has_nothing_left_to_do(done):
     assert _dry(done) == {}
+
+
+def test_paths_with_spaces_work(done):
+    """Training, evaluation, tables and figures all wrote under the spaced paths, nothing elsewhere."""
+    figs = done / "my results" / "fig s"
+    for stem in TABLES:
+        assert (figs / f"{stem}.csv").is_file(), stem
+    assert (done / "my results" / "models" / "vhat.pt").is_file()
+    assert not (done / "results").exists() and not (done / "my").exists()
 
 
 def test_training_setting_reruns_that_training_and_its_downstream_only(done):
@@ -96,7 +108,7 @@ def test_figure_code_change_reruns_tables_and_figures_only(done):
 def test_dry_run_writes_nothing(done):
     """`snakemake -n` with a changed config neither writes the resolved config nor anything else
     (Snakemake's own .snakemake/ bookkeeping aside)."""
-    resolved = done / "results" / "smoke" / "config.resolved.yaml"
+    resolved = done / "my results" / "config.resolved.yaml"
     assert yaml.safe_load(resolved.read_text())["value_functions"]["vhat"]["iterations"] == 30
     for change in ({"value_functions": {"vhat": {"iterations": 45}}},
                    {"value_functions": {"vhat": {"iterations": 45}}, "paths": {"results": "elsewhere"}}):

@@ -162,6 +162,8 @@ class JobRun:
             self._try(lambda: log_files(self._client, self.record.run_id, artifacts, saved))
 
     def _save_models(self, models: Mapping[str, object]) -> dict:
+        if not models:
+            return {}   # jobs without models (tables, figures, oracle) do not import torch here
         import mlflow.pytorch
         import torch
 

@@ -40,7 +40,7 @@ def check_store(settings: TrackingSettings, timeout_s: float = 5.0) -> None:
     """Raise :class:`TrackingError` if the store cannot be used; writes nothing.
 
     Server: ``GET /health`` answers. SQLite: the database file is a readable and writable file,
-    or the nearest existing parent directory is writable (the store is created by tracking_init).
+    or the nearest existing parent directory is writable (the store is created at a real start).
     """
     if not settings.enabled:
         return
@@ -174,17 +174,18 @@ def write_marker(settings: TrackingSettings, marker: str | Path) -> dict:
 
 
 def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
-    """At a real workflow start: when the store marker ``marker`` (:func:`write_marker`) exists
-    but names another tracking URI or experiment, create the store and experiment now and rewrite
-    the marker (jobs take it as an ancient input, so nothing reruns); return the new marker
-    content, or None when nothing changed (a missing marker is tracking_init's job)."""
+    """At a real workflow start: when the store marker ``marker`` (:func:`write_marker`) is missing,
+    or names another tracking URI or experiment, create the store and experiment now and write the
+    marker (jobs take it as an ancient input, so nothing reruns: finished results stay finished
+    when the store or its marker was deleted or moved); return the new marker content, or None
+    when nothing changed. (tracking_init then only runs with tracking disabled.)"""
     import json
 
     marker = Path(marker)
-    if not settings.enabled or not marker.is_file():
+    if not settings.enabled:
         return None
     try:
-        old = json.loads(marker.read_text())
+        old = json.loads(marker.read_text()) if marker.is_file() else {}
     except ValueError:
         old = {}
     if old.get("uri") == settings.uri and old.get("experiment") == settings.experiment:
