@@ -53,6 +53,18 @@ include: "workflow/rules/tables.smk"
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 
 
+# Last, after every parse-time check has passed (a failed check writes nothing): a real start (not
+# a dry run, not a cluster job's own process) brings the MLflow store up to date before any job.
+# The store is created when its marker is missing (fresh clone, or a deleted store: finished
+# results are not recomputed) or follows a changed URI, and the runs whose logging failed during an
+# earlier job are logged, once. Done here and not in `onstart`, which Snakemake skips when every
+# target is up to date, and not by rerunning tracking_init, which would hide the jobs downstream of
+# it from that start (an ancient() input's producer masks its consumers in Snakemake 9's needrun
+# pass). A dry run writes nothing. (start_tracking: common.smk; the settings: tracking.smk)
+if not workflow.output_settings.dryrun and workflow.exec_mode == ExecMode.DEFAULT:
+    start_tracking(TRACKING_SETTINGS, TRACKING_STORE)
+
+
 rule all:
     default_target: True
     input:
