@@ -100,6 +100,12 @@ def test_value_function_code_change_reruns_trainings(done):
     assert TRAININGS <= set(jobs) and jobs.get("evaluate") == 5, jobs
 
 
+def test_report_or_oracle_code_change_reruns_no_evaluation_cell(done):
+    for rel in ("evaluation/reproduction.py", "evaluation/oracle.py"):
+        jobs = _edit_and_dry(done, rel)
+        assert "reproduction_report" in jobs and "evaluate" not in jobs and not (TRAININGS & set(jobs)), (rel, jobs)
+
+
 def test_figure_code_change_reruns_tables_and_figures_only(done):
     jobs = _edit_and_dry(done, "figures/style.py")
     assert set(jobs) == TABLES | {"fig_cost_safety", "fig_trajectories", "all"}, jobs

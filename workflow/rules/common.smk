@@ -132,13 +132,18 @@ PACKAGE = Path(workflow.basedir) / "madpinn"
 
 # Parts of the package (sub-packages or modules under madpinn/) that each job family runs. Editing
 # a file there reruns the family's jobs (through their `source` param) and everything downstream;
-# the glue (cli/commands, config, tracking) changes no result and reruns nothing.
+# the glue (commands, config, tracking, hints, checksums) changes no result and reruns
+# nothing. Evaluation cells list their modules of `evaluation/` one by one, so that editing the
+# tables, the report or the oracle does not rerun hours of cells (tests/test_workflow_sources.py
+# checks every module a family's entry imports is listed).
 SOURCES = {
     "value": ["dynamics", "value_functions", "observation.py", "device.py", "settings.py", "atomic.py"],
     "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py", "settings.py", "atomic.py"],
-    "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
-                 "observation.py", "scenarios.py", "device.py", "settings.py"],
-    "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation",
+    "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
+                 "evaluation/cell.py", "evaluation/metrics.py", "observation.py", "scenarios.py", "device.py",
+                 "settings.py"],
+    "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
+            "evaluation/cell.py", "evaluation/metrics.py", "evaluation/collisions.py", "evaluation/gap.py",
             "observation.py", "scenarios.py", "device.py", "settings.py"],
     "tables": ["evaluation", "figures"],
     "report": ["evaluation"],

@@ -1,0 +1,114 @@
+"""The workflow's source triggers cover what each job family runs.
+
+``SOURCES`` in ``workflow/rules/common.smk`` lists the parts of the package whose edit reruns a
+job family (issue 17). A module a family's jobs import but the list misses would let an edit
+change results silently; listing too much reruns hours of cells for nothing (evaluation cells do
+not list the tables, the report or the oracle). Checked on the source: the static import closure of
+each family's entry modules (every import, function-level ones included, so a superset of what
+runs; ``TYPE_CHECKING`` imports left out), minus the glue that changes no result.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from conftest import REPO
+
+PACKAGE = REPO / "madpinn"
+GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
+        "madpinn.atomic")
+
+
+def _sources() -> dict[str, list[str]]:
+    text = (REPO / "workflow" / "rules" / "common.smk").read_text()
+    start = text.index("SOURCES = {") + len("SOURCES = ")
+    return ast.literal_eval(text[start:text.index("\n}\n", start) + 2])
+
+
+def _path(module: str) -> Path | None:
+    p = PACKAGE.joinpath(*module.split(".")[1:])
+    if (p / "__init__.py").is_file():
+        return p / "__init__.py"
+    return p.with_suffix(".py") if p.with_suffix(".py").is_file() else None
+
+
+def _runtime_nodes(tree):
+    """Every node except those under ``if TYPE_CHECKING:`` (annotations only, never run)."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        yield node
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.If) and getattr(child.test, "id", None) == "TYPE_CHECKING":
+                todo += child.orelse
+            else:
+                todo.append(child)
+
+
+def _imports(module: str) -> set[str]:
+    out = set()
+    for node in _runtime_nodes(ast.parse(_path(module).read_text())):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        for name in names:
+            if name.startswith("madpinn") and _path(name):
+                parts = name.split(".")
+                out |= {".".join(parts[:i]) for i in range(2, len(parts) + 1)}
+    return out
+
+
+def _closure(entries) -> set[str]:
+    """Modules reachable from ``entries``; glue reached on the way is not followed further (the
+    config check's own imports, for instance, change no result)."""
+    seen, todo = set(), list(entries)
+    while todo:
+        m = todo.pop()
+        if m not in seen and _path(m):
+            seen.add(m)
+            if m in entries or not m.startswith(GLUE):
+                todo += _imports(m)
+    return seen
+
+
+def _package_modules(sub: str) -> list[str]:
+    root = PACKAGE / sub
+    return [".".join(("madpinn",) + f.relative_to(PACKAGE).with_suffix("").parts).removesuffix(".__init__")
+            for f in sorted(root.rglob("*.py"))]
+
+
+# each family's entry modules (registries import policies and backends by name: whole packages)
+ENTRIES = {
+    "evaluate": ["madpinn.commands.evaluate", "madpinn.evaluation.cell", *_package_modules("policies"),
+                 *_package_modules("simulation")],
+    "gap": ["madpinn.commands.gap", "madpinn.evaluation.gap", *_package_modules("policies"),
+            *_package_modules("simulation")],
+    "oracle": ["madpinn.evaluation.oracle"],
+    "tables": ["madpinn.evaluation.tables", *_package_modules("figures")],
+    "report": ["madpinn.evaluation.reproduction"],
+    "value": _package_modules("value_functions"),
+}
+
+
+@pytest.mark.parametrize("family", sorted(ENTRIES))
+def test_every_module_a_family_runs_is_listed(family):
+    listed = [PACKAGE / part for part in _sources()[family]]
+    missing = []
+    for module in sorted(_closure(ENTRIES[family])):
+        if module == "madpinn" or module.startswith(GLUE):
+            continue
+        path = _path(module)
+        if not any(path == p or p in path.parents for p in listed):
+            missing.append(str(path.relative_to(PACKAGE)))
+    assert not missing, f"SOURCES['{family}'] misses {missing}"
+
+
+def test_evaluation_cells_do_not_rerun_for_tables_report_or_oracle_edits():
+    listed = {PACKAGE / part for part in _sources()["evaluate"]}
+    for module in ("evaluation/tables.py", "evaluation/reproduction.py", "evaluation/oracle.py"):
+        assert not any(PACKAGE / module == p or p in (PACKAGE / module).parents for p in listed), module
