@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+OPEN_STORE = "from mlflow.tracking import MlflowClient; MlflowClient(tracking_uri=URI).search_experiments()"
 
 PROBES = {
     "interpreter (python -c pass), whole process": None,
@@ -29,8 +30,7 @@ PROBES = {
     "import mujoco (MuJoCo evaluation jobs)": "import mujoco",
     "import cvxpy (oracle jobs)": "import cvxpy",
     "import mlflow": "import mlflow",
-    "MLflow client on a store (every tracked job)":
-        "from mlflow.tracking import MlflowClient; MlflowClient(tracking_uri=URI).search_experiments()",
+    "MLflow client on a store (every tracked job)": OPEN_STORE,
 }
 
 
@@ -53,8 +53,7 @@ def main() -> None:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         uri = f"sqlite:///{Path(tmp) / 'mlflow.db'}"
-        _time_in_process("from mlflow.tracking import MlflowClient; MlflowClient(tracking_uri=URI).search_experiments()",
-                         uri)   # creates the store's schema once
+        _time_in_process(OPEN_STORE, uri)   # creates the store's schema once
         print(f"{'probe':48s} best of {args.repeats} (s)")
         for name, stmt in PROBES.items():
             times = [(_time_process() if stmt is None else _time_in_process(stmt, uri)) for _ in range(args.repeats)]

@@ -148,7 +148,7 @@ SOURCES = {
     "tables": ["evaluation", "figures"],
     "report": ["evaluation"],
     "oracle": ["evaluation/oracle.py", "scenarios.py"],
-    "render": ["simulation"],
+    "render": ["simulation", "dynamics", "observation.py", "settings.py"],
 }
 _SOURCE_HASHES = {}
 
