@@ -91,6 +91,12 @@ def test_reproduction_report_against_a_small_run(small_run):
     k1 = rep["table_update_ablation"]["madpinn-k1"]
     assert k1["12"]["paper_cost"] == 0.49 and k1["3"]["paper_cost"] is None and k1["3"]["safety_std"] == 0.0
     assert rep["table_safety_scaling"]["oracle"]["3"]["cost"] <= cell["cost_all"] + 1e-4
+    # rows in the paper's order (k = 1, 5, …, 500, ∞), runs the paper lacks after them, the oracle last;
+    # each run's agent counts ascending
+    runs = list(rep["table_update_ablation"])
+    assert runs[:3] == ["madpinn-k1", "madpinn-k5", "madpinn-k10"] and runs[7] == "madpinn-kinf" and runs[-1] == "oracle"
+    assert all(list(c) == sorted(c, key=int) for t in ("table_safety_scaling", "table_update_ablation")
+               for c in rep[t].values())
     prov = rep["provenance"]
     assert prov["models"][str(model)] == hashlib.sha256(model.read_bytes()).hexdigest()
     assert len(prov["config_hash"]) == 12 and prov["commit"]

@@ -87,7 +87,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
                                 paper_safety_std=_num(p.get("safety_std")), paper_safe_scenarios=_num(p.get("safe_scenarios")),
                                 paper_safe_scenarios_std=_num(p.get("safe_scenarios_std")), paper_cost=_num(p.get("cost")))
                     table.setdefault(run, {})[str(n)] = cell
-        report[name] = table
+        report[name] = _ordered(table, list(ref["runs"]))
     models = sorted({str(p) for p in model_paths})
     report["provenance"] = {
         "commit": commit,
@@ -102,6 +102,14 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
         "tables": notes,
     }
     return report
+
+
+def _ordered(table: dict, paper_runs: list[str]) -> dict:
+    """Runs in the paper's row order, then ours the paper lacks (in the order met), the oracle
+    last; each run's cells by ascending N."""
+    rank = {run: i for i, run in enumerate(paper_runs)}
+    runs = sorted(table, key=lambda r: (r == ORACLE_RUN, rank.get(r, len(rank)), list(table).index(r)))
+    return {r: dict(sorted(table[r].items(), key=lambda kv: int(kv[0]))) for r in runs}
 
 
 def paper_values_source() -> str:
