@@ -57,6 +57,13 @@ def test_slurm_profile_requests_the_rules_resources(tmp_path):
     runtime = int(vhat.split("runtime=")[1].split(",")[0].split()[0])
     assert 100 <= runtime <= 1000
     assert "gpu=1" not in blocks["evaluate"] and "runtime=" in blocks["evaluate"]
+    # evaluation cells: the longest first (256 agents in the large arena before 3 in the small one),
+    # all after the trainings
+    prio = {b.split("output: ")[1].split(",")[0]: int(b.split("priority: ")[1].split()[0])
+            for b in text.split("\nrule evaluate:")[1:]}
+    big = prio["results/eval/mujoco/scaling/madpinn/n256_seed0.parquet"]
+    small = prio["results/eval/mujoco/main/madpinn/n3_seed0.parquet"]
+    assert small < big < 50, (small, big)
 
 
 def _have_local_slurm() -> bool:

@@ -87,6 +87,13 @@ def eval_mem_mb(wildcards):
     return 1000 + int(0.05 * min(int(st["scenarios"]), int(config["sim"]["scenario_batch"])) * int(wildcards.n))
 
 
+def eval_priority(wildcards):
+    """Scheduling priority of a cell: ⌊log2(agent-steps)⌋ + 1 (≈ 19 for 3 agents × 100 scenarios,
+    24 for 256 agents × 20 in the large arena), so the longest cells start first and do not run
+    alone at the end (longest-processing-time-first); always below the trainings' 50 and 100."""
+    return min(49, int(_cell_size(wildcards)).bit_length())
+
+
 def eval_runtime(wildcards):
     """Slurm time limit (min) of one cell: ≤ 200 µs per agent-step (docs/performance.md), ×2 margin."""
     return 10 + int(2 * 200e-6 * _cell_size(wildcards) / 60)

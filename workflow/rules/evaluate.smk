@@ -14,6 +14,7 @@ rule evaluate:
         source=source_hash("evaluate"),
         models=model_args,
     threads: 1
+    priority: eval_priority
     resources:
         mem_mb=eval_mem_mb,
         runtime=eval_runtime,
