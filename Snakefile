@@ -46,6 +46,7 @@ include: "workflow/rules/validation.smk"
 include: "workflow/rules/mujoco.smk"
 include: "workflow/rules/safemarl.smk"
 include: "workflow/rules/defmarl.smk"
+include: "workflow/rules/shipped.smk"  # shipped checkpoints instead of training (workflow/configs/shipped.yaml)
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/report.smk"

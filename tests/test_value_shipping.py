@@ -7,6 +7,8 @@ import yaml
 
 from conftest import REPO, SMOKE, run_snakemake
 from madpinn.commands import main
+from madpinn.config import load_config
+from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.value_functions import load_vs
 from madpinn.value_functions.build import KINDS, training_hash
 from madpinn.value_functions.shipping import ShippedModelError, install, read_manifest, sha256, verify
@@ -72,7 +74,44 @@ def test_committed_models_were_trained_for_config_yaml(paper_cfg):
     shipped = read_manifest(REPO / "models")["models"]
     names = yaml.safe_load((REPO / "workflow" / "configs" / "shipped.yaml").read_text())["shipped_models"]["names"]
     assert set(names) <= set(shipped)
-    for name in KINDS:
-        if name in shipped:
-            assert shipped[name]["training_config_hash"] == training_hash(paper_cfg, name), name
-            assert verify(REPO / "models", name).stat().st_size == shipped[name]["bytes"]
+    for name in names:
+        expected = training_hash(paper_cfg, name) if name in KINDS else marl_training_hash(paper_cfg, name)
+        assert shipped[name]["training_config_hash"] == expected, name
+        assert verify(REPO / "models", name).stat().st_size == shipped[name]["bytes"]
+    assert {"safemarl_nominal", "defmarl_n3", "defmarl_n8"} <= set(names)   # the baselines' policies too
+
+
+def _ship_policy(tmp_path, configs, extra=()):
+    """The committed DEF-MARL(3) checkpoint shipped into tmp_path/models for ``configs``."""
+    models = tmp_path / "models"
+    args = ["ship-models", "--model", f"defmarl_n3={REPO / 'models' / 'defmarl_n3.pt'}", "--out-dir", str(models), *extra]
+    if configs:
+        args += ["--config", *map(str, configs)]
+    return main(args), models
+
+
+def test_shipped_policy_records_the_training_hash_of_its_configuration(tmp_path):
+    # a MARL checkpoint records no training hash itself: without --config the command refuses
+    code, models = _ship_policy(tmp_path, None)
+    assert code != 0
+    code, models = _ship_policy(tmp_path, [REPO / "config.yaml", SMOKE], ["--git-commit", "abc123"])
+    assert code == 0 and is_marl_model("defmarl_n3") and not is_marl_model("vs")
+    entry = read_manifest(models)["models"]["defmarl_n3"]
+    smoke_hash = marl_training_hash(load_config([REPO / "config.yaml", SMOKE]), "defmarl_n3")
+    assert entry["training_config_hash"] == smoke_hash != marl_training_hash(load_config([REPO / "config.yaml"]), "defmarl_n3")
+    assert entry["git_commit"] == "abc123" and entry["iterations"] == 550
+
+
+def test_shipped_policy_replaces_its_training_or_stops_the_workflow_when_trained_for_another_configuration(tmp_path):
+    overlay = tmp_path / "shipped.yaml"
+    overlay.write_text("shipped_models: {enabled: true, dir: models, names: [defmarl_n3]}\n")
+    assert _ship_policy(tmp_path, [REPO / "config.yaml", SMOKE])[0] == 0
+    out = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=(SMOKE, overlay))
+    text = out.stdout + out.stderr
+    assert "install_shipped_defmarl_n3.log" in text and "train_defmarl_n3.log" not in text and "train_defmarl_n8.log" in text
+    # the paper configuration's policy with the smoke configuration: stopped before any job
+    assert _ship_policy(tmp_path, [REPO / "config.yaml"])[0] == 0
+    proc = run_snakemake(tmp_path, "-j2", "all", configfiles=(SMOKE, overlay), check=False)
+    assert proc.returncode != 0
+    assert "shipped policy 'defmarl_n3'" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "results").exists()

@@ -240,9 +240,33 @@ def _ship_models(args) -> int:
     if not models:
         raise ConfigError("pass at least one --model NAME=PATH")
     manifest = ship(models, args.out_dir, _pairs(args.validation, "--validation"), device=args.device)
+    manifest = _fill_provenance(args, models, manifest)
     print(json.dumps({k: {f: e[f] for f in ("sha256", "bytes", "iterations", "samples")}
                       for k, e in manifest["models"].items()}, indent=2))
     return 0
+
+
+def _fill_provenance(args, models: dict, manifest: dict) -> dict:
+    """Record what a checkpoint does not carry itself (the MARL policies store neither): the
+    training hash of ``--config`` (:func:`madpinn.marl_hash.marl_training_hash`, which the shipped
+    overlay checks) and ``--git-commit`` (the training job's commit, e.g. from its MLflow run)."""
+    from madpinn.atomic import atomic_write
+    from madpinn.config import ConfigError, load_config
+    from madpinn.marl_hash import is_marl_model, marl_training_hash
+    from madpinn.value_functions.shipping import MANIFEST
+
+    cfg = load_config(args.config) if args.config else None
+    for name in models:
+        entry = manifest["models"][name]
+        if entry.get("training_config_hash") is None and is_marl_model(name):
+            if cfg is None:
+                raise ConfigError(f"{name}: the checkpoint records no training hash; pass --config (the training configuration)")
+            entry["training_config_hash"] = marl_training_hash(cfg, name)
+        if entry.get("git_commit") is None and args.git_commit:
+            entry["git_commit"] = args.git_commit
+    text = json.dumps(manifest, indent=2, sort_keys=True) + "\n"
+    atomic_write(Path(args.out_dir) / MANIFEST, lambda tmp: tmp.write_text(text))
+    return manifest
 
 
 def _install_shipped(args) -> int:
@@ -306,6 +330,9 @@ def register(sub) -> None:
     p.add_argument("--validation", action="append", help="NAME=JSON report stored with the entry (repeatable)")
     p.add_argument("--out-dir", default="models", help="shipped-models directory (default models/)")
     p.add_argument("--device", default=None, help="device the models were trained on, when the checkpoint does not say")
+    p.add_argument("--config", nargs="+", default=None,
+                   help="training configuration (+ overlays): records the training hash of MARL policies, whose checkpoints lack it")
+    p.add_argument("--git-commit", default=None, help="commit that trained the models, when the checkpoint does not say")
     p.set_defaults(func=_ship_models)
 
     p = sub.add_parser("install-shipped", help="copy a shipped model to OUT after checking its sha256")

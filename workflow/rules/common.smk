@@ -5,7 +5,8 @@ import os
 
 import yaml
 
-from madpinn.config import config_hash, job_config, method_config, write_if_changed
+from madpinn.config import ConfigError, config_hash, job_config, method_config, write_if_changed
+from madpinn.marl_hash import is_marl_model, marl_training_hash
 
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
 # where the job's snakemake parses this file again); `conda:` envs, when used, come first.
@@ -261,15 +262,11 @@ def train_runtime(kind):
 
 
 def defmarl_train_hash(wildcards):
-    _, m = method_config(config, f"defmarl-{wildcards.variant}")
-    return settings_hash("agents", "observation", "arenas", "dtype",
-                         extra={"training": m["training"], "epigraph": m["epigraph"]})
+    return marl_training_hash(config, f"defmarl_{wildcards.variant}")
 
 
 def safemarl_train_hash():
-    m = config["methods"]["safemarl"]
-    return settings_hash("agents", "observation", "dtype",
-                         extra={"nominal": m["nominal"], "arena": config["arenas"][m["nominal"]["arena"]]})
+    return marl_training_hash(config, "safemarl_nominal")
 
 
 def traj_inputs(wildcards=None):
@@ -305,16 +302,25 @@ def study_models(study):
                    for m in run_models(SimpleNamespace(run=run)).values()})
 
 
-def check_shipped_value_functions(shipped):
-    """Stop at parse time when a shipped V̂ or V_s was trained for another configuration than this
-    one (madpinn.value_functions.shipping.check_training_hash)."""
+def check_shipped_models(shipped):
+    """Stop at parse time when a shipped model (V̂, V_s or a MARL policy) was trained for another
+    configuration than this one (madpinn.value_functions.shipping.check_training_hash)."""
     from madpinn.value_functions.build import KINDS, training_hash
-    from madpinn.value_functions.shipping import ShippedModelError, check_training_hash
+    from madpinn.value_functions.shipping import ShippedModelError, check_training_hash, read_manifest
 
     for name in shipped["names"]:
-        if name in KINDS:
-            try:
+        try:
+            if name in KINDS:
                 check_training_hash(shipped["dir"], name, training_hash(config, name))
-            except (ShippedModelError, OSError, ValueError) as exc:
-                sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-                raise SystemExit(1)
+            elif is_marl_model(name):
+                entry = read_manifest(shipped["dir"])["models"].get(name)
+                expected = marl_training_hash(config, name)
+                if entry is not None and entry.get("training_config_hash") != expected:
+                    raise ShippedModelError(
+                        f"shipped policy '{name}' was trained for configuration hash {entry.get('training_config_hash')}, "
+                        f"this configuration's is {expected} (agents, observation, arenas, dtype or the method's "
+                        f"training settings changed since it was shipped); drop '{name}' from shipped_models.names "
+                        "to train it, or re-ship a policy trained with this configuration")
+        except (ShippedModelError, OSError, ValueError, ConfigError) as exc:
+            sys.stderr.write(f"\nmadpinn: {exc}\n\n")
+            raise SystemExit(1)

@@ -1,0 +1,45 @@
+# Included after every training rule: each ruleorder below names a training rule that must exist.
+# Shipped checkpoints (workflow/configs/shipped.yaml): results/models/<name>.pt comes from the
+# sha256-checked models/<name>.pt instead of its training rule.
+SHIPPED = config.get("shipped_models") or {}
+if SHIPPED.get("enabled") and SHIPPED.get("names"):
+    check_shipped_models(SHIPPED)   # before any job: a model trained for another config stops here
+
+    rule install_shipped_model:
+        input:
+            manifest=f"{SHIPPED['dir']}/manifest.json",
+            model=f"{SHIPPED['dir']}/{{name}}.pt",
+        output:
+            f"{RESULTS}/models/{{name}}.pt",
+        wildcard_constraints:
+            name="|".join(SHIPPED["names"]),
+        params:
+            dir=SHIPPED["dir"],
+        threads: 1
+        priority: 100  # in place of a training: the cells that need the model wait for it
+        resources:
+            mem_mb=500,
+            runtime=5,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/install_shipped_{{name}}.log",
+        shell:
+            "python -m madpinn install-shipped --dir {params.dir:q} --name {wildcards.name:q} --out {output:q} 2>&1 | tee {log:q}"
+
+    # one ruleorder per shipped name (a ruleorder naming a rule this configuration lacks disables it)
+    if "vs" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_vs
+
+    if "vhat" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_vhat
+
+    if "safemarl_nominal" in SHIPPED["names"]:
+
+        ruleorder: install_shipped_model > train_safemarl_nominal
+
+    if any(n.startswith("defmarl_") for n in SHIPPED["names"]):
+
+        ruleorder: install_shipped_model > train_defmarl
