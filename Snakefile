@@ -49,6 +49,7 @@ include: "workflow/rules/defmarl.smk"
 include: "workflow/rules/shipped.smk"  # shipped checkpoints instead of training (workflow/configs/shipped.yaml)
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/madpinn.smk"
+include: "workflow/rules/conflicts.smk"  # structured-conflict tables, after the paper's
 include: "workflow/rules/report.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)

@@ -95,7 +95,7 @@ def validate_config(cfg: Mapping[str, Any]) -> None:
         else:
             lines.append(f"  - '{_key_path(err)}': {err.message}")
     if not lines:
-        lines = _cross_field_errors(cfg) + _infeasible_agent_counts(cfg)
+        lines = _cross_field_errors(cfg) + _infeasible_agent_counts(cfg) + _infeasible_patterns(cfg)
     if lines:
         raise ConfigError("invalid configuration:\n" + "\n".join(lines))
 
@@ -115,10 +115,12 @@ def _non_finite(node: Any, path: str = "") -> list[tuple[str, float]]:
 
 
 def _agent_count_settings(cfg: Mapping[str, Any]):
-    """``(key path, arena name, agent counts)`` of every place that samples scenarios: the studies
-    and any method setting (or variant) holding an ``arena`` with ``agent_counts``."""
+    """``(key path, arena name, agent counts)`` of every place that samples uniform scenarios: the
+    studies without a conflict pattern and any method setting (or variant) holding an ``arena``
+    with ``agent_counts``."""
     for name, study in cfg["studies"].items():
-        yield f"studies.{name}", study["arena"], study["agent_counts"]
+        if study.get("pattern", "uniform") == "uniform":
+            yield f"studies.{name}", study["arena"], study["agent_counts"]
 
     def walk(node, path):
         if isinstance(node, Mapping):
@@ -152,6 +154,24 @@ def _infeasible_agent_counts(cfg: Mapping[str, Any]) -> list[str]:
                     f"2r = {2 * r:g} m (at most {limit}: the scenario sampler's coverage limit); "
                     f"use fewer agents or a larger arena"
                 )
+    return lines
+
+
+def _infeasible_patterns(cfg: Mapping[str, Any]) -> list[str]:
+    """Agent counts a study's conflict pattern cannot lay out in its arena (its first scenario)."""
+    from madpinn.scenarios import Arena, ScenarioInfeasibleError, generate_scenario
+
+    lines = []
+    for name, study in cfg["studies"].items():
+        pattern = study.get("pattern", "uniform")
+        if pattern == "uniform" or study["arena"] not in cfg["arenas"]:
+            continue
+        arena = Arena.from_config(cfg, study["arena"])
+        for n in study["agent_counts"]:
+            try:
+                generate_scenario(arena, n, min(study["seeds"]), 0, float(cfg["agents"]["collision_radius"]), pattern)
+            except ScenarioInfeasibleError as exc:
+                lines.append(f"  - 'studies.{name}.agent_counts': {exc}")
     return lines
 
 

@@ -1,8 +1,9 @@
 """Scenario generation (SPEC §2): starts and goals uniform in a square arena, pairwise
-separation ≥ 2r among starts and among goals, zero initial velocity.
+separation ≥ 2r among starts and among goals, zero initial velocity; or a structured conflict
+pattern (:mod:`madpinn.conflicts`: head-on pairs and lines, circle swap, crossing flows).
 
-A scenario is a pure function of ``(arena name, N, seed, index)``: every method sees identical
-initial conditions.
+A scenario is a pure function of ``(arena name, pattern, N, seed, index)``: every method sees
+identical initial conditions.
 """
 
 from __future__ import annotations
@@ -95,11 +96,21 @@ def scenario_rng(arena: str, n_agents: int, seed: int, index: int) -> np.random.
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(n_agents), arena_code, int(index)]))
 
 
-def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, collision_radius: float):
+UNIFORM = "uniform"
+"""the SPEC §2 scenarios; any other pattern is one of :data:`madpinn.conflicts.PATTERNS`"""
+
+
+def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, collision_radius: float,
+                      pattern: str = UNIFORM):
     """Return ``(starts [N,2], goals [N,2])`` float64 numpy arrays (m)."""
     if n_agents < 1:
         raise ScenarioInfeasibleError(f"need at least one agent, got {n_agents}")
     min_sep = 2.0 * collision_radius
+    if pattern != UNIFORM:   # its own random stream (the uniform scenarios' streams are unchanged)
+        from madpinn.conflicts import conflict_scenario
+
+        rng = scenario_rng(f"{arena.name}/{pattern}", n_agents, seed, index)
+        return conflict_scenario(pattern, n_agents, arena.half_width, collision_radius, rng)
     _check_feasible(n_agents, arena.half_width, min_sep)
     rng = scenario_rng(arena.name, n_agents, seed, index)
     starts = _sample_separated(rng, n_agents, arena.half_width, min_sep)
@@ -116,15 +127,16 @@ def generate_scenarios(
     device: torch.device | str = "cpu",
     dtype: torch.dtype | None = None,
     first_index: int = 0,
+    pattern: str = UNIFORM,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Scenarios ``first_index … first_index+count-1``: ``(starts, goals)`` each ``[S, N, 2]``
-    (``dtype`` None: float32)."""
+    """Scenarios ``first_index … first_index+count-1`` of ``pattern``: ``(starts, goals)`` each
+    ``[S, N, 2]`` (``dtype`` None: float32)."""
     import torch   # here, so that config validation (``max_agents``) does not import torch
 
     dtype = torch.float32 if dtype is None else dtype
     if count < 1:
         raise ValueError(f"scenario count must be ≥ 1, got {count}")
-    pairs = [generate_scenario(arena, n_agents, seed, first_index + i, collision_radius) for i in range(count)]
+    pairs = [generate_scenario(arena, n_agents, seed, first_index + i, collision_radius, pattern) for i in range(count)]
     starts = torch.as_tensor(np.stack([p[0] for p in pairs]), dtype=dtype, device=device)
     goals = torch.as_tensor(np.stack([p[1] for p in pairs]), dtype=dtype, device=device)
     return starts, goals

@@ -130,6 +130,15 @@ def test_infeasible_agent_count_fails_validation(overlay, key):
         validate_config(cfg)
 
 
+def test_conflict_pattern_is_checked_before_any_job():
+    cfg = load_yaml(REPO / "config.yaml")
+    with pytest.raises(ConfigError, match=r"'studies.conflict_lines.pattern'"):
+        validate_config(deep_merge(cfg, {"studies": {"conflict_lines": {"pattern": "zigzag"}}}))
+    # two facing lines of 32 agents do not fit the small arena 2r apart
+    with pytest.raises(ConfigError, match=r"'studies.conflict_lines.agent_counts': head_on_lines: agents only .* apart"):
+        validate_config(deep_merge(cfg, {"studies": {"conflict_lines": {"agent_counts": [64]}}}))
+
+
 def _scenario_settings(cfg):
     from madpinn.config import _agent_count_settings
 

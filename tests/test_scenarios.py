@@ -47,3 +47,62 @@ def test_infeasible_request_fails_fast_with_clear_message():
         generate_scenario(SMALL, 200, seed=0, index=0, collision_radius=0.1)
     with pytest.raises(ScenarioInfeasibleError):
         generate_scenario(SMALL, 0, seed=0, index=0, collision_radius=0.1)
+
+
+# --- structured conflicts (madpinn/conflicts.py) ---
+
+from madpinn.conflicts import JITTER, PATTERNS  # noqa: E402
+
+
+def _match(a, b, tol):
+    """For every row of a, the index of the row of b within tol (m), or -1."""
+    d = np.linalg.norm(a[:, None] - b[None], axis=-1)
+    return np.where(d.min(1) <= tol, d.argmin(1), -1)
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+@pytest.mark.parametrize("n", [3, 8, 16])
+def test_conflict_patterns_are_separated_inside_the_arena_and_reproducible(pattern, n):
+    for index in range(5):
+        starts, goals = generate_scenario(SMALL, n, seed=0, index=index, collision_radius=0.1, pattern=pattern)
+        assert starts.shape == goals.shape == (n, 2)
+        assert _min_sep(starts) >= 0.2 and _min_sep(goals) >= 0.2
+        assert np.abs(starts).max() <= SMALL.half_width and np.abs(goals).max() <= SMALL.half_width
+        again = generate_scenario(SMALL, n, seed=0, index=index, collision_radius=0.1, pattern=pattern)
+        np.testing.assert_array_equal(starts, again[0])
+    other = generate_scenario(SMALL, n, seed=0, index=1, collision_radius=0.1, pattern=pattern)[0]
+    assert not np.allclose(starts, other)   # index 4 vs 1: another rotation / placement
+
+
+@pytest.mark.parametrize("pattern", ["head_on_pairs", "head_on_lines"])
+def test_head_on_patterns_swap_partners(pattern):
+    """Every agent's goal is its partner's start and the partner's goal its start (up to the jitter)."""
+    tol = 2 * np.sqrt(2) * JITTER * SMALL.half_width + 1e-9
+    for index in range(5):
+        starts, goals = generate_scenario(SMALL, 8, seed=2, index=index, collision_radius=0.1, pattern=pattern)
+        partner = _match(goals, starts, tol)
+        assert (partner >= 0).all() and (partner != np.arange(8)).all()
+        np.testing.assert_array_equal(partner[partner], np.arange(8))
+
+
+def test_circle_swap_converges_on_the_centre_and_crossing_flows_cross_at_right_angles():
+    starts, goals = generate_scenario(SMALL, 16, seed=0, index=0, collision_radius=0.1, pattern="circle_swap")
+    mid = (starts + goals) / 2                         # the straight paths all pass (near) the centre at mid-trip
+    assert np.abs(mid).max() <= 2 * JITTER * SMALL.half_width
+    starts, goals = generate_scenario(SMALL, 16, seed=0, index=0, collision_radius=0.1, pattern="crossing_flows")
+    heading = (goals - starts) / np.linalg.norm(goals - starts, axis=1, keepdims=True)
+    cos = heading @ heading[0]
+    assert (np.abs(np.abs(cos) - 1) < 0.1).sum() == 8 and (np.abs(cos) < 0.1).sum() == 8   # two perpendicular streams
+
+
+def test_uniform_scenarios_do_not_depend_on_the_conflict_patterns():
+    a = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1)
+    b = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1, pattern="uniform")
+    np.testing.assert_array_equal(a[0], b[0])
+    c = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1, pattern="circle_swap")
+    assert not np.allclose(a[0], c[0])
+
+
+def test_too_dense_pattern_fails_with_a_clear_message():
+    with pytest.raises(ScenarioInfeasibleError, match="head_on_lines.*apart"):
+        generate_scenario(LARGE, 128, seed=0, index=0, collision_radius=0.1, pattern="head_on_lines")

@@ -21,7 +21,7 @@ from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSpec
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.scenarios import UNIFORM, Arena, generate_scenarios
 from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
@@ -40,6 +40,8 @@ class CellSettings:
     """the method's settings object (variant merged)"""
     arena: Arena
     """the study's arena"""
+    pattern: str
+    """the study's scenarios: ``uniform`` (SPEC §2) or a structured conflict (:mod:`madpinn.conflicts`)"""
     scenarios: int
     """scenarios per (N, seed) cell"""
     limits: AgentLimits
@@ -66,7 +68,7 @@ class CellSettings:
         sim = SimSettings.from_config(cfg)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),
             sim=sim, observation=ObservationSpec.from_config(cfg),
             policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),
@@ -129,7 +131,7 @@ def run_cell(
     t0 = time.perf_counter()
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
-        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
+        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first, pattern=cs.pattern)
         policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
         sim = make_backend(backend, cs.sim, cs.limits, device, dtype)
         result, stats = run_episode(

@@ -66,7 +66,8 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
     for name, paths in tables.items():
         df = load_results(paths)
         agg = summarize(df, cfg)
-        if oracle is not None:
+        structured = any(cfg["studies"].get(st, {}).get("pattern", "uniform") != "uniform" for st in set(df["study"]))
+        if oracle is not None and not structured:   # the lone-agent bound covers the uniform scenarios only
             agg = pd.concat([agg, oracle_summary(oracle, df)], ignore_index=True)
         ref = paper.get(name, {"runs": {}, "note": "not a table of the paper", "tex_lines": None})
         notes[name] = {"paper_note": ref["note"], "tex_lines": ref["tex_lines"]}
@@ -158,7 +159,9 @@ def to_markdown(report: dict) -> str:
         if name == "provenance":
             continue
         note = prov["tables"][name]
-        lines += ["", f"## {name}", "", f"Paper: tex lines {note['tex_lines']}. {note['paper_note']}".strip(), "",
+        about = (f"Paper: tex lines {note['tex_lines']}. {note['paper_note']}" if note["tex_lines"]
+                 else "Not a table of the paper (no paper values).")
+        lines += ["", f"## {name}", "", about.strip(), "",
                   "| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
         for run, cells in table.items():
             for n, c in cells.items():

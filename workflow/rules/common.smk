@@ -148,14 +148,14 @@ SOURCES = {
     "value": ["dynamics", "value_functions", "observation.py", "device.py", "settings.py", "atomic.py"],
     "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py", "settings.py", "atomic.py"],
     "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
-                 "evaluation/cell.py", "evaluation/metrics.py", "observation.py", "scenarios.py", "device.py",
-                 "settings.py"],
+                 "evaluation/cell.py", "evaluation/metrics.py", "observation.py", "scenarios.py", "conflicts.py",
+                 "device.py", "settings.py"],
     "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
             "evaluation/cell.py", "evaluation/metrics.py", "evaluation/collisions.py", "evaluation/gap.py",
-            "observation.py", "scenarios.py", "device.py", "settings.py"],
+            "observation.py", "scenarios.py", "conflicts.py", "device.py", "settings.py"],
     "tables": ["evaluation", "figures"],
     "report": ["evaluation"],
-    "oracle": ["evaluation/oracle.py", "scenarios.py"],
+    "oracle": ["evaluation/oracle.py", "scenarios.py", "conflicts.py"],
     "render": ["simulation", "dynamics", "observation.py", "settings.py"],
 }
 _SOURCE_HASHES = {}
@@ -289,6 +289,8 @@ def oracle_inputs(study):
     (studies with the same cells and count share them; another count is another file, so a change
     of one study's scenario count reruns nothing of another study)."""
     st = config["studies"][study]
+    if st.get("pattern", "uniform") != "uniform":   # the bound is computed for uniform scenarios only
+        return []
     return [f"{ORACLE_DIR}/{st['arena']}/n{n}_seed{seed}_s{st['scenarios']}.parquet"
             for n in st["agent_counts"] for seed in st["seeds"]]
 
