@@ -46,7 +46,10 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
     assert len(oracle) == 2 and (oracle["cost_mean"] > 0).all()
     report = __import__("json").loads((figs / "reproduction.json").read_text())
     assert set(report) == {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation",
-                           "table_update_ablation", "provenance"}
+                           "table_update_ablation", "table_conflict_pairs", "table_conflict_lines",
+                           "table_conflict_circle", "table_conflict_crossing", "provenance"}
+    assert report["table_conflict_circle"]["madpinn"]["4"]["paper_safety"] is None   # not a table of the paper
+    assert "oracle" not in report["table_conflict_circle"]                             # bound: uniform scenarios only
     assert report["table_safety_scaling"]["madpinn"]["16"]["paper_safety"] == 0.983
     counts = _job_counts(smoke_run)
     evals = [k for k in counts if k.startswith("evaluate/")]
@@ -115,7 +118,8 @@ def test_ours_overlay_runs_our_rows_without_baseline_trainings(tmp_path):
     proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=(ours,))
     out = proc.stdout + proc.stderr
     m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
-    assert m and int(m.group(1)) == 3 * 4 * 5 + 3 * 3 + 3 + 8     # main, scaling, two ablations (seed 0)
+    # main, scaling, two ablations (seed 0), four conflict studies (3 runs × 2 agent counts)
+    assert m and int(m.group(1)) == 3 * 4 * 5 + 3 * 3 + 3 + 8 + 4 * 3 * 2
     assert "train_vhat" in out and "train_vs" in out
     assert "train_safemarl_nominal" not in out and "train_defmarl" not in out and "/mppi/" not in out
 

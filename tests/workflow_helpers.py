@@ -26,6 +26,7 @@ TINY = {
         "scaling": {"agent_counts": [8], "seeds": [0], "scenarios": 1, "runs": ["nominal"]},
         "ablation_neighbours": {"runs": ["madpinn-nearest"]},
         "ablation_update": {"runs": ["madpinn-k1"]},
+        "conflict_circle": {"runs": ["nominal"]},
     },
 }
 
