@@ -13,7 +13,8 @@ import yaml
 from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, tree_state, write_overlay
 
 TRAININGS = {"train_vhat", "train_vs"}
-TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation"}
+TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation",
+          "table_conflict_pairs", "table_conflict_lines", "table_conflict_circle", "table_conflict_crossing"}
 FIGURES = {"fig_cost_safety", "fig_trajectories", "fig_value_heatmap", "fig_vs_slices"}
 SPACED = {"paths": {"results": "my results", "figures": "my results/fig s"}}   # quoting in every shell line
 
