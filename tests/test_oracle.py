@@ -99,3 +99,18 @@ def test_scenario_bounds_match_the_scenarios_and_lie_below_mad_pinn(tmp_path):
     assert ob["scenario"].tolist() == [0, 1]
     assert (ob["oracle_cost"].to_numpy() <= df["cost_all_mean"].to_numpy() + 1e-4).all()
     assert ob["oracle_cost_time_avg"].to_numpy() == pytest.approx(ob["oracle_cost"].to_numpy() / 0.5)
+
+
+def test_conflict_pattern_bounds_are_those_of_the_pattern_scenarios():
+    """A structured-conflict study's bound is computed on its own scenarios (madpinn/conflicts.py),
+    not on the uniform ones of the same (arena, N, seed)."""
+    from madpinn.scenarios import generate_scenario
+
+    arena = Arena("small", 1.0, 0.5)
+    s = OracleSettings(horizon_s=0.5, dt=0.025)
+    ob = scenario_bounds(arena, 4, 0, 2, 0.1, s, pattern="circle_swap")
+    assert set(ob["pattern"]) == {"circle_swap"}
+    starts, goals = generate_scenario(arena, 4, 0, 1, 0.1, "circle_swap")
+    assert ob["oracle_cost"].iloc[1] == pytest.approx(lower_bound(starts - goals, s).mean())
+    uniform = scenario_bounds(arena, 4, 0, 2, 0.1, s)
+    assert set(uniform["pattern"]) == {"uniform"} and not np.allclose(uniform["oracle_cost"], ob["oracle_cost"])

@@ -48,11 +48,15 @@ def _oracle(args) -> int:
     settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
                               dt=arena.episode_s / cfg["oracle"]["steps"])
     wildcards = {"arena": args.arena, "n": args.n_agents, "seed": args.seed, "scenarios": args.scenarios}
-    record = JobRecord(job_key=f"oracle/{args.arena}/n{args.n_agents}/seed{args.seed}/s{args.scenarios}", rule="oracle",
+    where = args.arena
+    if args.pattern != "uniform":
+        wildcards["pattern"] = args.pattern
+        where = f"{args.arena}/{args.pattern}"
+    record = JobRecord(job_key=f"oracle/{where}/n{args.n_agents}/seed{args.seed}/s{args.scenarios}", rule="oracle",
                        wildcards=wildcards, params={"scenarios": args.scenarios, "steps": cfg["oracle"]["steps"]})
     with job(cfg, record, not args.no_track) as run:
         out = write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"],
-                           settings)
+                           settings, pattern=args.pattern)
         record.artifacts = [out]
         record.metrics = {"oracle_cost_mean": float(pd.read_parquet(out)["oracle_cost"].mean())}
         return finish(run, record, echo=[out])
@@ -111,6 +115,7 @@ def register(sub) -> None:
     p.add_argument("--n-agents", type=int, required=True)
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--scenarios", type=int, required=True)
+    p.add_argument("--pattern", default="uniform", help="uniform (SPEC §2) or a structured conflict pattern (madpinn/conflicts.py)")
     p.add_argument("--out", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_oracle)

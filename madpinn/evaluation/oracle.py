@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from madpinn.scenarios import Arena, generate_scenario
+from madpinn.scenarios import UNIFORM, Arena, generate_scenario
 
 BATCH = 64   # agents per programme (padded with zero offsets, whose cost is exactly 0)
 
@@ -141,27 +141,29 @@ def upper_bound(offsets: np.ndarray, settings: OracleSettings) -> np.ndarray:
 
 
 def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, collision_radius: float,
-                    settings: OracleSettings, with_upper: bool = False) -> pd.DataFrame:
-    """One row per scenario ``0 … count−1``: ``oracle_cost`` (mean LB over agents), its
-    time average ``oracle_cost_time_avg`` (÷ T) and, with ``with_upper``, ``oracle_upper``."""
+                    settings: OracleSettings, with_upper: bool = False, pattern: str = UNIFORM) -> pd.DataFrame:
+    """One row per scenario ``0 … count−1`` of ``pattern`` (uniform or a structured conflict):
+    ``oracle_cost`` (mean LB over agents), its time average ``oracle_cost_time_avg`` (÷ T) and,
+    with ``with_upper``, ``oracle_upper``."""
     if abs(settings.horizon_s - arena.episode_s) > 1e-9:
         raise ValueError(f"oracle horizon {settings.horizon_s} s differs from the {arena.name} episode {arena.episode_s} s")
-    offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, collision_radius)) for i in range(count)])
+    offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, collision_radius, pattern))
+                        for i in range(count)])
     lb = lower_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
-    df = pd.DataFrame({"arena": arena.name, "n_agents": int(n_agents), "seed": int(seed), "scenario": np.arange(count),
-                       "oracle_cost": lb, "oracle_cost_time_avg": lb / arena.episode_s})
+    df = pd.DataFrame({"arena": arena.name, "pattern": pattern, "n_agents": int(n_agents), "seed": int(seed),
+                       "scenario": np.arange(count), "oracle_cost": lb, "oracle_cost_time_avg": lb / arena.episode_s})
     if with_upper:
         df["oracle_upper"] = upper_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
     return df
 
 
 def write_bounds(out: str | Path, arena: Arena, n_agents: int, seed: int, count: int, collision_radius: float,
-                 settings: OracleSettings) -> Path:
+                 settings: OracleSettings, pattern: str = UNIFORM) -> Path:
     """Cache file of :func:`scenario_bounds` (Parquet); scenarios are pure functions of their index,
     so a study with fewer scenarios reads the first rows."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    df = scenario_bounds(arena, n_agents, seed, count, collision_radius, settings)
+    df = scenario_bounds(arena, n_agents, seed, count, collision_radius, settings, pattern=pattern)
     df["oracle_dt"] = settings.dt
     df.to_parquet(out, index=False)
     return out

@@ -66,9 +66,10 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
     for name, paths in tables.items():
         df = load_results(paths)
         agg = summarize(df, cfg)
-        structured = any(cfg["studies"].get(st, {}).get("pattern", "uniform") != "uniform" for st in set(df["study"]))
-        if oracle is not None and not structured:   # the lone-agent bound covers the uniform scenarios only
-            agg = pd.concat([agg, oracle_summary(oracle, df)], ignore_index=True)
+        if oracle is not None:   # the bounds of this table's scenarios (uniform, or its conflict pattern)
+            patterns = {cfg["studies"].get(st, {}).get("pattern", "uniform") for st in set(df["study"])}
+            mine = oracle[oracle["pattern"].isin(patterns)] if "pattern" in oracle else oracle
+            agg = pd.concat([agg, oracle_summary(mine, df)], ignore_index=True)
         ref = paper.get(name, {"runs": {}, "note": "not a table of the paper", "tex_lines": None})
         notes[name] = {"paper_note": ref["note"], "tex_lines": ref["tex_lines"]}
         table: dict = {}

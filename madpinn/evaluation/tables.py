@@ -59,12 +59,15 @@ def summarize(df: pd.DataFrame, cfg: dict) -> pd.DataFrame:
 
 
 def load_oracle(paths: Iterable[str | Path]) -> pd.DataFrame:
-    """Concatenated oracle cache files (rows per arena, N, seed, scenario)."""
+    """Concatenated oracle cache files (rows per arena, scenario pattern, N, seed, scenario; files
+    written before patterns existed hold uniform scenarios)."""
     paths = list(paths)
     missing = [str(p) for p in paths if not Path(p).is_file()]
     if missing:
         raise FileNotFoundError(f"missing oracle files: {missing[:5]}{' …' if len(missing) > 5 else ''}")
-    return pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+    df = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+    df["pattern"] = df["pattern"].fillna("uniform") if "pattern" in df else "uniform"
+    return df
 
 
 def oracle_summary(oracle: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:

@@ -289,9 +289,9 @@ def oracle_inputs(study):
     (studies with the same cells and count share them; another count is another file, so a change
     of one study's scenario count reruns nothing of another study)."""
     st = config["studies"][study]
-    if st.get("pattern", "uniform") != "uniform":   # the bound is computed for uniform scenarios only
-        return []
-    return [f"{ORACLE_DIR}/{st['arena']}/n{n}_seed{seed}_s{st['scenarios']}.parquet"
+    pattern = st.get("pattern", "uniform")
+    where = st["arena"] if pattern == "uniform" else f"{st['arena']}/{pattern}"
+    return [f"{ORACLE_DIR}/{where}/n{n}_seed{seed}_s{st['scenarios']}.parquet"
             for n in st["agent_counts"] for seed in st["seeds"]]
 
 
