@@ -118,8 +118,10 @@ def _agent_count_settings(cfg: Mapping[str, Any]):
     """``(key path, arena name, agent counts)`` of every place that samples uniform scenarios: the
     studies without a conflict pattern and any method setting (or variant) holding an ``arena``
     with ``agent_counts``."""
+    from madpinn.scenarios import UNIFORM
+
     for name, study in cfg["studies"].items():
-        if study.get("pattern", "uniform") == "uniform":
+        if study_pattern(study) == UNIFORM:
             yield f"studies.{name}", study["arena"], study["agent_counts"]
 
     def walk(node, path):
@@ -159,12 +161,12 @@ def _infeasible_agent_counts(cfg: Mapping[str, Any]) -> list[str]:
 
 def _infeasible_patterns(cfg: Mapping[str, Any]) -> list[str]:
     """Agent counts a study's conflict pattern cannot lay out in its arena (its first scenario)."""
-    from madpinn.scenarios import Arena, ScenarioInfeasibleError, generate_scenario
+    from madpinn.scenarios import UNIFORM, Arena, ScenarioInfeasibleError, generate_scenario
 
     lines = []
     for name, study in cfg["studies"].items():
-        pattern = study.get("pattern", "uniform")
-        if pattern == "uniform" or study["arena"] not in cfg["arenas"]:
+        pattern = study_pattern(study)
+        if pattern == UNIFORM or study["arena"] not in cfg["arenas"]:
             continue
         arena = Arena.from_config(cfg, study["arena"])
         for n in study["agent_counts"]:
@@ -204,6 +206,29 @@ def config_hash(obj: Any, length: int = 12) -> str:
     """Stable short hash of a JSON-serialisable object (sorted keys)."""
     blob = json.dumps(obj, sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:length]
+
+
+def lookup_key(cfg: Mapping[str, Any], dotted: str) -> Any:
+    """The config value at a dotted key (``"value_functions.vhat"``); a missing key is None."""
+    node: Any = cfg
+    for part in dotted.split("."):
+        if not isinstance(node, Mapping) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def subtree_hash(cfg: Mapping[str, Any], keys: Iterable[str], extra: Any = None) -> str:
+    """Hash of the config subtrees at ``keys`` (dotted) plus ``extra``: what a job's result depends
+    on (the workflow's rule params; the MARL policies' training hash, :mod:`madpinn.marl_hash`)."""
+    return config_hash({"keys": {k: lookup_key(cfg, k) for k in keys}, "extra": extra})
+
+
+def study_pattern(study: Mapping[str, Any]) -> str:
+    """A study's scenarios: ``uniform`` (SPEC §2, the default) or its structured-conflict pattern."""
+    from madpinn.scenarios import UNIFORM
+
+    return str(study.get("pattern", UNIFORM))
 
 
 def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:

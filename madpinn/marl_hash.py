@@ -8,7 +8,7 @@ are those of ``results/models/<name>.pt``: ``safemarl_nominal``, ``defmarl_<vari
 
 from __future__ import annotations
 
-from madpinn.config import config_hash, method_config
+from madpinn.config import method_config, subtree_hash
 
 DEFMARL_PREFIX = "defmarl_"
 
@@ -17,19 +17,15 @@ def is_marl_model(name: str) -> bool:
     return name == "safemarl_nominal" or name.startswith(DEFMARL_PREFIX)
 
 
-def _settings_hash(cfg: dict, keys: tuple[str, ...], extra: dict) -> str:
-    return config_hash({"keys": {k: cfg.get(k) for k in keys}, "extra": extra})
-
-
 def marl_training_hash(cfg: dict, name: str) -> str:
     """Hash of the settings the weights of model ``name`` depend on (agents, observation, arena,
     dtype and the method's training settings)."""
     if name == "safemarl_nominal":
         m = cfg["methods"]["safemarl"]
-        return _settings_hash(cfg, ("agents", "observation", "dtype"),
+        return subtree_hash(cfg, ("agents", "observation", "dtype"),
                               {"nominal": m["nominal"], "arena": cfg["arenas"][m["nominal"]["arena"]]})
     if name.startswith(DEFMARL_PREFIX):
         _, m = method_config(cfg, f"defmarl-{name[len(DEFMARL_PREFIX):]}")
-        return _settings_hash(cfg, ("agents", "observation", "arenas", "dtype"),
+        return subtree_hash(cfg, ("agents", "observation", "arenas", "dtype"),
                               {"training": m["training"], "epigraph": m["epigraph"]})
     raise ValueError(f"'{name}' is not a MARL model (safemarl_nominal, defmarl_<variant>)")

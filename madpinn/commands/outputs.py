@@ -41,7 +41,7 @@ def _oracle(args) -> int:
     import pandas as pd
 
     from madpinn.evaluation.oracle import OracleSettings, write_bounds
-    from madpinn.scenarios import Arena
+    from madpinn.scenarios import UNIFORM, Arena
 
     cfg = config_of(args)
     arena = Arena.from_config(cfg, args.arena)
@@ -49,14 +49,15 @@ def _oracle(args) -> int:
                               dt=arena.episode_s / cfg["oracle"]["steps"])
     wildcards = {"arena": args.arena, "n": args.n_agents, "seed": args.seed, "scenarios": args.scenarios}
     where = args.arena
-    if args.pattern != "uniform":
-        wildcards["pattern"] = args.pattern
-        where = f"{args.arena}/{args.pattern}"
+    pattern = args.pattern or UNIFORM
+    if pattern != UNIFORM:
+        wildcards["pattern"] = pattern
+        where = f"{args.arena}/{pattern}"
     record = JobRecord(job_key=f"oracle/{where}/n{args.n_agents}/seed{args.seed}/s{args.scenarios}", rule="oracle",
                        wildcards=wildcards, params={"scenarios": args.scenarios, "steps": cfg["oracle"]["steps"]})
     with job(cfg, record, not args.no_track) as run:
         out = write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"],
-                           settings, pattern=args.pattern)
+                           settings, pattern=pattern)
         record.artifacts = [out]
         record.metrics = {"oracle_cost_mean": float(pd.read_parquet(out)["oracle_cost"].mean())}
         return finish(run, record, echo=[out])
@@ -115,7 +116,7 @@ def register(sub) -> None:
     p.add_argument("--n-agents", type=int, required=True)
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--scenarios", type=int, required=True)
-    p.add_argument("--pattern", default="uniform", help="uniform (SPEC §2) or a structured conflict pattern (madpinn/conflicts.py)")
+    p.add_argument("--pattern", default=None, help="a structured conflict pattern (madpinn/conflicts.py); default: uniform (SPEC §2)")
     p.add_argument("--out", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_oracle)

@@ -23,7 +23,7 @@ import pandas as pd
 import yaml
 
 from madpinn.checksum import sha256
-from madpinn.config import config_hash
+from madpinn.config import config_hash, study_pattern
 from madpinn.evaluation.tables import ORACLE_LABEL, ORACLE_RUN, load_results, oracle_summary, load_oracle, summarize
 
 PAPER_VALUES = Path(__file__).with_name("paper_values.yaml")
@@ -67,8 +67,8 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
         df = load_results(paths)
         agg = summarize(df, cfg)
         if oracle is not None:   # the bounds of this table's scenarios (uniform, or its conflict pattern)
-            patterns = {cfg["studies"].get(st, {}).get("pattern", "uniform") for st in set(df["study"])}
-            mine = oracle[oracle["pattern"].isin(patterns)] if "pattern" in oracle else oracle
+            patterns = {study_pattern(cfg["studies"].get(st, {})) for st in set(df["study"])}
+            mine = oracle[oracle["pattern"].isin(patterns)]
             agg = pd.concat([agg, oracle_summary(mine, df)], ignore_index=True)
         ref = paper.get(name, {"runs": {}, "note": "not a table of the paper", "tex_lines": None})
         notes[name] = {"paper_note": ref["note"], "tex_lines": ref["tex_lines"]}
@@ -110,7 +110,8 @@ def _ordered(table: dict, paper_runs: list[str]) -> dict:
     """Runs in the paper's row order, then ours the paper lacks (in the order met), the oracle
     last; each run's cells by ascending N."""
     rank = {run: i for i, run in enumerate(paper_runs)}
-    runs = sorted(table, key=lambda r: (r == ORACLE_RUN, rank.get(r, len(rank)), list(table).index(r)))
+    met = {run: i for i, run in enumerate(table)}
+    runs = sorted(table, key=lambda r: (r == ORACLE_RUN, rank.get(r, len(rank)), met[r]))
     return {r: dict(sorted(table[r].items(), key=lambda kv: int(kv[0]))) for r in runs}
 
 

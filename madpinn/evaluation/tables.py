@@ -24,6 +24,7 @@ import pandas as pd
 
 from madpinn.config import method_config
 from madpinn.evaluation.metrics import across_seeds, seed_summary
+from madpinn.scenarios import UNIFORM
 
 KINDS = ("safety_by_n", "summary")
 ORACLE_RUN, ORACLE_LABEL = "oracle", "Oracle (lone-agent lower bound)"
@@ -66,7 +67,7 @@ def load_oracle(paths: Iterable[str | Path]) -> pd.DataFrame:
     if missing:
         raise FileNotFoundError(f"missing oracle files: {missing[:5]}{' …' if len(missing) > 5 else ''}")
     df = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
-    df["pattern"] = df["pattern"].fillna("uniform") if "pattern" in df else "uniform"
+    df["pattern"] = df["pattern"].fillna(UNIFORM) if "pattern" in df else UNIFORM
     return df
 
 

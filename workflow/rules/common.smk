@@ -5,8 +5,9 @@ import os
 
 import yaml
 
-from madpinn.config import ConfigError, config_hash, job_config, method_config, write_if_changed
+from madpinn.config import ConfigError, config_hash, job_config, method_config, study_pattern, subtree_hash, write_if_changed
 from madpinn.marl_hash import is_marl_model, marl_training_hash
+from madpinn.scenarios import UNIFORM
 
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
 # where the job's snakemake parses this file again); `conda:` envs, when used, come first.
@@ -120,20 +121,10 @@ EXTRA_TARGETS = []
 
 # --- what each job depends on: config subtrees and package sources (params -> rerun-triggers) ---
 
-def lookup_key(dotted):
-    """The config value at a dotted key ("value_functions.vhat"); a missing key is None."""
-    node = config
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
-
-
 def settings_hash(*keys, extra=None):
     """Hash of the config subtrees a job reads (dotted keys) plus ``extra``; a rule's ``params``
     carries it, so that a change of exactly those settings reruns the job and its dependents."""
-    return config_hash({"keys": {k: lookup_key(k) for k in keys}, "extra": extra})
+    return subtree_hash(config, keys, extra)
 
 
 PACKAGE = Path(workflow.basedir) / "madpinn"
@@ -153,8 +144,8 @@ SOURCES = {
     "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
             "evaluation/cell.py", "evaluation/metrics.py", "evaluation/collisions.py", "evaluation/gap.py",
             "observation.py", "scenarios.py", "conflicts.py", "device.py", "settings.py"],
-    "tables": ["evaluation", "figures"],
-    "report": ["evaluation"],
+    "tables": ["evaluation", "figures", "scenarios.py", "conflicts.py"],
+    "report": ["evaluation", "scenarios.py", "conflicts.py"],
     "oracle": ["evaluation/oracle.py", "scenarios.py", "conflicts.py"],
     "render": ["simulation", "dynamics", "observation.py", "settings.py"],
 }
@@ -289,8 +280,8 @@ def oracle_inputs(study):
     (studies with the same cells and count share them; another count is another file, so a change
     of one study's scenario count reruns nothing of another study)."""
     st = config["studies"][study]
-    pattern = st.get("pattern", "uniform")
-    where = st["arena"] if pattern == "uniform" else f"{st['arena']}/{pattern}"
+    pattern = study_pattern(st)
+    where = st["arena"] if pattern == UNIFORM else f"{st['arena']}/{pattern}"
     return [f"{ORACLE_DIR}/{where}/n{n}_seed{seed}_s{st['scenarios']}.parquet"
             for n in st["agent_counts"] for seed in st["seeds"]]
 
