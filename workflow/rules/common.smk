@@ -28,6 +28,15 @@ RESOLVED = f"{RESULTS}/config.resolved.yaml"
 
 TRACKING = f"{RESULTS}/tracking/store.json"
 
+# Snakemake's between-workflow output cache (`--cache`; on in profiles/shipped): evaluation cells
+# and oracle bounds are stored under their provenance hash (rule code, params, the bytes of source
+# inputs such as the shipped models, recursively the producing jobs) and restored from there when
+# the same job comes again, on any machine that has the directory (docs/reliability.md). Only read
+# when --cache is given; $SNAKEMAKE_OUTPUT_CACHE, when set, wins over paths.output_cache.
+OUTPUT_CACHE = os.environ.setdefault(
+    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
+)
+
 # Trained files a run's policy loads: run name (`method-variant`, looked up first) or method ->
 # function(wildcards) -> {name: path}, written with the training rules' outputs
 # (`rules.train_vs.output.model`); each rule file of a method registers its own. The evaluate
@@ -69,6 +78,12 @@ def model_args(wildcards):
     """``--model NAME=PATH`` options of the run's trained files, as a list (``{params.models:q}``
     quotes each item)."""
     return [a for k, v in run_models(wildcards).items() for a in ("--model", f"{k}={v}")]
+
+
+def cell_key(wildcards):
+    """The job's wildcards as a param: the output cache hashes a rule's code and params, not its
+    wildcards, so without it every cell of one (study, run) would share one cache entry."""
+    return dict(wildcards.items())
 
 
 def job_hash(wildcards):
@@ -179,6 +194,8 @@ onstart:
                          "wait for it to finish or stop it.\n\n")
         raise SystemExit(1)
     _RUN_LOCK.append(fh)
+    if workflow.workflow_settings.cache is not None:
+        os.makedirs(OUTPUT_CACHE, exist_ok=True)   # a cache entry is written after each cached job
     write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
 
 

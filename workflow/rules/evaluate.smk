@@ -1,5 +1,7 @@
 # One job per (backend, study, run, N, seed) cell: per-scenario Parquet, JSON summary, and the
-# first scenario's trajectory; then one MLflow run.
+# first scenario's trajectory; then one MLflow run. Eligible for Snakemake's between-workflow
+# output cache (`--cache`, profiles/shipped): a cell whose provenance (code, params, models' bytes
+# or training jobs) is already in paths.output_cache is restored from there instead of recomputed.
 rule evaluate:
     input:
         unpack(run_models),
@@ -13,6 +15,8 @@ rule evaluate:
         job_hash=job_hash,
         source=source_hash("evaluate"),
         models=model_args,
+        cell=cell_key,
+    cache: True
     threads: 1
     priority: eval_priority
     resources:

@@ -19,6 +19,8 @@ rule oracle:
         config=RESOLVED,
         settings=settings_hash("oracle", "agents", "arenas"),
         source=source_hash("oracle"),
+        cell=cell_key,
+    cache: True
     threads: 1
     resources:
         mem_mb=2000,
@@ -43,6 +45,8 @@ rule oracle_pattern:
         config=RESOLVED,
         settings=settings_hash("oracle", "agents", "arenas"),
         source=source_hash("oracle"),
+        cell=cell_key,
+    cache: True
     threads: 1
     resources:
         mem_mb=2000,
