@@ -14,7 +14,7 @@ if SHIPPED.get("enabled") and SHIPPED.get("names"):
         wildcard_constraints:
             name="|".join(SHIPPED["names"]),
         params:
-            dir=SHIPPED["dir"],
+            dir=lambda w, input: os.path.dirname(input.manifest),   # = shipped_models.dir
         threads: 1
         priority: 100  # in place of a training: the cells that need the model wait for it
         resources:
