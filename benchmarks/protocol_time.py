@@ -1,6 +1,7 @@
 """Where the time of a workflow run went, job by job, from its MLflow runs.
 
     python benchmarks/protocol_time.py [--store results/tracking/store.json] [--cores 2] [--since ISO-TIME]
+    python benchmarks/protocol_time.py --cells output_cache [--cores 2]
 
 Every workflow job is one MLflow run that opens when the job starts and closes when it ends
 (README, "Browse runs in MLflow"), so a run's duration is the job's wall time. This reads the
@@ -12,6 +13,12 @@ of the same jobs on ``--cores`` one-thread workers. That makespan ignores depend
 must precede the cells that use them) and the machine's other load, so it is a lower bound on the
 wall time these jobs need on that many cores, not a measured wall time. Job times measured while
 other work shared the cores are inflated accordingly. The last line is JSON.
+
+``--cells DIR`` reads the evaluation cells' summaries instead (``*_summary.json`` of the output
+cache, or the ``n*_seed*.json`` files under ``results/eval``): each cell's ``elapsed_s``, measured
+inside the job on the machine that computed it, without the job's start-up (≈ 5 s). The protocol's
+cells may come from several machines' runs (profiles/shipped keeps them in ``output_cache/``); this
+totals them all, per study and run.
 """
 
 from __future__ import annotations
@@ -51,18 +58,31 @@ def workflow_jobs(store: Path, since_ms: int = 0) -> list[dict]:
             return jobs
 
 
+def cell_jobs(directory: Path) -> list[dict]:
+    """``[{rule, job, seconds}]`` of the evaluation cells summarised under ``directory``."""
+    jobs = []
+    for f in sorted([*directory.rglob("*_summary.json"), *directory.rglob("n*_seed*.json")]):
+        s = json.loads(f.read_text())
+        if "elapsed_s" not in s:
+            continue
+        jobs.append({"rule": f"evaluate {s['study']}/{s['run']}", "seconds": float(s["elapsed_s"]),
+                     "job": f"evaluate/{s['backend']}/{s['study']}/{s['run']}/n{s['n_agents']}_seed{s['seed']}"})
+    return jobs
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--store", type=Path, default=Path("results/tracking/store.json"))
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--since", default=None, help="only runs started at or after this UTC time (ISO 8601)")
+    ap.add_argument("--cells", type=Path, default=None, help="evaluation cells' summaries under this directory instead of MLflow")
     args = ap.parse_args()
     since_ms = 0
     if args.since:
         since_ms = int(datetime.fromisoformat(args.since).replace(tzinfo=timezone.utc).timestamp() * 1000)
-    jobs = workflow_jobs(args.store, since_ms)
+    jobs = cell_jobs(args.cells) if args.cells else workflow_jobs(args.store, since_ms)
     if not jobs:
-        raise SystemExit(f"no finished workflow runs in the experiment recorded in {args.store}")
+        raise SystemExit(f"no finished jobs in {args.cells or args.store}")
     by_rule = defaultdict(list)
     for j in jobs:
         by_rule[j["rule"]].append(j["seconds"])
