@@ -100,6 +100,8 @@ def test_reproduction_report_against_a_small_run(small_run):
     prov = rep["provenance"]
     assert prov["models"][str(model)] == hashlib.sha256(model.read_bytes()).hexdigest()
     assert len(prov["config_hash"]) == 12 and prov["commit"]
+    n_cells = sum(len(v) for v in small_run[2].values())          # every cell once, with its own timing
+    assert prov["cells"]["count"] == n_cells and prov["cells"]["time_h"] > 0 and prov["cells"]["devices"] == ["cpu"]
     md = (out / "reproduction.md").read_text()
     assert "## table_update_ablation" in md and "Oracle (lone-agent lower bound)" in md and "sha256" in md
 

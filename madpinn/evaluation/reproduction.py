@@ -91,12 +91,14 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
                     table.setdefault(run, {})[str(n)] = cell
         report[name] = _ordered(table, list(ref["runs"]))
     models = sorted({str(p) for p in model_paths})
+    cells = _cell_time(p for paths in tables.values() for p in paths)
     report["provenance"] = {
         "commit": commit,
         "experiment": cfg.get("experiment"),
         "config_hash": config_hash(cfg),
         "backend": cfg["sim"]["backend"],
         "models": {p: sha256(p) for p in models},
+        "cells": cells,
         "paper_values": f"madpinn/evaluation/{PAPER_VALUES.name} (from {paper_values_source()})",
         "cost_definition": "cost: mean over collision-free agents of ∫‖p−g‖dt + ‖p(T)−g‖ (m·s + m); "
                            "cost_time_avg: the same ÷ episode length T (compared with the paper's cost); "
@@ -138,6 +140,20 @@ def _diff(ours, paper, pct: bool) -> str:
     return f"{100 * d:+.1f} pp" if pct else f"{d:+.2f}"
 
 
+def _cell_time(parquets: Iterable[str | Path]) -> dict:
+    """``{count, time_h, devices}`` of the distinct evaluation cells behind the tables, from each
+    cell's summary (``<cell>.json`` beside its Parquet file; ``elapsed_s`` measured in the job on the
+    machine that computed it, which for a cell restored from the output cache is an earlier run's)."""
+    seconds, devices = {}, set()
+    for p in {str(p) for p in parquets}:
+        summary = Path(p).with_suffix(".json")
+        if summary.exists():
+            s = json.loads(summary.read_text())
+            seconds[p] = float(s.get("elapsed_s", 0.0))
+            devices.add(str(s.get("device", "?")))
+    return {"count": len(seconds), "time_h": round(sum(seconds.values()) / 3600, 3), "devices": sorted(devices)}
+
+
 def to_markdown(report: dict) -> str:
     prov = report["provenance"]
     lines = [
@@ -155,6 +171,10 @@ def to_markdown(report: dict) -> str:
     ]
     for path, digest in prov["models"].items():
         lines.append(f"- model `{path}`: sha256 `{digest}`")
+    if "cells" in prov:
+        c = prov["cells"]
+        lines.append(f"- {c['count']} evaluation cells, {c['time_h']:.2f} h of cell time (sum of the cells' `elapsed_s`, "
+                     f"one thread each; devices: {', '.join(c['devices']) or 'n/a'})")
     head = ("Run", "N", "Safety (ours)", "Safety (paper)", "Δ", "Safe sc. (ours)", "Safe sc. (paper)", "Δ",
             "Cost ÷T (ours)", "Cost (paper)", "Δ", "Cum. cost (ours)")
     for name, table in report.items():
