@@ -137,3 +137,18 @@ def test_figures_from_the_small_run(small_run):
     files = plot_trajectories(traj, ["Ours", "Nominal"], tmp / "f" / "fig_trajectories")
     assert all(f.stat().st_size > 1000 for f in files)
     plt.close("all")
+
+
+def test_figures_are_byte_identical_when_redrawn(small_run):
+    """A rerun of the workflow must leave the committed paper_figures/ unchanged when the numbers
+    are: the PDF carries no creation date (it would differ on every run)."""
+    import matplotlib.pyplot as plt
+
+    from madpinn.figures.cost_safety import plot_cost_safety
+
+    cfg, tmp, results, oracle = small_run
+    first = [f.read_bytes() for f in plot_cost_safety(results["main"], cfg, tmp / "a" / "fig", oracle)]
+    second = [f.read_bytes() for f in plot_cost_safety(results["main"], cfg, tmp / "b" / "fig", oracle)]
+    assert b"/CreationDate" not in first[0]
+    assert first == second
+    plt.close("all")

@@ -21,11 +21,13 @@ def palette(runs: list[str]) -> dict[str, tuple]:
 
 
 def save(fig, out_prefix: str | Path) -> list[Path]:
-    """Write ``<prefix>.pdf`` and ``<prefix>.png``; returns both paths."""
+    """Write ``<prefix>.pdf`` and ``<prefix>.png``; returns both paths. Byte-identical for the same
+    figure (no creation date in the PDF), so a rerun of the workflow leaves committed figures
+    unchanged."""
     out_prefix = Path(out_prefix)
     out_prefix.parent.mkdir(parents=True, exist_ok=True)
     paths = [out_prefix.with_suffix(".pdf"), out_prefix.with_suffix(".png")]
-    fig.savefig(paths[0], bbox_inches="tight")
+    fig.savefig(paths[0], bbox_inches="tight", metadata={"CreationDate": None})
     fig.savefig(paths[1], bbox_inches="tight", dpi=160)
     plt.close(fig)
     return paths

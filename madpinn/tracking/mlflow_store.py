@@ -150,8 +150,11 @@ def git_commit() -> str:
         sha = subprocess.run(
             ["git", "-C", str(REPO_ROOT), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10
         ).stdout.strip()
+        # paper_figures/ holds the workflow's own committed outputs, which a run rewrites before
+        # its report records the commit: they do not make the code dirty.
         dirty = subprocess.run(
-            ["git", "-C", str(REPO_ROOT), "status", "--porcelain", "--untracked-files=no"],
+            ["git", "-C", str(REPO_ROOT), "status", "--porcelain", "--untracked-files=no", "--", ".",
+             ":(exclude)paper_figures"],
             capture_output=True, text=True, timeout=10,
         ).stdout.strip()
         return (sha or "unknown") + ("-dirty" if dirty else "")

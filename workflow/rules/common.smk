@@ -12,6 +12,9 @@ from madpinn.scenarios import UNIFORM
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
 # where the job's snakemake parses this file again); `conda:` envs, when used, come first.
 os.environ.update(PATH=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))
+# Figures carry no build date (matplotlib honours SOURCE_DATE_EPOCH in PDF metadata), so a rerun
+# leaves the committed paper_figures/ byte-identical when the numbers are.
+os.environ.setdefault("SOURCE_DATE_EPOCH", "0")
 CONDA_ENV = "../envs/madpinn.yaml"  # relative to workflow/rules/
 RESULTS = config["paths"]["results"]
 FIGURES = config["paths"]["figures"]
