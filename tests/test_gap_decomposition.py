@@ -26,7 +26,10 @@ def test_gap_decomposition_command_writes_every_row(tmp_path, one_thread):
                "--out-dir", str(out), "--no-progress"])
     assert rc == 0
     table = pd.read_csv(out / "decomposition.csv")
-    names = [v.name for v in gap.default_variants(0.2, (0.3,))]
+    ahead = load_config([REPO / "config.yaml", SMOKE])["methods"]["madpinn"]["look_ahead"]
+    assert ahead > 0
+    names = [v.name for v in gap.default_variants(0.2, (0.3,), ahead)]
+    assert "mujoco + look_ahead" in names
     assert table["variant"].tolist() == names
     assert set(table["backend"]) == {"double_integrator", "mujoco"}
     for col in ("safety_rate", "safe_scenarios"):
@@ -38,6 +41,10 @@ def test_gap_decomposition_command_writes_every_row(tmp_path, one_thread):
     assert row.loc["mujoco + all fixes", "carrot_margin"] == pytest.approx(0.2)
     assert row.loc["mujoco + all fixes", "neighbour_goal"] == "neighbour"
     assert row.loc["double_integrator + carrot_margin=0.3", "carrot_margin"] == pytest.approx(0.3)
+    assert row.loc["mujoco / old mapping", "look_ahead"] == 0
+    assert row.loc["mujoco + look_ahead", "look_ahead"] == pytest.approx(ahead)
+    assert row.loc["mujoco + look_ahead", "carrot_margin"] == 0
+    assert row.loc["mujoco + all fixes", "look_ahead"] == pytest.approx(ahead)
     md = (out / "decomposition.md").read_text()
     assert "mujoco + all fixes" in md and "gap-decomposition --config" in md and "--seeds 100 --scenarios 2" in md
     diag = json.loads((out / "decomposition.json").read_text())["diagnostics"]
@@ -52,6 +59,9 @@ def test_gap_decomposition_refuses_protocol_seeds_and_unknown_counts(one_thread)
         gap.study_for(cfg, 7)
     with pytest.raises(ValueError, match="margin"):
         gap.default_variants(0.0)
+    with pytest.raises(ValueError, match="look_ahead"):
+        gap.default_variants(0.2, (), -0.1)
+    assert "mujoco + look_ahead" not in [v.name for v in gap.default_variants(0.2)]
 
 
 def test_collision_diagnostics_run_on_mujoco(one_thread):

@@ -227,6 +227,35 @@ def test_control_is_decentralized():
     assert torch.equal(u1[0, 0], u2[0, 0])
 
 
+def test_look_ahead_acts_on_the_predicted_own_state_under_the_last_command():
+    """Actuator-lag compensation: V̂ sees the own state τ ahead under the agent's last command
+    (zero before the first) and the others τ ahead at constant velocity; the control is the
+    paper's rule at that observation."""
+    from dataclasses import replace
+
+    from madpinn.policies.look_ahead import observation_with_own_state, predict_states
+
+    tau = 0.05
+    pol = policy("nearest")
+    pol.settings = replace(pol.settings, look_ahead=tau, warm_start=False)
+    state, goals = scenario(S=2, N=6)
+    pol.reset(state, goals)
+    u0 = pol.act(state, goals, 0.0)
+    moved = state.clone()
+    moved[..., 0:2] += 0.01
+    u1 = pol.act(moved, goals, 0.0025)
+    obs = observation_with_own_state(predict_states(moved, u0, tau), predict_states(moved, None, tau), goals,
+                                     pol.neighbours, SPEC).reshape(12, -1)
+    z, _ = cold_budget_search(pol.vhat, obs, 10)
+    _, grad, _ = pol.vhat.value_and_grad(obs, z, 0.0)
+    assert torch.equal(u1.reshape(12, 2), -4.0 * torch.sign(grad[:, 0:2]))
+    plain = build_observation(moved, goals, pol.neighbours, SPEC).reshape(12, -1)
+    assert not torch.allclose(obs, plain)   # the prediction did change what V̂ sees
+    with pytest.raises(ValueError, match="look_ahead"):
+        MadPinnSettings.from_config({"neighbours": "value", "update_every": 5, "z_tolerance": 1e-3, "warm_start": True,
+                                     "pair_batch": 10, "symmetry": "none", "safety_filter": None, "look_ahead": -0.1})
+
+
 def models_of(cfg):
     """The trained files of a MAD-PINN run (``--model vhat=… --model vs=…`` of the evaluate job)."""
     d = Path(cfg["paths"]["results"]) / "models"

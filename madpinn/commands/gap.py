@@ -35,6 +35,8 @@ def _command_line(args) -> str:
         parts += ["--carrot-margin", str(args.carrot_margin)]
     if args.margin_sweep:
         parts += ["--margin-sweep", *map(str, args.margin_sweep)]
+    if args.look_ahead is not None:
+        parts += ["--look-ahead", str(args.look_ahead)]
     return " ".join(parts + ["--out-dir", str(args.out_dir)])
 
 
@@ -48,7 +50,8 @@ def _gap(args) -> int:
     cfg = config_of(args)
     models = _models(args)
     margin = args.carrot_margin if args.carrot_margin is not None else float(cfg["observation"].get("carrot_margin", 0.0))
-    variants = gap.default_variants(margin, tuple(args.margin_sweep))
+    ahead = args.look_ahead if args.look_ahead is not None else float(cfg["methods"]["madpinn"].get("look_ahead", 0.0))
+    variants = gap.default_variants(margin, tuple(args.margin_sweep), ahead)
     table, diagnostics = gap.decompose(cfg, variants, args.agents, args.seeds, args.scenarios, args.run,
                                        progress=not args.no_progress, models=models)
     try:
@@ -103,6 +106,7 @@ def register(sub) -> None:
     p.add_argument("--scenarios", type=int, default=20, help="scenarios per seed")
     p.add_argument("--carrot-margin", type=float, default=None, help="margin of the carrot fix (m; default observation.carrot_margin)")
     p.add_argument("--margin-sweep", type=float, nargs="*", default=[], help="extra double-integrator rows with these carrot margins (m)")
+    p.add_argument("--look-ahead", type=float, default=None, help="τ (s) of the lag-compensation fix (default methods.madpinn.look_ahead; 0: no such rows)")
     p.add_argument("--out-dir", required=True, help="writes decomposition.{csv,md,json} here")
     p.set_defaults(func=_gap)
 

@@ -11,9 +11,13 @@ row                                   backend            observation mapping
 ``mujoco / old mapping``              MuJoCo             same (the tracking gap = this − row above)
 ``mujoco + carrot_margin``            MuJoCo             carrot ``carrot_margin`` inside the box
 ``mujoco + neighbour_goal``           MuJoCo             g_j shortened relative to the neighbour
-``mujoco + all fixes``                MuJoCo             both
-``double_integrator + all fixes``     double integrator  both
+``mujoco + look_ahead``               MuJoCo             own state predicted τ ahead (actuator lag)
+``mujoco + all fixes``                MuJoCo             all three
+``double_integrator + all fixes``     double integrator  all three
 ====================================  =================  ==========================================
+
+The old mapping has no look-ahead (``methods.madpinn.look_ahead: 0``, the measured state); the
+look-ahead rows are left out when ``look_ahead`` is 0.
 
 plus optional carrot-margin sweep rows (double integrator, neighbour mapping old) to choose the
 margin. Per row: safety rate, safe scenarios, cumulative cost and time-averaged cost (cumulative
@@ -41,7 +45,7 @@ from madpinn.policies import make_policy
 from madpinn.scenarios import generate_scenarios
 from madpinn.simulation import make_backend, run_episode
 
-OLD_MAPPING = {"observation": {"carrot_margin": 0.0, "neighbour_goal": "ego"}}
+OLD_MAPPING = {"observation": {"carrot_margin": 0.0, "neighbour_goal": "ego"}, "methods": {"madpinn": {"look_ahead": 0.0}}}
 FIRST_VALIDATION_SEED = 100
 
 
@@ -54,18 +58,26 @@ class Variant:
     overlay: dict = field(default_factory=dict)
 
 
-def default_variants(carrot_margin: float, margin_sweep: tuple[float, ...] = ()) -> list[Variant]:
-    """The decomposition rows (module docstring); ``carrot_margin`` (m, > 0) is the fix's margin."""
+def default_variants(carrot_margin: float, margin_sweep: tuple[float, ...] = (), look_ahead: float = 0.0) -> list[Variant]:
+    """The decomposition rows (module docstring); ``carrot_margin`` (m, > 0) is the fix's margin,
+    ``look_ahead`` (s, ≥ 0) the lag compensation's τ (0: no look-ahead rows)."""
     if not carrot_margin > 0:
         raise ValueError(f"the carrot-margin fix needs a margin > 0 m, got {carrot_margin}")
+    if not look_ahead >= 0:
+        raise ValueError(f"look_ahead must be ≥ 0 s, got {look_ahead}")
     margin = {"observation": {"carrot_margin": float(carrot_margin)}}
     neighbour = {"observation": {"neighbour_goal": "neighbour"}}
-    fixed = deep_merge(margin, neighbour)
+    ahead = {"methods": {"madpinn": {"look_ahead": float(look_ahead)}}}
+    fixed = deep_merge(deep_merge(margin, neighbour), ahead)
     rows = [
         Variant("double_integrator / old mapping", "double_integrator", OLD_MAPPING),
         Variant("mujoco / old mapping", "mujoco", OLD_MAPPING),
         Variant("mujoco + carrot_margin", "mujoco", deep_merge(OLD_MAPPING, margin)),
         Variant("mujoco + neighbour_goal", "mujoco", deep_merge(OLD_MAPPING, neighbour)),
+    ]
+    if look_ahead > 0:
+        rows.append(Variant("mujoco + look_ahead", "mujoco", deep_merge(OLD_MAPPING, ahead)))
+    rows += [
         Variant("mujoco + all fixes", "mujoco", deep_merge(OLD_MAPPING, fixed)),
         Variant("double_integrator + all fixes", "double_integrator", deep_merge(OLD_MAPPING, fixed)),
     ]
@@ -139,6 +151,7 @@ def decompose(cfg: dict, variants: list[Variant], agent_counts: list[int], seeds
                 "variant": v.name, "backend": v.backend, "n_agents": n, "study": study,
                 "seeds": " ".join(map(str, seeds)), "scenarios_per_seed": scenarios,
                 "carrot_margin": vcfg["observation"]["carrot_margin"], "neighbour_goal": vcfg["observation"]["neighbour_goal"],
+                "look_ahead": float(vcfg["methods"]["madpinn"].get("look_ahead", 0.0)),
                 "safety_rate": df["safety_rate"].mean(), "safe_scenarios": df["safe_scenarios"].mean(),
                 "cost": df["cost"].mean(), "cost_time_avg": df["cost_time_avg"].mean(),
                 "collision_onsets": diag["collision_onsets"], "observed_both_share": diag["observed_both_share"],

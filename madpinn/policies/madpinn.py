@@ -20,6 +20,11 @@ Each agent's control depends only on its own observation; the batch is a computa
 Extension, not in the paper: ``safety_filter`` passes the MAD-PINN control through the CBVF QP on
 V_s (:mod:`madpinn.policies.safety_filter`, the filter SafeMARL uses), which changes it only
 where a pair's V_s would fall too fast. Off by default; run ``madpinn-filtered`` in config.yaml.
+
+Deployment adaptation, not in the paper: ``look_ahead`` τ > 0 builds step 2's observation from
+the states predicted τ ahead (own state under the agent's last command, the others' at constant
+velocity; :mod:`madpinn.policies.look_ahead`), which compensates the drones' actuator lag.
+``look_ahead: 0`` is the paper's policy.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import torch
 
 from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
+from madpinn.policies.look_ahead import look_ahead_observation
 from madpinn.policies.neighbours import STRATEGIES, make_selector
 from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
 from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, predict_index, warm_search
@@ -46,7 +52,10 @@ class MadPinnSettings:
     z_tolerance: bisection tolerance as a fraction of z_max; warm_start: start each row's
     search around the extrapolation of its previous answers (:func:`warm_search`); pair_batch: V_s states per call;
     symmetry: group V̂ is averaged over at inference (:mod:`madpinn.value_functions.symmetry`);
-    safety_filter: CBVF filter parameters (None: the paper's policy, unfiltered)."""
+    safety_filter: CBVF filter parameters (None: the paper's policy, unfiltered);
+    look_ahead: τ (s) of the actuator-lag compensation: V̂ sees each agent's own state predicted
+    τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
+    the measured state)."""
 
     strategy: str = "value"
     update_every: int | None = 5
@@ -55,6 +64,7 @@ class MadPinnSettings:
     pair_batch: int = 65536
     symmetry: str = "none"
     safety_filter: CBVFSettings | None = None
+    look_ahead: float = 0.0
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -65,9 +75,13 @@ class MadPinnSettings:
         strategy = str(mcfg["neighbours"])
         if strategy not in STRATEGIES:
             raise ValueError(f"methods.madpinn.neighbours must be one of {STRATEGIES}, got '{strategy}'")
+        look_ahead = float(mcfg.get("look_ahead", 0.0))
+        if not (0.0 <= look_ahead < 1.0):
+            raise ValueError(f"methods.madpinn.look_ahead must be in [0, 1) s, got {look_ahead}")
         return cls(strategy=strategy, update_every=update_every, z_tolerance=float(mcfg["z_tolerance"]),
                    warm_start=bool(mcfg["warm_start"]), pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
-                   safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None)
+                   safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
+                   look_ahead=look_ahead)
 
 
 def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
@@ -109,11 +123,13 @@ class MadPinnPolicy:
         self._k_last: torch.Tensor | None = None   # last two answers' grid indices (warm start)
         self._k_before: torch.Tensor | None = None
         self._next_update = 0
+        self._u_last: torch.Tensor | None = None   # last command [S, N, 2] (look-ahead)
         self.last_search = None   # ZSearchResult of the last step (diagnostics)
         self.stats: dict = {}
 
     def reset(self, state: torch.Tensor, goals: torch.Tensor) -> None:
         self.neighbours = None
+        self._u_last = None
         self._k_last = self._k_before = None
         self._next_update = 0
         self.stats = {"policy_steps": 0, "neighbour_updates": 0, "agent_steps": 0, "infeasible": 0, "z_sum": 0.0,
@@ -144,7 +160,13 @@ class MadPinnPolicy:
         x = state.to(device=self.device, dtype=self.dtype)
         g = goals.to(device=self.device, dtype=self.dtype)
         self._update_neighbours(x, int(round(t / self.sim_dt)))
-        obs = build_observation(x, g, self.neighbours, self.spec).reshape(S * N, -1)
+        tau = self.settings.look_ahead
+        if tau > 0.0:
+            u_last = self._u_last if self._u_last is not None and self._u_last.shape == x[..., :2].shape else None
+            obs = look_ahead_observation(x, u_last, g, self.neighbours, self.spec, tau)
+        else:
+            obs = build_observation(x, g, self.neighbours, self.spec)
+        obs = obs.reshape(S * N, -1)
         grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
         if self.settings.warm_start and self._k_last is not None and self._k_last.shape[0] == obs.shape[0]:
             r = warm_search(self.vhat, obs, grid, predict_index(self._k_last, self._k_before, grid.cells))
@@ -163,6 +185,7 @@ class MadPinnPolicy:
         st["warm_hits"] += int(r.hit.sum())
         st["vhat_value_rows"] += r.value_rows
         st["vhat_grad_rows"] += r.grad_rows
+        self._u_last = u.reshape(S, N, 2)
         return u.reshape(S, N, 2).to(device=state.device, dtype=state.dtype)
 
 
