@@ -89,16 +89,22 @@ def _edit_and_dry(copy, rel):
         path.write_text(original)
 
 
-def test_policy_code_change_reruns_evaluations_not_trainings(done):
+def test_policy_code_change_reruns_that_methods_evaluations_only(done):
+    # the MAD-PINN policy: its 3 cells (main, both ablations), not the 6 nominal cells, no training
     jobs = _edit_and_dry(done, "policies/madpinn.py")
-    assert jobs.get("evaluate") == 9 and not (TRAININGS & set(jobs)), jobs   # every cell: 5 + 4 conflict cells
-    assert TABLES <= set(jobs) and {"fig_cost_safety", "fig_trajectories"} <= set(jobs)
+    assert jobs.get("evaluate") == 3 and not (TRAININGS & set(jobs)), jobs
+    assert {"table_safety_scaling", "table_neighbour_ablation", "table_update_ablation"} <= set(jobs), jobs
+    assert "table_ours_scaling" not in jobs and "table_conflict_circle" not in jobs, jobs   # nominal-only tables
+    jobs = _edit_and_dry(done, "policies/nominal.py")
+    assert jobs.get("evaluate") == 6 and not (TRAININGS & set(jobs)), jobs   # main, scaling, 4 conflict cells
+    jobs = _edit_and_dry(done, "policies/base.py")                             # shared by every method
+    assert jobs.get("evaluate") == 9 and TABLES <= set(jobs) and {"fig_cost_safety", "fig_trajectories"} <= set(jobs)
     assert _dry(done) == {}  # reverted: nothing again
 
 
 def test_value_function_code_change_reruns_trainings(done):
     jobs = _edit_and_dry(done, "value_functions/train.py")
-    assert TRAININGS <= set(jobs) and jobs.get("evaluate") == 9, jobs
+    assert TRAININGS <= set(jobs) and jobs.get("evaluate") == 3, jobs   # the madpinn cells; nominal uses no value function
 
 
 def test_report_or_oracle_code_change_reruns_no_evaluation_cell(done):

@@ -22,10 +22,15 @@ GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints
         "madpinn.atomic")
 
 
-def _sources() -> dict[str, list[str]]:
+def _literal(name: str):
+    """The dict literal ``name = {...}`` of workflow/rules/common.smk."""
     text = (REPO / "workflow" / "rules" / "common.smk").read_text()
-    start = text.index("SOURCES = {") + len("SOURCES = ")
+    start = text.index(f"\n{name} = {{") + len(f"\n{name} = ")
     return ast.literal_eval(text[start:text.index("\n}\n", start) + 2])
+
+
+def _sources() -> dict[str, list[str]]:
+    return _literal("SOURCES")
 
 
 def _path(module: str) -> Path | None:
@@ -87,7 +92,7 @@ def _package_modules(sub: str) -> list[str]:
 # MujocoSettings, which the trainers (double-integrator physics) never run; listing the simulation
 # for them would retrain both baselines on every backend edit.
 ENTRIES = {
-    "evaluate": ["madpinn.commands.evaluate", "madpinn.evaluation.cell", *_package_modules("policies"),
+    "evaluate": ["madpinn.commands.evaluate", "madpinn.evaluation.cell", "madpinn.policies", "madpinn.policies.base",
                  *_package_modules("simulation")],
     "gap": ["madpinn.commands.gap", "madpinn.evaluation.gap", *_package_modules("policies"),
             *_package_modules("simulation")],
@@ -121,3 +126,33 @@ def test_evaluation_cells_do_not_rerun_for_tables_report_or_oracle_edits():
     listed = {PACKAGE / part for part in _sources()["evaluate"]}
     for module in ("evaluation/tables.py", "evaluation/reproduction.py", "evaluation/oracle.py"):
         assert not _covered(PACKAGE / module, listed), module
+
+
+def _policy_modules() -> dict[str, str]:
+    """``_MODULES`` of madpinn/policies/base.py: method -> its module (imported by name at run time)."""
+    tree = ast.parse((PACKAGE / "policies" / "base.py").read_text())
+    node = next(n for n in tree.body if isinstance(n, ast.Assign) and getattr(n.targets[0], "id", "") == "_MODULES")
+    return ast.literal_eval(node.value)
+
+
+@pytest.mark.parametrize("method", sorted(_policy_modules()))
+def test_every_module_a_method_runs_is_listed_for_its_cells(method):
+    """An evaluation cell of ``method`` hashes SOURCES['evaluate'] + METHOD_SOURCES[method]; every
+    module its policy imports must be among them."""
+    methods = _literal("METHOD_SOURCES")
+    assert method in methods, f"METHOD_SOURCES has no entry for '{method}' (its cells would hash every policy)"
+    listed = [PACKAGE / part for part in _sources()["evaluate"] + methods[method]]
+    missing = [str(_path(m).relative_to(PACKAGE)) for m in sorted(_closure([_policy_modules()[method]]))
+               if m != "madpinn" and not m.startswith(GLUE) and not _covered(_path(m), listed)]
+    assert not missing, f"METHOD_SOURCES['{method}'] misses {missing}"
+
+
+def test_editing_one_method_does_not_rerun_another_methods_cells():
+    """The MAD-PINN policy's modules are not hashed into the baselines' cells, and vice versa."""
+    methods = _literal("METHOD_SOURCES")
+    common = [PACKAGE / part for part in _sources()["evaluate"]]
+    for module in ("policies/madpinn.py", "policies/look_ahead.py", "policies/z_search.py"):
+        for other in ("mppi", "nominal", "safemarl", "defmarl"):
+            assert not _covered(PACKAGE / module, common + [PACKAGE / p for p in methods[other]]), (module, other)
+    for other in ("madpinn", "nominal", "safemarl", "defmarl"):
+        assert not _covered(PACKAGE / "policies/mppi.py", common + [PACKAGE / p for p in methods[other]]), other

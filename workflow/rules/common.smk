@@ -156,7 +156,7 @@ PACKAGE = Path(workflow.basedir) / "madpinn"
 SOURCES = {
     "value": ["dynamics", "value_functions", "observation.py", "device.py", "settings.py", "atomic.py"],
     "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py", "settings.py", "atomic.py"],
-    "evaluate": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
+    "evaluate": ["dynamics", "policies/__init__.py", "policies/base.py", "simulation", "evaluation/__init__.py",
                  "evaluation/cell.py", "evaluation/metrics.py", "observation.py", "scenarios.py", "conflicts.py",
                  "device.py", "settings.py"],
     "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
@@ -167,14 +167,37 @@ SOURCES = {
     "oracle": ["evaluation/oracle.py", "scenarios.py", "conflicts.py"],
     "render": ["simulation", "dynamics", "observation.py", "settings.py"],
 }
+# Each method's own modules, on top of SOURCES["evaluate"] for its evaluation cells: editing the
+# MAD-PINN policy reruns the MAD-PINN cells, not MPPI's or the baselines' (tests/test_workflow_sources.py
+# checks each method module's imports are covered). A method missing here gets the safe superset.
+METHOD_SOURCES = {
+    "nominal": ["policies/nominal.py"],
+    "madpinn": ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py", "policies/z_search.py",
+                "policies/safety_filter.py", "policies/cbvf_qp.py", "value_functions"],
+    "mppi": ["policies/mppi.py"],
+    "safemarl": ["policies/safemarl.py", "policies/safety_filter.py", "policies/cbvf_qp.py", "value_functions", "marl"],
+    "defmarl": ["policies/defmarl.py", "marl"],
+}
+ANY_METHOD_SOURCES = ["policies", "value_functions", "marl"]
 _SOURCE_HASHES = {}
 
 
+def eval_source_hash(wildcards):
+    """An evaluation cell's source param: the shared evaluation code and its method's own modules."""
+    method = wildcards.run.partition("-")[0]
+    return f"{source_hash('evaluate')}-{source_hash('method:' + method)}"
+
+
 def source_hash(family):
-    """sha256 (12 hex) over the path and bytes of every .py file of ``SOURCES[family]`` (read only)."""
+    """sha256 (12 hex) over the path and bytes of every .py file of ``SOURCES[family]`` (or, for
+    ``method:<m>``, of ``METHOD_SOURCES[m]``) (read only)."""
     if family not in _SOURCE_HASHES:
+        if family.startswith("method:"):
+            parts = METHOD_SOURCES.get(family.removeprefix("method:"), ANY_METHOD_SOURCES)
+        else:
+            parts = SOURCES[family]
         h = hashlib.sha256()
-        for part in SOURCES[family]:
+        for part in parts:
             root = PACKAGE / part
             files = sorted(root.rglob("*.py")) if root.is_dir() else [root]
             for f in files:

@@ -13,7 +13,7 @@ rule evaluate:
     params:
         config=RESOLVED,
         job_hash=job_hash,
-        source=source_hash("evaluate"),
+        source=eval_source_hash,
         models=model_args,
         cell=cell_key,
     cache: True
