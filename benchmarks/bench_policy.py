@@ -7,6 +7,10 @@ For N ∈ {16, 64, 256, 1024} at the density of 256 agents in the large arena ([
   on in-domain pairs, warm-started bisection (a step right after a warm-up step, with the
   neighbour update included);
 - ``batched_plain``: the same batch without pruning and without warm start (cold bisection);
+- ``look_ahead``: the overhead (%) of the actuator-lag compensation (``look_ahead: 0.075``, the
+  config default; :mod:`madpinn.policies.look_ahead`) over ``batched``, per step of a 20-step
+  double-integrator rollout (the state must move: on a frozen state the own prediction flips with
+  each bang-bang command and the warm start misses, which no episode does);
 - ``per_agent``: what the paper describes, agent by agent: V_s on its N−1 pairs in one batch, the 2
   lowest, its 3-agent observation, 10-halving bisection on V̂ (batch of 1), ∇V̂, bang-bang control.
   Timed on ``min(N, 64)`` agents (the per-agent cost does not depend on which agent) and
@@ -26,6 +30,7 @@ from __future__ import annotations
 import argparse
 import math
 import tempfile
+import time
 from pathlib import Path
 
 import torch
@@ -75,6 +80,30 @@ def batched_step_time(vhat, vs, state, goals, pruned: bool, warm: bool, repeats:
         return best_of(lambda: pol.act(state, goals, 0.0025), repeats)
 
 
+def rollout_step_time(vhat, vs, state, goals, look_ahead: float, repeats: int, steps: int = 20) -> float:
+    """Seconds per control step over a ``steps``-step double-integrator rollout (dt 2.5 ms, after
+    three warm-up steps), best of ``repeats`` rollouts from the same state."""
+    settings = MadPinnSettings(strategy="value", update_every=5, warm_start=True, look_ahead=look_ahead)
+    pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, settings, sim_dt=0.0025)
+    dt = 0.0025
+
+    def run(k0: int, n: int, x: torch.Tensor) -> torch.Tensor:
+        for k in range(k0, k0 + n):
+            u = pol.act(x, goals, k * dt)
+            x = torch.cat([x[..., :2] + x[..., 2:] * dt + 0.5 * u * dt**2, (x[..., 2:] + u * dt).clamp(-4, 4)], -1)
+        return x
+
+    def rollout():
+        pol.reset(state, goals)
+        x = run(0, 3, state)
+        t0 = time.perf_counter()
+        run(3, steps, x)
+        return time.perf_counter() - t0
+
+    with torch.no_grad():
+        return min(rollout() for _ in range(repeats)) / steps
+
+
 def per_agent_time(vhat, vs, state, goals, agents: int, repeats: int) -> float:
     """Seconds per agent of the paper's agent-by-agent step."""
     N = state.shape[1]
@@ -115,11 +144,13 @@ def main() -> None:
             cand = int(in_domain(state, vs.system.p_range, vs.system.v_range).sum()) / N
             tb = batched_step_time(vhat, vs, state, goals, True, True, args.repeats)
             tp = batched_step_time(vhat, vs, state, goals, False, False, args.repeats)
+            la = rollout_step_time(vhat, vs, state, goals, 0.075, args.repeats) / rollout_step_time(vhat, vs, state, goals, 0.0, args.repeats)
             tl = per_agent_time(vhat, vs, state, goals, min(N, 64), max(1, args.repeats - 1))
             batched[N] = tb
             speedup[N] = tl * N / tb
             print(f"N={N:5d} half_width={hw:5.2f}m vs_pairs_per_agent={cand:6.1f}/{N - 1:<5d} "
                   f"batched={1e6 * tb / N:8.1f}us/agent ({1e3 * tb:8.2f}ms/step) "
+                  f"look_ahead={100 * (la - 1):+5.1f}% "
                   f"batched_plain={1e6 * tp / N:8.1f}us/agent per_agent_loop={1e6 * tl:9.1f}us/agent "
                   f"speedup={speedup[N]:7.1f}x", flush=True)
         if 64 in batched and 1024 in batched:
