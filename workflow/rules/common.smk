@@ -185,7 +185,7 @@ _SOURCE_HASHES = {}
 def eval_source_hash(wildcards):
     """An evaluation cell's source param: the shared evaluation code and its method's own modules."""
     method = wildcards.run.partition("-")[0]
-    return f"{source_hash('evaluate')}-{source_hash('method:' + method)}"
+    return f"{source_hash('evaluate')}-{source_hash(f'method:{method}')}"
 
 
 def source_hash(family):
