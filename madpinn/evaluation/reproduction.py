@@ -4,12 +4,15 @@
 ``{table: {run: {N: {safety, safety_std, safe_scenarios, safe_scenarios_std, cost, cost_std,
 cost_time_avg, cost_time_avg_std, cost_all, cost_all_time_avg, n_seeds, paper_safety,
 paper_safety_std, paper_safe_scenarios, paper_safe_scenarios_std, paper_cost}}}}`` plus
-``provenance`` (commit, config hash, sha256 of every model file) and per-table notes;
+``provenance`` (commit, config hash, sha256 of every model file, the deployment settings of our
+MAD-PINN runs that the paper does not have) and per-table notes;
 :func:`write_report` writes it as ``reproduction.json`` and ``reproduction.md``.
 
 Paper values come from ``paper_values.yaml`` (one transcription, citing the .tex lines). The
 paper's costs are compared with our *time-averaged* cost (SPEC §3): "Δ cost" is ours ÷T minus the
-paper's. Oracle rows (run ``oracle``) carry only costs.
+paper's. Oracle rows (run ``oracle``) carry only costs. A paper row may name more of our runs
+(``also``) that measure the same method under another deployment (e.g. ``madpinn-measured``, the
+paper's deployment beside our look-ahead ``madpinn``); they show the same paper values.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import pandas as pd
 import yaml
 
 from madpinn.checksum import sha256
-from madpinn.config import config_hash, study_pattern
+from madpinn.config import config_hash, method_config, study_pattern
 from madpinn.evaluation.tables import ORACLE_LABEL, ORACLE_RUN, load_results, oracle_summary, load_oracle, summarize
 
 PAPER_VALUES = Path(__file__).with_name("paper_values.yaml")
@@ -45,8 +48,31 @@ def paper_values(path: str | Path = PAPER_VALUES) -> dict:
             cells = {}
             for n, v in r["n"].items():
                 cells[int(n)] = dict(zip(t["columns"], v)) if isinstance(v, list) else dict(v)
-            runs[run] = {"label": r["label"], "tex_line": r["tex_line"], "n": cells}
+            runs[run] = {"label": r["label"], "tex_line": r["tex_line"], "n": cells, "also": list(r.get("also", []))}
         out[table] = {"note": t.get("note", ""), "tex_lines": t["tex_lines"], "runs": runs}
+    return out
+
+
+def paper_row_of(ref_runs: Mapping[str, dict]) -> dict[str, dict]:
+    """Our run -> the paper row it is compared with: each row's own run and the runs it lists in ``also``."""
+    rows = {}
+    for run, row in ref_runs.items():
+        for ours in (run, *row.get("also", [])):
+            rows.setdefault(ours, row)
+    return rows
+
+
+def deployment(cfg: Mapping, runs: Iterable[str]) -> dict[str, dict]:
+    """The deployment settings of our MAD-PINN runs that are not the paper's: ``{run: {look_ahead,
+    safety_filter}}`` (look-ahead τ in s, 0 = the paper's measured state; safety_filter: the CBVF
+    extension is on), for every ``madpinn*`` run among ``runs``."""
+    out = {}
+    for run in sorted(set(runs)):
+        if run.partition("-")[0] != "madpinn" or "madpinn" not in cfg.get("methods", {}):
+            continue
+        _, mcfg = method_config(cfg, run)
+        out[run] = {"label": str(mcfg.get("label", run)), "look_ahead": float(mcfg.get("look_ahead", 0.0) or 0.0),
+                    "safety_filter": bool(mcfg.get("safety_filter"))}
     return out
 
 
@@ -62,7 +88,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
     paper values."""
     paper = paper_values() if paper is None else paper
     oracle = load_oracle(oracle_paths) if list(oracle_paths := list(oracle_paths)) else None
-    report, notes = {}, {}
+    report, notes, seen = {}, {}, set()
     for name, paths in tables.items():
         df = load_results(paths)
         agg = summarize(df, cfg)
@@ -72,10 +98,12 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
             agg = pd.concat([agg, oracle_summary(mine, df)], ignore_index=True)
         ref = paper.get(name, {"runs": {}, "note": "not a table of the paper", "tex_lines": None})
         notes[name] = {"paper_note": ref["note"], "tex_lines": ref["tex_lines"]}
+        rows = paper_row_of(ref["runs"])
         table: dict = {}
         for _, r in agg.iterrows():
             run, n = str(r["run"]), int(r["n_agents"])
-            p = ref["runs"].get(run, {}).get("n", {}).get(n, {})
+            seen.add(run)
+            p = rows.get(run, {}).get("n", {}).get(n, {})
             cell = {k: _num(r[col]) for k, col in _FROM_AGG.items()}
             cell.update(label=str(r["label"]), n_seeds=int(r["n_seeds"]), paper_safety=_num(p.get("safety")),
                         paper_safety_std=_num(p.get("safety_std")), paper_safe_scenarios=_num(p.get("safe_scenarios")),
@@ -89,7 +117,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
                                 paper_safety_std=_num(p.get("safety_std")), paper_safe_scenarios=_num(p.get("safe_scenarios")),
                                 paper_safe_scenarios_std=_num(p.get("safe_scenarios_std")), paper_cost=_num(p.get("cost")))
                     table.setdefault(run, {})[str(n)] = cell
-        report[name] = _ordered(table, list(ref["runs"]))
+        report[name] = _ordered(table, list(rows))
     models = sorted({str(p) for p in model_paths})
     cells = _cell_time(p for paths in tables.values() for p in paths)
     report["provenance"] = {
@@ -100,6 +128,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
         "models": {p: sha256(p) for p in models},
         "cells": cells,
         "paper_values": f"madpinn/evaluation/{PAPER_VALUES.name} (from {paper_values_source()})",
+        "deployment": deployment(cfg, seen),
         "cost_definition": "cost: mean over collision-free agents of ∫‖p−g‖dt + ‖p(T)−g‖ (m·s + m); "
                            "cost_time_avg: the same ÷ episode length T (compared with the paper's cost); "
                            "cost_all*: over all agents; oracle: lone-agent lower bound on the same scenarios",
@@ -109,7 +138,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
 
 
 def _ordered(table: dict, paper_runs: list[str]) -> dict:
-    """Runs in the paper's row order, then ours the paper lacks (in the order met), the oracle
+    """Runs in the paper's row order (a row's ``also`` runs right after it), then ours the paper lacks (in the order met), the oracle
     last; each run's cells by ascending N."""
     rank = {run: i for i, run in enumerate(paper_runs)}
     met = {run: i for i, run in enumerate(table)}
@@ -154,6 +183,19 @@ def _cell_time(parquets: Iterable[str | Path]) -> dict:
     return {"count": len(seconds), "time_h": round(sum(seconds.values()) / 3600, 3), "devices": sorted(devices)}
 
 
+def _deployment_lines(runs: Mapping[str, dict]) -> list[str]:
+    """One line per look-ahead τ > 0 among our MAD-PINN runs (a deployment the paper does not have)."""
+    lines = []
+    for tau in sorted({d["look_ahead"] for d in runs.values() if d["look_ahead"] > 0}):
+        with_tau = [f"`{r}`" for r, d in runs.items() if d["look_ahead"] == tau]
+        without = [f"`{d['label']}` (`{r}`)" for r, d in runs.items() if d["look_ahead"] == 0]
+        lines.append(f"- deployment not in the paper: runs {', '.join(with_tau)} build V̂'s observation from the own "
+                     f"state predicted {1000 * tau:.0f} ms ahead under the last command and the others' at constant "
+                     "velocity (actuator-lag look-ahead, `methods.madpinn.look_ahead`)"
+                     + (f"; {', '.join(without)} keep the paper's measured state" if without else ""))
+    return lines
+
+
 def to_markdown(report: dict) -> str:
     prov = report["provenance"]
     lines = [
@@ -175,6 +217,7 @@ def to_markdown(report: dict) -> str:
         c = prov["cells"]
         lines.append(f"- {c['count']} evaluation cells, {c['time_h']:.2f} h of cell time (sum of the cells' `elapsed_s`, "
                      f"one thread each; devices: {', '.join(c['devices']) or 'n/a'})")
+    lines += _deployment_lines(prov.get("deployment", {}))
     head = ("Run", "N", "Safety (ours)", "Safety (paper)", "Δ", "Safe sc. (ours)", "Safe sc. (paper)", "Δ",
             "Cost ÷T (ours)", "Cost (paper)", "Δ", "Cum. cost (ours)")
     for name, table in report.items():

@@ -188,9 +188,18 @@ def eval_source_hash(wildcards):
     return f"{source_hash('evaluate')}-{source_hash(f'method:{method}')}"
 
 
+SOURCE_SUFFIXES = (".py", ".yaml", ".yml", ".json", ".csv", ".xml")   # code and package data (not caches or editor files)
+
+
+def _is_source(path):
+    """A file of the package that a job runs or reads (``SOURCE_SUFFIXES``)."""
+    return path.is_file() and path.suffix in SOURCE_SUFFIXES and "__pycache__" not in path.parts
+
+
 def source_hash(family):
-    """sha256 (12 hex) over the path and bytes of every .py file of ``SOURCES[family]`` (or, for
-    ``method:<m>``, of ``METHOD_SOURCES[m]``) (read only)."""
+    """sha256 (12 hex) over the path and bytes of every file of ``SOURCES[family]`` (or, for
+    ``method:<m>``, of ``METHOD_SOURCES[m]``): the .py files and the package data beside them
+    (e.g. evaluation/paper_values.yaml), never caches (read only)."""
     if family not in _SOURCE_HASHES:
         if family.startswith("method:"):
             parts = METHOD_SOURCES.get(family.removeprefix("method:"), ANY_METHOD_SOURCES)
@@ -199,7 +208,7 @@ def source_hash(family):
         h = hashlib.sha256()
         for part in parts:
             root = PACKAGE / part
-            files = sorted(root.rglob("*.py")) if root.is_dir() else [root]
+            files = sorted(f for f in root.rglob("*") if _is_source(f)) if root.is_dir() else [root]
             for f in files:
                 h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
         _SOURCE_HASHES[family] = h.hexdigest()[:12]
