@@ -108,7 +108,7 @@ def test_value_function_code_change_reruns_trainings(done):
 
 
 def test_report_or_oracle_code_change_reruns_no_evaluation_cell(done):
-    for rel in ("evaluation/reproduction.py", "evaluation/oracle.py"):
+    for rel in ("evaluation/reproduction.py", "evaluation/oracle.py", "evaluation/paper_values.yaml"):
         jobs = _edit_and_dry(done, rel)
         assert "reproduction_report" in jobs and "evaluate" not in jobs and not (TRAININGS & set(jobs)), (rel, jobs)
 
