@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, add_model_arg, config_of, parse_models
@@ -45,6 +44,7 @@ def _gap(args) -> int:
 
     from madpinn.config import config_hash
     from madpinn.evaluation import gap
+    from madpinn.tracking.mlflow_store import git_commit
 
     torch.set_num_threads(args.threads)
     cfg = config_of(args)
@@ -52,16 +52,13 @@ def _gap(args) -> int:
     margin = args.carrot_margin if args.carrot_margin is not None else float(cfg["observation"].get("carrot_margin", 0.0))
     ahead = args.look_ahead if args.look_ahead is not None else float(cfg["methods"]["madpinn"].get("look_ahead", 0.0))
     variants = gap.default_variants(margin, tuple(args.margin_sweep), ahead)
+    commit = git_commit()   # the code the rows run, read before the (long) decomposition
     table, diagnostics = gap.decompose(cfg, variants, args.agents, args.seeds, args.scenarios, args.run,
                                        progress=not args.no_progress, models=models)
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False).stdout.strip()
-    except OSError:
-        commit = ""
     provenance = {
         "command": _command_line(args),
         "run": args.run, "vhat_model": str(models["vhat"]), "vs_model": str(models["vs"]),
-        "config_hash": config_hash(cfg), "commit": commit or "unknown",
+        "config_hash": config_hash(cfg), "commit": commit,
     }
     for p in gap.write(table, diagnostics, args.out_dir, provenance):
         print(p)

@@ -163,6 +163,11 @@ def decompose(cfg: dict, variants: list[Variant], agent_counts: list[int], seeds
     return pd.DataFrame(rows), diagnostics
 
 
+def _share(x: float) -> str:
+    """A share of collision onsets; "–" where there was no onset (no share to give)."""
+    return "–" if pd.isna(x) else f"{x:.2f}"
+
+
 def markdown(table: pd.DataFrame, provenance: dict) -> str:
     """The decomposition as a markdown report: per N, every row with its safety change against
     the MuJoCo old-mapping row (the deployed baseline)."""
@@ -177,7 +182,7 @@ def markdown(table: pd.DataFrame, provenance: dict) -> str:
         for _, r in g.iterrows():
             lines.append(f"| {r['variant']} | {100 * r['safety_rate']:.2f} % | {100 * (r['safety_rate'] - ref):+.2f} | "
                          f"{100 * r['safe_scenarios']:.1f} % | {r['cost']:.3f} | {r['cost_time_avg']:.3f} | {r['collision_onsets']} | "
-                         f"{r['observed_both_share']:.2f} | {r['feasible_at_onset_share']:.2f} |")
+                         f"{_share(r['observed_both_share'])} | {_share(r['feasible_at_onset_share'])} |")
         lines.append("")
     return "\n".join(lines)
 
