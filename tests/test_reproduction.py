@@ -13,7 +13,7 @@ from conftest import subprocess_env
 from madpinn.commands.evaluate import evaluate
 from madpinn.evaluation.oracle import OracleSettings, write_bounds
 from madpinn.evaluation.reproduction import paper_values, write_report
-from madpinn.evaluation.tables import format_table, table_data, write_table
+from madpinn.evaluation.tables import format_table, load_results, summarize, table_data, write_table
 from madpinn.scenarios import Arena
 
 T = 0.5
@@ -64,6 +64,16 @@ def test_single_seed_table_has_no_spread_and_says_what_rows_are(small_run):
     assert md.startswith("| Update period k (steps) | Cost ÷T (time-avg.) | Cumulative cost ∫ (m·s) |")
     assert "Oracle (lone-agent lower bound)" in md
     assert "one seed" in files[2].read_text()
+
+
+def test_rows_follow_the_config_order_whatever_the_input_order(small_run):
+    """The workflow passes the report its result files sorted by path ('madpinn-filtered/' before
+    'madpinn/'); rows must still come in the study's configured run order."""
+    cfg, _, results, _ = small_run
+    paths = sorted(results["main"], key=str, reverse=True)          # nominal's files first
+    assert "nominal" in str(paths[0])
+    runs = list(dict.fromkeys(summarize(load_results(paths), cfg)["run"]))
+    assert runs == cfg["studies"]["main"]["runs"]
 
 
 def test_reproduction_report_against_a_small_run(small_run):

@@ -50,11 +50,24 @@ def per_seed(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def run_order(df: pd.DataFrame, cfg: dict) -> dict[str, int]:
+    """Rank of each run of ``df``: the order of its studies' ``runs`` lists in ``cfg``, then any
+    other run in the order met (whatever order the result files came in)."""
+    order: dict[str, int] = {}
+    studies = cfg.get("studies", {})
+    for study in dict.fromkeys(df["study"]) if "study" in df else ():
+        for run in studies.get(study, {}).get("runs", []):
+            order.setdefault(str(run), len(order))
+    for run in dict.fromkeys(df["run"]):
+        order.setdefault(run, len(order))
+    return order
+
+
 def summarize(df: pd.DataFrame, cfg: dict) -> pd.DataFrame:
-    """Mean/std across seeds per (run, N), with display labels, in config order."""
+    """Mean/std across seeds per (run, N), with display labels, in config order (:func:`run_order`)."""
     agg = across_seeds(per_seed(df), ["run", "n_agents"])
     agg.insert(1, "label", [label_of(cfg, r) for r in agg["run"]])
-    order = {r: i for i, r in enumerate(dict.fromkeys(df["run"]))}
+    order = run_order(df, cfg)
     agg["_o"] = agg["run"].map(order)
     return agg.sort_values(["_o", "n_agents"]).drop(columns="_o").reset_index(drop=True)
 
