@@ -89,15 +89,18 @@ def test_workflow_target_runs_the_command_and_is_not_part_of_all(tmp_path):
     assert "gap_decomposition" not in run_snakemake(tmp_path, "-n", "all").stdout
 
 
-def test_a_decomposition_cell_equals_the_evaluate_job_of_the_same_cell(tmp_path, one_thread):
+@pytest.mark.parametrize("study, n", [("main", 3), ("conflict_circle", 4)])
+def test_a_decomposition_cell_equals_the_evaluate_job_of_the_same_cell(tmp_path, one_thread, study, n):
+    """Also on a structured-conflict study: the diagnostics use the study's scenario pattern."""
     from madpinn.commands.evaluate import evaluate
 
     cfg = load_config([REPO / "config.yaml", SMOKE])
     d = tiny_model_dir()
     models = {"vhat": d / "vhat.pt", "vs": d / "vs.pt"}
-    summary, _ = gap.run_cell(cfg, "double_integrator", "madpinn", "main", 3, 100, cfg["studies"]["main"]["scenarios"], models=models)
-    again, _ = gap.run_cell(cfg, "double_integrator", "madpinn", "main", 3, 100, cfg["studies"]["main"]["scenarios"], models=models)
-    job = evaluate(cfg, "main", "madpinn", 3, 100, tmp_path / "cell.parquet", models=models, backend="double_integrator",
+    count = cfg["studies"][study]["scenarios"]
+    summary, _ = gap.run_cell(cfg, "double_integrator", "madpinn", study, n, 100, count, models=models)
+    again, _ = gap.run_cell(cfg, "double_integrator", "madpinn", study, n, 100, count, models=models)
+    job = evaluate(cfg, study, "madpinn", n, 100, tmp_path / "cell.parquet", models=models, backend="double_integrator",
                    progress=False, track=False)
     for key in ("safety_rate", "safe_scenarios", "cost"):
         assert summary[key] == again[key] == job[key]          # deterministic, and the same cell as evaluate's

@@ -111,7 +111,8 @@ def run_cell(cfg: dict, backend: str, run: str, study: str, n_agents: int, seed:
     frames, events = [], []
     for b, first in enumerate(range(0, scenarios, batch)):
         count = min(batch, scenarios - first)
-        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first)
+        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first,
+                                          pattern=cs.pattern)
         probe = CollisionProbe(make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models)), r)
         probe.scenario_offset = first
         result, _ = run_episode(make_backend(backend, cs.sim, cs.limits, device, dtype), probe, starts, goals, n_steps, r,
