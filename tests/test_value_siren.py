@@ -21,7 +21,8 @@ def problems():
 
 @pytest.mark.parametrize("problem", problems(), ids=["vhat", "vs"])
 @pytest.mark.parametrize("loss", ["l1", "l2"])
-def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss):
+@pytest.mark.parametrize("obstacle", [0.0, 0.7], ids=["paper", "obstacle"])
+def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss, obstacle):
     torch.manual_seed(0)
     st = TrainSettings(iterations=100, batch_size=300, lr=1e-4, lr_final=1e-4, curriculum_fraction=0.5,
                        checkpoint_every=50, loss=loss, output_scale=2.0, network=NET)
@@ -29,12 +30,12 @@ def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss)
     # a first call on another batch: the reused workspace must not leak into the next call
     s0, t0 = training_batch(problem, st, 69, "cpu", torch.float64)
     b0, gb0 = problem.boundary_and_grad(s0)
-    net.accumulate_loss_grad(problem.normalise(s0, t0), make_head(problem, s0, t0, b0, gb0, 2.0, loss))
+    net.accumulate_loss_grad(problem.normalise(s0, t0), make_head(problem, s0, t0, b0, gb0, 2.0, loss, obstacle))
     net.zero_grad(set_to_none=True)
     s, t = training_batch(problem, st, 70, "cpu", torch.float64)
     b, gb = problem.boundary_and_grad(s)
     x = problem.normalise(s, t)
-    loss_fast, n_fast, g_fast = net.accumulate_loss_grad(x, make_head(problem, s, t, b, gb, 2.0, loss))
+    loss_fast, n_fast, g_fast = net.accumulate_loss_grad(x, make_head(problem, s, t, b, gb, 2.0, loss, obstacle))
     fast = [p.grad.clone() for p in net.parameters()]
     net.zero_grad(set_to_none=True)
     xx = x.clone().requires_grad_(True)
@@ -42,12 +43,34 @@ def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss)
     g = torch.autograd.grad(n.sum(), xx, create_graph=True)[0]
     v, dvdt, dvds = assemble(problem, s, t, n, g, b, gb, 2.0)
     r = problem.residual(s, t, v, dvdt, dvds)
-    ref = r.abs().mean() if loss == "l1" else r.square().mean()
+    norm = torch.abs if loss == "l1" else torch.square
+    ref = norm(r).mean() + obstacle * norm(problem.obstacle_violation(s, v)).mean()
     ref.backward()
     assert torch.allclose(n_fast, n, atol=1e-12) and torch.allclose(g_fast, g, atol=1e-10)
     assert abs(float(loss_fast) - float(ref.detach())) < 1e-12
     for p, f in zip(net.parameters(), fast):
         assert torch.allclose(f, p.grad, rtol=1e-9, atol=1e-12 * float(p.grad.abs().max()) + 1e-300)
+
+
+def test_obstacle_penalty_pulls_v_s_down_to_psi_inside_the_disk():
+    """Where V_s > ψ and the VI's min picks the other branch, the paper's loss passes no gradient
+    to ψ − V; the obstacle penalty does, and always towards V ≤ ψ (it is 0 where V ≤ ψ)."""
+    problem = PairProblem(PairSystem())
+    s = torch.tensor([[0.05, 0.0, 3.0, 0.0], [1.0, 1.0, 0.0, 0.0]], dtype=torch.float64)  # inside / far
+    t = torch.tensor([0.5, 0.5], dtype=torch.float64)
+    b, gb = problem.boundary_and_grad(s)
+    n = torch.tensor([0.2, -0.3], dtype=torch.float64)   # V = ψ + 0.5·n: above ψ inside, below it far
+    # ∂V/∂t = −n + τ·∂n/∂t: a steep fall (large ∂n/∂t) makes ∂_t V + H the smaller branch inside
+    grad_n = torch.tensor([[0.0, 0.0, 0.0, 0.0, -40.0], [0.0] * 5], dtype=torch.float64)
+    v, dvdt, dvds = assemble(problem, s, t, n, grad_n, b, gb, 1.0)
+    r = problem.residual(s, t, v, dvdt, dvds)
+    assert float(v[0] - b[0]) > 0.05 and float(r[0]) < float(b[0] - v[0]) - 1.0   # min picks ∂_t V + H
+    viol = problem.obstacle_violation(s, v)
+    assert float(viol[0]) == pytest.approx(float(v[0] - b[0])) and float(viol[1]) == 0.0
+    _, n_bar0, _ = make_head(problem, s, t, b, gb, 1.0, "l1", 0.0)(n, grad_n)
+    _, n_bar1, _ = make_head(problem, s, t, b, gb, 1.0, "l1", 1.0)(n, grad_n)
+    # the penalty adds +τ/B to ∂loss/∂n of the violating state (descent lowers V) and nothing elsewhere
+    assert float(n_bar1[0] - n_bar0[0]) == pytest.approx(0.5 / 2) and float(n_bar1[1] - n_bar0[1]) == 0.0
 
 
 @pytest.mark.parametrize("problem", problems(), ids=["vhat", "vs"])

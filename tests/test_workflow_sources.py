@@ -23,10 +23,18 @@ GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints
 
 
 def _literal(name: str):
-    """The dict literal ``name = {...}`` of workflow/rules/common.smk."""
+    """The dict literal ``name = {...}`` of workflow/rules/common.smk (list names defined above
+    it, such as ``VF_INFERENCE``, unpacked in place)."""
     text = (REPO / "workflow" / "rules" / "common.smk").read_text()
     start = text.index(f"\n{name} = {{") + len(f"\n{name} = ")
-    return ast.literal_eval(text[start:text.index("\n}\n", start) + 2])
+    expr = ast.parse(text[start:text.index("\n}\n", start) + 2], mode="eval")
+    lists = {"VF_INFERENCE": _list_literal(text, "VF_INFERENCE")} if "VF_INFERENCE" in ast.dump(expr) else {}
+    return eval(compile(expr, "common.smk", "eval"), {"__builtins__": {}}, lists)   # literals and those lists only
+
+
+def _list_literal(text: str, name: str) -> list:
+    start = text.index(f"\n{name} = [") + len(f"\n{name} = ")
+    return ast.literal_eval(text[start:text.index("]\n", start) + 1])
 
 
 def _sources() -> dict[str, list[str]]:
@@ -54,6 +62,8 @@ def _runtime_nodes(tree):
 
 
 def _imports(module: str) -> set[str]:
+    """Static imports of ``module``, plus the targets of a lazy package's ``_HOMES`` (PEP 562
+    ``__getattr__``: ``madpinn.value_functions`` resolves ``load_vs`` from its ``model`` module)."""
     out = set()
     for node in _runtime_nodes(ast.parse(_path(module).read_text())):
         names = []
@@ -61,6 +71,9 @@ def _imports(module: str) -> set[str]:
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        elif (isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "_HOMES"
+              and isinstance(node.value, ast.Dict)):
+            names = list(ast.literal_eval(node.value).values())
         for name in names:
             if name.startswith("madpinn") and _path(name):
                 parts = name.split(".")
@@ -145,6 +158,18 @@ def test_every_module_a_method_runs_is_listed_for_its_cells(method):
     missing = [str(_path(m).relative_to(PACKAGE)) for m in sorted(_closure([_policy_modules()[method]]))
                if m != "madpinn" and not m.startswith(GLUE) and not _covered(_path(m), listed)]
     assert not missing, f"METHOD_SOURCES['{method}'] misses {missing}"
+
+
+def test_value_function_training_edits_do_not_rerun_evaluation_cells():
+    """MAD-PINN and SafeMARL cells hash the value-function modules they run (loading and
+    evaluating a trained network), not its training, grid reference or verification: those reach
+    a cell through the trained model file, its input."""
+    methods = _literal("METHOD_SOURCES")
+    for method in ("madpinn", "safemarl"):
+        listed = [PACKAGE / p for p in _sources()["evaluate"] + methods[method]]
+        for module in ("train.py", "grid_reference.py", "verification.py", "figures.py", "shipping.py"):
+            assert not _covered(PACKAGE / "value_functions" / module, listed), (method, module)
+        assert _covered(PACKAGE / "value_functions" / "model.py", listed), method
 
 
 def test_editing_one_method_does_not_rerun_another_methods_cells():

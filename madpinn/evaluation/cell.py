@@ -11,7 +11,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -107,6 +107,33 @@ class Cell:
     """arena half width (m)"""
 
 
+def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, device, dtype,
+                 models: Mapping[str, Path] | None = None, scenarios: int | None = None,
+                 wrap: Callable[[Any, int], Any] | None = None, record: bool = False, progress: bool = True):
+    """Simulate one cell batch by batch (``cs.sim.scenario_batch`` scenarios each, fresh policy and
+    backend per batch); yield ``(first scenario index, policy, EpisodeResult, run stats)``. The
+    one loop of :func:`run_cell` and the collision probe (``madpinn.evaluation.gap``):
+    ``scenarios`` (default ``cs.scenarios``) runs the first ones only, ``wrap(policy, first)``
+    replaces the policy (e.g. by a probe around it), ``record`` keeps the first batch's trajectories."""
+    r = cs.limits.collision_radius
+    total = cs.scenarios if scenarios is None else int(scenarios)
+    batch = cs.sim.scenario_batch
+    for b, first in enumerate(range(0, total, batch)):
+        count = min(batch, total - first)
+        starts, goals = generate_scenarios(cs.arena, n_agents, seed, count, r, device, dtype, first_index=first,
+                                           pattern=cs.pattern)
+        policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
+        if wrap is not None:
+            policy = wrap(policy, first)
+        sim = make_backend(backend, cs.sim, cs.limits, device, dtype)
+        result, stats = run_episode(
+            sim, policy, starts, goals, cs.episode_steps, r, policy_period=cs.policy_period,
+            record_every=cs.sim.record_every if record and first == 0 else 0,
+            progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
+        )
+        yield first, policy, result, stats
+
+
 def run_cell(
     cs: CellSettings,
     n_agents: int,
@@ -127,18 +154,10 @@ def run_cell(
     period = cs.policy_period
 
     frames, traj, timing, policy_stats = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}
-    total, batch = cs.scenarios, cs.sim.scenario_batch
+    total = cs.scenarios
     t0 = time.perf_counter()
-    for b, first in enumerate(range(0, total, batch)):
-        count = min(batch, total - first)
-        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first, pattern=cs.pattern)
-        policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
-        sim = make_backend(backend, cs.sim, cs.limits, device, dtype)
-        result, stats = run_episode(
-            sim, policy, starts, goals, n_steps, r, policy_period=period,
-            record_every=cs.sim.record_every if first == 0 else 0,
-            progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
-        )
+    for first, policy, result, stats in cell_batches(cs, n_agents, seed, backend, device, dtype, models,
+                                                     record=True, progress=progress):
         timing["wall_s"] += stats["wall_s"]
         timing["policy_s"] += stats["policy_s"]
         if hasattr(policy, "summarise_stats"):   # policies with summable counters (dict) report them

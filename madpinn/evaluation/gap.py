@@ -38,12 +38,9 @@ import pandas as pd
 
 from madpinn.config import deep_merge
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
-from madpinn.evaluation.cell import CellSettings, policy_context
+from madpinn.evaluation.cell import CellSettings, cell_batches
 from madpinn.evaluation.collisions import CollisionProbe, summarise
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
-from madpinn.policies import make_policy
-from madpinn.scenarios import generate_scenarios
-from madpinn.simulation import make_backend, run_episode
 
 OLD_MAPPING = {"observation": {"carrot_margin": 0.0, "neighbour_goal": "ego"}, "methods": {"madpinn": {"look_ahead": 0.0}}}
 FIRST_VALIDATION_SEED = 100
@@ -103,24 +100,22 @@ def run_cell(cfg: dict, backend: str, run: str, study: str, n_agents: int, seed:
     cs = CellSettings.from_config(cfg, study, run)
     if cs.method != "madpinn":
         raise ValueError(f"the gap decomposition evaluates MAD-PINN runs (madpinn[-variant]), got '{run}'")
-    arena = cs.arena
     device, dtype = resolve_device(cs.device), resolve_dtype(cs.dtype)
     seed_everything(seed)   # as evaluate does (thread count left to the caller)
     r = cs.limits.collision_radius
-    n_steps, period, batch = cs.episode_steps, cs.policy_period, cs.sim.scenario_batch
     frames, events = [], []
-    for b, first in enumerate(range(0, scenarios, batch)):
-        count = min(batch, scenarios - first)
-        starts, goals = generate_scenarios(arena, n_agents, seed, count, r, device, dtype, first_index=first,
-                                          pattern=cs.pattern)
-        probe = CollisionProbe(make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models)), r)
-        probe.scenario_offset = first
-        result, _ = run_episode(make_backend(backend, cs.sim, cs.limits, device, dtype), probe, starts, goals, n_steps, r,
-                                policy_period=period, progress=progress, desc=f"{backend} N={n_agents} seed={seed}")
+
+    def probe(policy, first):
+        p = CollisionProbe(policy, r)
+        p.scenario_offset = first
+        return p
+
+    for first, policy, result, _ in cell_batches(cs, n_agents, seed, backend, device, dtype, models, scenarios,
+                                                 wrap=probe, progress=progress):
         frames.append(scenario_metrics(result, first_index=first))
-        events += [{**e, "seed": seed} for e in probe.events]
+        events += [{**e, "seed": seed} for e in policy.events]
     summary = seed_summary(pd.concat(frames, ignore_index=True))
-    summary["cost_time_avg"] = summary["cost"] / arena.episode_s
+    summary["cost_time_avg"] = summary["cost"] / cs.arena.episode_s
     return summary, events
 
 

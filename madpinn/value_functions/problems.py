@@ -71,6 +71,10 @@ class PINNProblem:
     def residual(self, s, t, value, dv_dt, dv_ds) -> torch.Tensor:
         raise NotImplementedError
 
+    def obstacle_violation(self, s, value) -> torch.Tensor:
+        """``[B]`` ≥ 0: how far ``value`` breaks the VI's obstacle inequality (0 where it holds)."""
+        raise NotImplementedError
+
     def describe(self) -> dict:
         raise NotImplementedError
 
@@ -108,6 +112,10 @@ class EpigraphProblem(PINNProblem):
 
     def residual(self, s, t, value, dv_dt, dv_ds):
         return self.system.hjb_residual(s[:, :-1], s[:, -1], value, dv_dt, dv_ds[:, :-1], dv_ds[:, -1])
+
+    def obstacle_violation(self, s, value):
+        """``relu(g_d − V̂)``: the exact V̂ never falls below the constraint ``g_d``."""
+        return torch.relu(self.system.constraint(s[:, :-1]) - value)
 
     def describe(self) -> dict:
         sy = self.system
@@ -152,6 +160,10 @@ class PairProblem(PINNProblem):
 
     def residual(self, s, t, value, dv_dt, dv_ds):
         return self.system.hjb_residual(s, value, dv_dt, dv_ds)
+
+    def obstacle_violation(self, s, value):
+        """``relu(V_s − ψ)``: the exact V_s never exceeds the current separation margin ψ."""
+        return torch.relu(value - self.system.target(s))
 
     def describe(self) -> dict:
         return asdict(self.system)

@@ -48,6 +48,10 @@ class TrainSettings:
     network: dict = field(default_factory=lambda: {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0})
     seed: int = 0
     init_from: str | None = None
+    obstacle_weight: float = 0.0
+    """Weight of the obstacle penalty ``mean(relu-violation)`` (same norm as the residual) added to
+    the residual loss; 0 = the paper's loss. The VI's min passes its gradient to one branch only, so
+    without it nothing pulls V_s down to ψ where the other branch is smaller (docs/value_functions.md)."""
 
     @classmethod
     def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":
@@ -56,7 +60,7 @@ class TrainSettings:
             lr_final=float(vcfg.get("lr_final", vcfg["lr"])), curriculum_fraction=float(vcfg["curriculum_fraction"]),
             checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg.get("loss", "l1")),
             output_scale=float(vcfg["output_scale"]), network=dict(vcfg["network"]), seed=int(seed),
-            init_from=vcfg.get("init_from"),
+            init_from=vcfg.get("init_from"), obstacle_weight=float(vcfg.get("obstacle_weight", 0.0)),
         )
 
 
@@ -75,7 +79,8 @@ def learning_rate(iteration: int, s: TrainSettings) -> float:
     return s.lr_final + 0.5 * (s.lr - s.lr_final) * (1.0 + math.cos(math.pi * frac))
 
 
-def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale: float, loss_kind: str):
+def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale: float, loss_kind: str,
+              obstacle_weight: float = 0.0):
     """Loss head ``(N, ∇N) -> (loss, ∂loss/∂N, ∂loss/∂∇N)``: autograd over the per-sample formula only."""
 
     def head(n, grad_n):
@@ -84,7 +89,10 @@ def make_head(problem: PINNProblem, s, t, boundary, grad_boundary, output_scale:
             g_ = grad_n.detach().requires_grad_(True)
             value, dv_dt, dv_ds = assemble(problem, s, t, n_, g_, boundary, grad_boundary, output_scale)
             r = problem.residual(s, t, value, dv_dt, dv_ds)
-            loss = r.abs().mean() if loss_kind == "l1" else r.square().mean()
+            norm = torch.abs if loss_kind == "l1" else torch.square
+            loss = norm(r).mean()
+            if obstacle_weight:
+                loss = loss + obstacle_weight * norm(problem.obstacle_violation(s, value)).mean()
             n_bar, g_bar = torch.autograd.grad(loss, [n_, g_])
         return loss.detach(), n_bar, g_bar
 
@@ -103,7 +111,7 @@ def training_batch(problem: PINNProblem, settings: TrainSettings, iteration: int
 def train_step(problem, net, opt, settings, iteration, device, dtype, batch_offset: int = 0) -> float:
     s, t = training_batch(problem, settings, iteration, device, dtype, batch_offset)
     b, gb = problem.boundary_and_grad(s)
-    head = make_head(problem, s, t, b, gb, settings.output_scale, settings.loss)
+    head = make_head(problem, s, t, b, gb, settings.output_scale, settings.loss, settings.obstacle_weight)
     for group in opt.param_groups:
         group["lr"] = learning_rate(iteration, settings)
     opt.zero_grad(set_to_none=True)

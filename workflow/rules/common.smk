@@ -170,12 +170,17 @@ SOURCES = {
 # Each method's own modules, on top of SOURCES["evaluate"] for its evaluation cells: editing the
 # MAD-PINN policy reruns the MAD-PINN cells, not MPPI's or the baselines' (tests/test_workflow_sources.py
 # checks each method module's imports are covered). A method missing here gets the safe superset.
+# Of value_functions/, a cell runs only loading and inference (VF_INFERENCE); training, the grid
+# reference and the verification reach it through the trained model file, its input.
+VF_INFERENCE = ["value_functions/__init__.py", "value_functions/model.py", "value_functions/problems.py",
+                "value_functions/siren.py", "value_functions/symmetry.py", "value_functions/sampling.py",
+                "value_functions/validation.py"]
 METHOD_SOURCES = {
     "nominal": ["policies/nominal.py"],
     "madpinn": ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py", "policies/z_search.py",
-                "policies/safety_filter.py", "policies/cbvf_qp.py", "value_functions"],
+                "policies/safety_filter.py", "policies/cbvf_qp.py", *VF_INFERENCE],
     "mppi": ["policies/mppi.py"],
-    "safemarl": ["policies/safemarl.py", "policies/safety_filter.py", "policies/cbvf_qp.py", "value_functions", "marl"],
+    "safemarl": ["policies/safemarl.py", "policies/safety_filter.py", "policies/cbvf_qp.py", *VF_INFERENCE, "marl"],
     "defmarl": ["policies/defmarl.py", "marl"],
 }
 ANY_METHOD_SOURCES = ["policies", "value_functions", "marl"]
