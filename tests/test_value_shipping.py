@@ -54,6 +54,18 @@ def test_shipped_overlay_installs_instead_of_training(tmp_path):
     assert "install_shipped_model" in out and "train_vs" not in out and "train_vhat" in out
     run_snakemake(tmp_path, "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
     assert sha256(tmp_path / "results/smoke/models/vs.pt") == sha256(tmp_path / "models/vs.pt")
+    # re-shipping another model rewrites manifest.json: vs's install (and so every cached cell that
+    # uses V_s) stays done; a changed sha256 of vs's own entry reruns it
+    manifest = tmp_path / "models" / "manifest.json"
+    data = json.loads(manifest.read_text())
+    data["models"]["other"] = {"file": "other.pt", "sha256": "0" * 64}
+    manifest.write_text(json.dumps(data))
+    proc = run_snakemake(tmp_path, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+    data["models"]["vs"]["sha256"] = "1" * 64
+    manifest.write_text(json.dumps(data))
+    proc = run_snakemake(tmp_path, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
+    assert "install_shipped_model" in proc.stdout + proc.stderr
 
 
 def test_shipped_value_function_of_another_configuration_stops_the_workflow_before_any_job(tmp_path):

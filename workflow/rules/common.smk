@@ -352,6 +352,15 @@ def study_models(study):
                    for m in run_models(SimpleNamespace(run=run)).values()})
 
 
+def shipped_sha256(wildcards):
+    """The manifest's sha256 of shipped model ``wildcards.name`` (install_shipped_model's param: a
+    re-shipped model reruns its install and what uses it, nothing else)."""
+    from madpinn.value_functions.shipping import read_manifest
+
+    entry = read_manifest(SHIPPED["dir"])["models"].get(wildcards.name) or {}
+    return entry.get("sha256", "missing")   # install-shipped then stops with the manifest's error
+
+
 def check_shipped_models(shipped):
     """Stop at parse time when a shipped model (V̂, V_s or a MARL policy) was trained for another
     configuration than this one (madpinn.value_functions.shipping.check_training_hash)."""

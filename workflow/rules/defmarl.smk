@@ -26,7 +26,7 @@ if "defmarl" in config["methods"]:
         threads: 1
         resources:
             mem_mb=3000,
-            runtime=90,
+            runtime=150,   # 1 100 PPO iterations: 58-80 min on one core
             **TRAIN_GPU,
         priority: 50
         conda:

@@ -5,16 +5,19 @@ SHIPPED = config.get("shipped_models") or {}
 if SHIPPED.get("enabled") and SHIPPED.get("names"):
     check_shipped_models(SHIPPED)   # before any job: a model trained for another config stops here
 
+    # The model file is the only input and its manifest entry's sha256 a param: the job's provenance
+    # hash (and so every cached evaluation cell downstream) depends on this model's bytes alone, so
+    # re-shipping one model (which rewrites manifest.json) does not invalidate the cells of the others.
     rule install_shipped_model:
         input:
-            manifest=f"{SHIPPED['dir']}/manifest.json",
             model=f"{SHIPPED['dir']}/{{name}}.pt",
         output:
             f"{RESULTS}/models/{{name}}.pt",
         wildcard_constraints:
             name="|".join(SHIPPED["names"]),
         params:
-            dir=lambda w, input: os.path.dirname(input.manifest),   # = shipped_models.dir
+            dir=lambda w, input: os.path.dirname(input.model),   # = shipped_models.dir
+            sha256=shipped_sha256,
         threads: 1
         priority: 100  # in place of a training: the cells that need the model wait for it
         resources:
