@@ -77,7 +77,7 @@ def test_cli_train_validate_figures(tmp_path):
         assert main(["train-value", "--config", *CONFIGS, "--kind", kind, "--out", str(out / f"{kind}.pt"),
                      "--no-track", "--no-progress"]) == 0
     vhat, vs = load_vhat(out / "vhat.pt"), load_vs(out / "vs.pt")
-    for m, iterations in ((vhat, 30 + 10), (vs, 30)):   # smoke V̂: 30 iterations + a 10-iteration fine_tune stage
+    for m, iterations in ((vhat, 30 + 10), (vs, 30 + 10)):   # smoke: 30 iterations + a 10-iteration fine_tune stage
         assert m.meta["iterations"] == iterations and len(m.meta["config_hash"]) == 12
         assert m.meta["residual"]["residual_mean"] > 0 and m.meta["git_commit"]
     assert (out / "vhat_loss.csv").read_text().count("\n") == 41
