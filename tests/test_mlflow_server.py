@@ -79,7 +79,9 @@ def server(tmp_path):
 
 def _overlay(tmp_path: Path, vs_iterations: int) -> Path:
     p = tmp_path / "vs_iterations.yaml"
-    p.write_text(f"value_functions:\n  vs:\n    iterations: {vs_iterations}\n    checkpoint_every: {vs_iterations}\n")
+    # one training stage of exactly vs_iterations (no fine-tune stage), so the curve has one point per iteration
+    p.write_text(f"value_functions:\n  vs:\n    iterations: {vs_iterations}\n    checkpoint_every: {vs_iterations}\n"
+                 "    fine_tune: null\n")
     return p
 
 
