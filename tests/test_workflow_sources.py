@@ -23,12 +23,12 @@ GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints
 
 
 def _literal(name: str):
-    """The dict literal ``name = {...}`` of workflow/rules/common.smk (list names defined above
-    it, such as ``VF_INFERENCE``, unpacked in place)."""
+    """The dict literal ``name = {...}`` of workflow/rules/common.smk; a name inside it (such as
+    ``VF_INFERENCE``, unpacked in place) is that file's list literal of the same name."""
     text = (REPO / "workflow" / "rules" / "common.smk").read_text()
     start = text.index(f"\n{name} = {{") + len(f"\n{name} = ")
     expr = ast.parse(text[start:text.index("\n}\n", start) + 2], mode="eval")
-    lists = {"VF_INFERENCE": _list_literal(text, "VF_INFERENCE")} if "VF_INFERENCE" in ast.dump(expr) else {}
+    lists = {n.id: _list_literal(text, n.id) for n in ast.walk(expr) if isinstance(n, ast.Name)}
     return eval(compile(expr, "common.smk", "eval"), {"__builtins__": {}}, lists)   # literals and those lists only
 
 
