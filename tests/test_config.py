@@ -187,3 +187,19 @@ def test_malformed_yaml_names_file_and_line_in_cli_and_workflow(tmp_path):
     )
     assert proc.returncode != 0
     assert f"madpinn: config file {wf / 'config.yaml'}:4:" in proc.stderr, proc.stderr[-2000:]
+
+
+def test_paper_scale_overlay_trains_at_the_papers_budget_apart_from_the_default_run(paper_cfg):
+    """workflow/configs/paper_scale.yaml: valid, 65 536 × 100 000 samples at the paper's lr for both
+    value functions (new training hashes, so nothing of the CPU budget's models is reused), and its
+    own results folder and MLflow experiment."""
+    from madpinn.value_functions.build import training_hash
+
+    cfg = load_config([REPO / "config.yaml", REPO / "workflow" / "configs" / "paper_scale.yaml"])
+    validate_config(cfg)
+    for kind in ("vhat", "vs"):
+        v = cfg["value_functions"][kind]
+        assert v["batch_size"] * v["iterations"] == 65536 * 100_000 and v["lr"] == v["lr_final"] == 2e-5
+        assert not v["fine_tune"] and training_hash(cfg, kind) != training_hash(paper_cfg, kind)
+    assert cfg["paths"]["results"] != paper_cfg["paths"]["results"] and cfg["experiment"] != paper_cfg["experiment"]
+    assert cfg["studies"] == paper_cfg["studies"]

@@ -95,3 +95,25 @@ def test_fine_tuning_starts_from_the_model_and_continues_its_batch_stream(tmp_pa
     with pytest.raises(CheckpointError, match="not found"):
         train(problem, settings(iterations=1, init_from=str(tmp_path / "missing.pt")), tmp_path / "m.ckpt", "m",
               progress=False)
+
+
+def test_time_boxed_pieces_give_the_uninterrupted_model(tmp_path):
+    """A deadline already passed stops every call after one iteration; calling again until done
+    reproduces the uninterrupted run, and a finished run is not trained again."""
+    import time
+
+    torch.set_num_threads(1)
+    problem = PairProblem(PairSystem())
+    full, info_full = train(problem, settings(), tmp_path / "a.ckpt", "h", progress=False)
+    calls, info = 0, {"completed": False}
+    while not info["completed"]:
+        piece, info = train(problem, settings(), tmp_path / "b.ckpt", "h", progress=False, deadline=time.monotonic() - 1)
+        calls += 1
+        assert info["iterations"] == calls
+    assert calls == 24 and info["history"] == pytest.approx(info_full["history"], rel=1e-6)
+    for p, q in zip(full.parameters(), piece.parameters()):
+        assert torch.allclose(p, q, rtol=1e-6, atol=1e-7)
+    again, info_again = train(problem, settings(), tmp_path / "b.ckpt", "h", progress=False, deadline=time.monotonic() - 1)
+    assert info_again["completed"] and len(info_again["history"]) == 24
+    for p, q in zip(piece.parameters(), again.parameters()):
+        assert torch.equal(p, q)

@@ -114,3 +114,27 @@ def test_fine_tune_stage_equals_training_from_the_first_stage_model(tmp_path):
     assert b.meta["batch_offset"] == 30
     for p, q in zip(a.net.parameters(), b.net.parameters()):
         assert torch.equal(p, q)
+
+
+def test_time_limited_pieces_of_a_two_stage_training_give_the_one_job_model(tmp_path):
+    """``train-value --time-limit 0``: each call trains one iteration (two where the first stage
+    ends), keeps its checkpoint and exits 75 until the model is written (exit 0); the model is the
+    uninterrupted job's, bit for bit (how V̂ is trained in ≤ 10-minute pieces on a lent GPU)."""
+    from madpinn.commands.value_functions import EXIT_PAUSED
+
+    small = tmp_path / "small.yaml"
+    small.write_text("value_functions:\n  vhat:\n    iterations: 4\n    checkpoint_every: 3\n"
+                     "    fine_tune: {iterations: 3, lr: 3.0e-5, lr_final: 1.0e-6}\n")
+    args = ["train-value", "--config", *CONFIGS, str(small), "--kind", "vhat", "--no-track", "--no-progress"]
+    assert main([*args, "--out", str(tmp_path / "one" / "vhat.pt")]) == 0
+    out = tmp_path / "pieces" / "vhat.pt"
+    codes = []
+    while not codes or codes[-1] == EXIT_PAUSED:
+        codes.append(main([*args, "--out", str(out), "--time-limit", "0"]))
+        assert len(codes) <= 7
+    assert codes == [EXIT_PAUSED] * 5 + [0]   # 4 + 3 iterations, the 4th call ends stage 1 and starts stage 2
+    a, b = load_vhat(tmp_path / "one" / "vhat.pt"), load_vhat(out)
+    assert b.meta["iterations"] == a.meta["iterations"] == 7
+    for p, q in zip(a.net.parameters(), b.net.parameters()):
+        assert torch.equal(p, q)
+    assert (tmp_path / "pieces" / "vhat_loss.csv").read_text() == (tmp_path / "one" / "vhat_loss.csv").read_text()

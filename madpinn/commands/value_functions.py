@@ -14,7 +14,9 @@ Every job but the last two runs in one live MLflow run (:mod:`madpinn.commands.f
 
 from __future__ import annotations
 
+import argparse
 import json
+import time
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models, single_model
@@ -23,6 +25,17 @@ from madpinn.value_functions.build import KINDS
 
 LIVE_POINTS = 1000
 """training curves: at most this many live MLflow points per run"""
+
+
+def _seconds(text: str) -> float:
+    """``--time-limit`` value: a number of seconds ≥ 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value >= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds >= 0, got '{text}'")
+    return value
 
 
 def _setup(cfg: dict, threads: int | None):
@@ -52,6 +65,17 @@ def _train(args) -> int:
         return _train_job(cfg, kind, args, run, record)
 
 
+EXIT_PAUSED = 75   # EX_TEMPFAIL: --time-limit reached, checkpoint kept; run the same command again
+
+
+def _paused(run, kind: str, where: str, ckpt: Path, args) -> int:
+    """An unfinished training piece: say where it stopped; exit :data:`EXIT_PAUSED` when the time
+    limit stopped it (a piece of a longer run), 0 for ``--stop-after``."""
+    run.log_params({"completed": False})
+    print(f"{kind}: stopped after {where}; checkpoint {ckpt}; run the same command again to resume")
+    return EXIT_PAUSED if args.time_limit is not None else 0
+
+
 def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     """The training job inside its live run: the loss curve is logged as it trains (window means,
     ≤ :data:`LIVE_POINTS` points)."""
@@ -76,19 +100,17 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     progress = not args.no_progress
     total = settings.iterations + int((vcfg.get("fine_tune") or {}).get("iterations", 0))
     every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
+    deadline = None if args.time_limit is None else time.monotonic() + args.time_limit
     net, info = train(problem, settings, ckpt, chash, device=device, dtype=dtype, progress=progress,
-                      stop_after=args.stop_after, on_iteration=run.curve("loss", every))
+                      stop_after=args.stop_after, on_iteration=run.curve("loss", every), deadline=deadline)
     if not info["completed"]:
-        run.log_params({"completed": False})
-        print(f"{kind}: stopped after {info['iterations']} of {settings.iterations} iterations; checkpoint {ckpt}")
-        return 0
+        return _paused(run, kind, f"{info['iterations']} of {settings.iterations} iterations", ckpt, args)
     if vcfg.get("fine_tune"):
         net, info = fine_tune(problem, settings, net, info, vcfg["fine_tune"], out.with_name(f"{out.stem}_stage1.pt"),
                               ckpt, chash, device, dtype, progress=progress, stop_after=args.stop_after,
-                              on_iteration=run.curve("loss", every, offset=info["iterations"]))
+                              on_iteration=run.curve("loss", every, offset=info["iterations"]), deadline=deadline)
         if not info["completed"]:
-            run.log_params({"completed": False})
-            return 0
+            return _paused(run, kind, f"fine-tuning, {info['iterations']} of {total} iterations in all", ckpt, args)
     history = info["history"]
     meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
             "init_from": settings.init_from, "batch_offset": info["batch_offset"],
@@ -288,6 +310,9 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="final model file (.pt)")
     p.add_argument("--checkpoint", default=None, help="resume checkpoint (default <out dir>/checkpoints/<kind>.ckpt.pt)")
     p.add_argument("--stop-after", type=int, default=None, help="stop after this many iterations (testing resume)")
+    p.add_argument("--time-limit", type=_seconds, default=None, metavar="SECONDS",
+                   help=f"stop after the first iteration that ends past this many seconds, keeping a checkpoint, "
+                        f"and exit {EXIT_PAUSED}: long trainings as time-boxed pieces (docs/value_functions.md)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=_train)
 

@@ -161,12 +161,16 @@ def load_initial_weights(problem: PINNProblem, settings: TrainSettings, net: tor
 def train(
     problem: PINNProblem, settings: TrainSettings, checkpoint: str | Path, config_hash: str,
     device=torch.device("cpu"), dtype=torch.float32, progress: bool = True, stop_after: int | None = None,
-    on_iteration: Callable[[int, float], None] | None = None,
+    on_iteration: Callable[[int, float], None] | None = None, deadline: float | None = None,
 ) -> tuple[torch.nn.Module, dict]:
     """Train (resuming from ``checkpoint`` when it matches ``config_hash``); return
     ``(network, info)`` with the per-iteration loss history. ``stop_after`` ends the run early
-    after that many iterations in this call (used to test resume); ``on_iteration(i, loss)`` is
-    called after iteration ``i`` (1-based) of this call, e.g. to log the curve live."""
+    after that many iterations in this call (used to test resume); ``deadline`` (a
+    :func:`time.monotonic` instant) ends it after the first iteration that finishes past it, so a
+    long training runs as time-boxed pieces (each resumes from the checkpoint the last one saved;
+    the weights equal the uninterrupted run's, since the batch of iteration k is a function of
+    ``(seed, k)``); ``on_iteration(i, loss)`` is called after iteration ``i`` (1-based) of this
+    call, e.g. to log the curve live."""
     torch.manual_seed(settings.seed)
     net = build_network(problem, settings.network).to(device=device, dtype=dtype)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
@@ -204,6 +208,8 @@ def train(
     t0 = time.perf_counter()
     for it in bar:
         history.append(train_step(problem, net, opt, settings, it, device, dtype, offset))
+        if deadline is not None and it + 1 < end and time.monotonic() >= deadline:
+            end = it + 1
         if on_iteration is not None:
             on_iteration(it + 1, history[-1])
         if (it + 1) % 50 == 0:
@@ -212,20 +218,22 @@ def train(
             wall_now = wall + time.perf_counter() - t0
             wall, t0 = wall_now, time.perf_counter()
             save(it + 1)
+        if it + 1 == end:
+            break
     wall += time.perf_counter() - t0
-    if end < settings.iterations:
-        save(end)
+    if end < settings.iterations or (deadline is not None and end > start):
+        save(end)   # time-boxed pieces also keep a finished stage, so the next piece skips it
     return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations,
                  "batch_offset": offset}
 
 
 def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage1: Path, ckpt: Path, chash: str,
               device, dtype, progress: bool = True, stop_after: int | None = None,
-              on_iteration: Callable[[int, float], None] | None = None):
+              on_iteration: Callable[[int, float], None] | None = None, deadline: float | None = None):
     """Second stage of ``value_functions.<kind>.fine_tune``: save the first stage's model at
     ``stage1``, then train from it with a fresh optimizer and schedule (:func:`load_initial_weights`;
-    no curriculum, its batches continue the first stage's stream); ``on_iteration`` as in
-    :func:`train`. Returns ``(network, info)`` over both stages."""
+    no curriculum, its batches continue the first stage's stream); ``on_iteration`` and
+    ``deadline`` as in :func:`train`. Returns ``(network, info)`` over both stages."""
     from dataclasses import replace
 
     from madpinn.value_functions.model import model_payload, save_atomic
@@ -236,7 +244,8 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
     s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
                  curriculum_fraction=0.0, init_from=str(stage1))
     net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
-                        device=device, dtype=dtype, progress=progress, stop_after=stop_after, on_iteration=on_iteration)
+                        device=device, dtype=dtype, progress=progress, stop_after=stop_after, on_iteration=on_iteration,
+                        deadline=deadline)
     if not info2["completed"]:
         print(f"{problem.kind}: fine-tuning stopped after {info2['iterations']} of {s2.iterations} iterations")
     return net2, {"history": info["history"] + info2["history"], "iterations": info["iterations"] + info2["iterations"],
