@@ -72,7 +72,7 @@ def _paused(run, kind: str, where: str, ckpt: Path, args) -> int:
     """An unfinished training piece: say where it stopped; exit :data:`EXIT_PAUSED` when the time
     limit stopped it (a piece of a longer run), 0 for ``--stop-after``."""
     run.log_params({"completed": False})
-    print(f"{kind}: stopped after {where}; checkpoint {ckpt}; run the same command again to resume")
+    print(f"{kind}: stopped after {where}; checkpoints in {ckpt.parent}; run the same command again to resume")
     return EXIT_PAUSED if args.time_limit is not None else 0
 
 

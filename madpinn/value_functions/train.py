@@ -233,7 +233,8 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
     """Second stage of ``value_functions.<kind>.fine_tune``: save the first stage's model at
     ``stage1``, then train from it with a fresh optimizer and schedule (:func:`load_initial_weights`;
     no curriculum, its batches continue the first stage's stream); ``on_iteration`` and
-    ``deadline`` as in :func:`train`. Returns ``(network, info)`` over both stages."""
+    ``deadline`` as in :func:`train`. Returns ``(network, info)`` over both stages (``completed``
+    false when the second stage stopped early; the caller reports it)."""
     from dataclasses import replace
 
     from madpinn.value_functions.model import model_payload, save_atomic
@@ -246,8 +247,6 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
     net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
                         device=device, dtype=dtype, progress=progress, stop_after=stop_after, on_iteration=on_iteration,
                         deadline=deadline)
-    if not info2["completed"]:
-        print(f"{problem.kind}: fine-tuning stopped after {info2['iterations']} of {s2.iterations} iterations")
     return net2, {"history": info["history"] + info2["history"], "iterations": info["iterations"] + info2["iterations"],
                   "wall_s": info["wall_s"] + info2["wall_s"], "completed": info2["completed"],
                   "batch_offset": info["batch_offset"]}
