@@ -248,6 +248,13 @@ def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
 FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
 
 
+def study_sim(cfg: Mapping[str, Any], study: str | None = None) -> dict:
+    """The ``sim`` section a study's cells run with: ``sim`` with the study's own ``sim`` overrides
+    (e.g. ``{contacts: true}``) merged over it; the plain ``sim`` when ``study`` is None."""
+    override = (cfg["studies"].get(study) or {}).get("sim") if study is not None else None
+    return deep_merge(cfg["sim"], override) if override else dict(cfg["sim"])
+
+
 def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
     """The part of the config an evaluation job depends on (hashed to trigger re-runs). The study's
     fan-out (``runs``, ``agent_counts``, ``seeds``) is left out: adding a run or a seed to a study
@@ -257,7 +264,7 @@ def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
         "study": {k: v for k, v in cfg["studies"][study].items() if k not in FAN_OUT_KEYS},
         "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
         "agents": cfg["agents"],
-        "sim": cfg["sim"],
+        "sim": study_sim(cfg, study),
         "observation": cfg["observation"],
         "method": method,
         "method_config": mcfg,

@@ -19,7 +19,8 @@ class AgentLimits:
     """``agents``: the agents' size and control limits (SPEC §1)."""
 
     collision_radius: float
-    """r (m): two agents collide when their centres are closer than 2r"""
+    """r (m): two agents collide when their centre distance d ≤ r (the protocol's reading, SPEC §1;
+    the disc reading d ≤ 2r is reported beside it from the same episodes)"""
     u_max: float
     """per-axis acceleration bound (m/s²)"""
     v_max: float
@@ -49,16 +50,25 @@ class SimSettings:
     """scenarios simulated together in one batch"""
     record_every: int
     """trajectory recording period in simulation steps (first batch only)"""
+    contacts: bool
+    """agents touch (SPEC §1): MuJoCo drones carry the CF2X collision cylinder and hit each other
+    and the floor; in the double integrator a collided agent (d ≤ r) stops where it is and stays
+    an obstacle. False: agents pass through each other (the first protocol)"""
     mujoco: object | None = None
     """``sim.mujoco`` as :class:`madpinn.simulation.mujoco.MujocoSettings` (None when absent)"""
 
     @classmethod
-    def from_config(cls, cfg: Mapping) -> "SimSettings":
-        s = cfg["sim"]
+    def from_config(cls, cfg: Mapping, study: str | None = None) -> "SimSettings":
+        """``sim``, with ``studies.<study>.sim`` merged over it when ``study`` is given."""
+        from madpinn.config import study_sim
+
+        s = study_sim(cfg, study)
         mujoco = None
         if s.get("mujoco") is not None:
             from madpinn.simulation.mujoco.settings import MujocoSettings
 
             mujoco = MujocoSettings.from_config(s["mujoco"])
         return cls(backend=str(s["backend"]), dt=float(s["dt"]), policy_period_steps=int(s["policy_period_steps"]),
-                   scenario_batch=int(s["scenario_batch"]), record_every=int(s["record_every"]), mujoco=mujoco)
+                   scenario_batch=int(s["scenario_batch"]), record_every=int(s["record_every"]),
+                   contacts=bool(s["contacts"]), mujoco=mujoco)
+

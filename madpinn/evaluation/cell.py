@@ -65,7 +65,7 @@ class CellSettings:
             raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
         st = cfg["studies"][study]
         method, mcfg = method_config(cfg, run)
-        sim = SimSettings.from_config(cfg)
+        sim = SimSettings.from_config(cfg, study)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
             arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),

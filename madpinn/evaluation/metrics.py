@@ -6,6 +6,12 @@ and over all agents (SPEC §3 caveat), each also divided by the episode length T
 time-averaged cost, the quantity the paper's cost figures match). Per seed: mean over scenarios
 (safe scenarios = fraction of safe scenarios). Tables: mean ± std across seeds.
 
+Collision conventions (SPEC §1): the protocol counts a collision at centre distance d ≤ r; the
+same episode also gives safety under the disc reading (discs of radius r touch at d ≤ 2r,
+``*_2r`` columns) and at any other radius: each scenario row keeps every agent's minimum
+separation over the episode (``agent_min_separation``) and cost (``agent_cost``), and
+:func:`safety_curve` reads safety at any radius from them.
+
 Result files written before the time-averaged columns existed still load: their missing figures
 are NaN.
 """
@@ -20,7 +26,11 @@ import pandas as pd
 if TYPE_CHECKING:   # annotations only: tables and figures run without importing torch
     from madpinn.simulation.recorder import EpisodeResult
 
-SEED_METRICS = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg")
+SEED_METRICS = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg",
+                "safety_rate_2r", "safe_scenarios_2r")
+DISC_FACTOR = 2.0   # discs of radius r touch at centre distance 2r (the ``*_2r`` columns)
+# seed figure -> per-scenario column it averages (safety at 2r: plain mean over scenarios)
+RATE_COLUMNS = {"safety_rate_2r": "safety_rate_2r", "safe_scenarios_2r": "safe_2r"}
 # seed figure -> per-scenario column it averages (costs: NaN-aware mean over scenarios)
 COST_COLUMNS = {"cost": "cost_safe_mean", "cost_time_avg": "cost_safe_time_avg",
                 "cost_all": "cost_all_mean", "cost_all_time_avg": "cost_all_time_avg"}
@@ -35,6 +45,7 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
     cost_safe = np.where(safe_agents, result.cost, 0.0).sum(axis=1) / np.maximum(n_safe, 1)
     cost_safe = np.where(n_safe > 0, cost_safe, np.nan)
     episode_s = result.n_steps * result.dt   # T (s)
+    safe_2r = result.safe_at(DISC_FACTOR * result.collision_radius)
     return pd.DataFrame(
         {
             "scenario": np.arange(first_index, first_index + S),
@@ -49,13 +60,34 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
             "cost_all_time_avg": result.cost.mean(axis=1) / episode_s,
             "final_distance_mean": result.final_distance.mean(axis=1),
             "min_separation": result.min_separation.min(axis=1),
+            "safety_rate_2r": safe_2r.sum(axis=1) / N,
+            "safe_2r": safe_2r.all(axis=1),
+            "agent_min_separation": list(result.min_separation),
+            "agent_cost": list(result.cost),
         }
     )
+
+
+def safety_curve(df: pd.DataFrame, radii) -> pd.DataFrame:
+    """Safety rate and safe-scenario share at each radius ``radii`` (m) from the scenario rows'
+    ``agent_min_separation``: one row per radius, means over the rows of ``df``."""
+    from madpinn.simulation.recorder import safe_at
+
+    if "agent_min_separation" not in df:
+        raise ValueError("these results hold no per-agent minimum separations (written before they were recorded)")
+    rows = []
+    for rho in radii:
+        safe = [safe_at(np.asarray(sep), rho) for sep in df["agent_min_separation"]]
+        rows.append({"radius": float(rho), "safety_rate": float(np.mean([s.mean() for s in safe])),
+                     "safe_scenarios": float(np.mean([s.all() for s in safe]))})
+    return pd.DataFrame(rows)
 
 
 def seed_summary(df: pd.DataFrame) -> dict:
     """Aggregate one seed's scenario rows into the reported figures."""
     out = {"safety_rate": float(df["safety_rate"].mean()), "safe_scenarios": float(df["safe"].mean())}
+    for name, col in RATE_COLUMNS.items():   # results written before they existed: NaN
+        out[name] = float(df[col].astype(float).mean()) if col in df else float("nan")
     for name, col in COST_COLUMNS.items():
         vals = df[col].to_numpy(dtype=float) if col in df else np.full(len(df), np.nan)
         out[name] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")

@@ -13,6 +13,7 @@ from typing import Protocol
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
+from madpinn.observation import pairwise_distances
 from madpinn.settings import AgentLimits, SimSettings
 
 
@@ -27,17 +28,27 @@ class SimBackend(Protocol):
 
 
 class DoubleIntegratorBackend:
-    """Exact batched double-integrator dynamics (SPEC §7 ``double_integrator``)."""
+    """Exact batched double-integrator dynamics (SPEC §7 ``double_integrator``).
 
-    def __init__(self, dynamics: DoubleIntegrator, dt: float):
+    ``freeze_radius`` (m; ``sim.contacts``): an agent that comes within it of another agent of its
+    scenario stops there (velocity 0) for the rest of the episode and stays an obstacle, the
+    planar analogue of a drone knocked out by a contact. None: agents pass through each other.
+    """
+
+    def __init__(self, dynamics: DoubleIntegrator, dt: float, freeze_radius: float | None = None):
         self.dynamics = dynamics
         self.dt = float(dt)
+        self.freeze_radius = None if freeze_radius is None else float(freeze_radius)
         self.state: torch.Tensor | None = None
         self._accel: torch.Tensor | None = None
+        self.frozen: torch.Tensor | None = None
+        """``[S, N]`` bool: agents stopped by a collision (all False without ``freeze_radius``)"""
 
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
         self.state = torch.cat([positions, velocities], dim=-1)
         self._accel = torch.zeros_like(positions)
+        self.frozen = torch.zeros(positions.shape[:-1], dtype=torch.bool, device=positions.device)
+        self._freeze_new()
         return self.state
 
     def command(self, accel: torch.Tensor, duration: float) -> None:
@@ -50,8 +61,20 @@ class DoubleIntegratorBackend:
         self._accel = self.dynamics.clip_control(accel)
 
     def step(self) -> torch.Tensor:
-        self.state = self.dynamics.step(self.state, self._accel, self.dt)
+        moved = self.dynamics.step(self.state, self._accel, self.dt)
+        self.state = torch.where(self.frozen[..., None], self.state, moved)
+        self._freeze_new()
         return self.state
+
+    def _freeze_new(self) -> None:
+        """Stop the agents that are now within ``freeze_radius`` of another (at their current position)."""
+        if self.freeze_radius is None or self.state.shape[1] < 2:
+            return
+        hit = pairwise_distances(self.state[..., 0:2]).amin(dim=-1) <= self.freeze_radius
+        new = hit & ~self.frozen
+        if new.any():
+            self.state = torch.cat([self.state[..., 0:2], torch.where(new[..., None], 0.0, self.state[..., 2:4])], dim=-1)
+            self.frozen |= new
 
 
 _BACKENDS = {}
@@ -70,7 +93,8 @@ def register_backend(name: str):
 
 @register_backend("double_integrator")
 def _make_double_integrator(sim: SimSettings, limits: AgentLimits, device, dtype):
-    return DoubleIntegratorBackend(limits.dynamics(), dt=sim.dt)
+    return DoubleIntegratorBackend(limits.dynamics(), dt=sim.dt,
+                                   freeze_radius=limits.collision_radius if sim.contacts else None)
 
 
 def make_backend(name: str, sim: SimSettings, limits: AgentLimits, device, dtype) -> SimBackend:

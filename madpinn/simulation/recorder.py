@@ -20,7 +20,10 @@ class EpisodeResult:
     cost: ``[S, N]`` cumulative cost ∫‖p−g‖dt + ‖p(T)−g‖ (m·s + m), trapezoidal in time.
     collided: ``[S, N]`` bool, agent ever within ``r`` of another agent.
     first_collision_step: ``[S, N]`` int, −1 if never.
-    min_separation: ``[S, N]`` smallest distance to any other agent over the episode (m).
+    min_separation: ``[S, N]`` smallest distance to any other agent over the episode (m), in the
+    simulation dtype: ``collided == (min_separation <= r)`` exactly, and the same test at any other
+    radius ρ gives the agents a simulation recorded at ρ would call collided (:func:`safe_at`).
+    collision_radius: r (m) of ``collided``.
     final_distance: ``[S, N]`` distance to goal at the final time (m).
     times: ``[T']`` (s) and positions ``[T', S, N, 2]`` (m) of the decimated trajectory.
     """
@@ -35,6 +38,18 @@ class EpisodeResult:
     goals: np.ndarray
     n_steps: int
     dt: float
+    collision_radius: float = float("nan")
+
+    def safe_at(self, radius: float) -> np.ndarray:
+        """``[S, N]`` bool: agents that never came within ``radius`` (m) of another agent."""
+        return safe_at(self.min_separation, radius)
+
+
+def safe_at(min_separation: np.ndarray, radius: float) -> np.ndarray:
+    """Agents whose minimum separation stayed above ``radius`` (m), compared in the separations'
+    own dtype, as the recorder compares them during the episode."""
+    sep = np.asarray(min_separation)
+    return ~(sep <= np.asarray(radius, dtype=sep.dtype))
 
 
 class EpisodeRecorder:
@@ -87,13 +102,14 @@ class EpisodeRecorder:
             cost=cost.cpu().numpy(),
             collided=self.collided.cpu().numpy(),
             first_collision_step=self.first_collision.cpu().numpy(),
-            min_separation=self.min_sep.to(torch.float64).cpu().numpy(),
+            min_separation=self.min_sep.cpu().numpy(),
             final_distance=self._last_dist.cpu().numpy(),
             times=np.asarray(self._times),
             positions=positions,
             goals=self.goals.detach().cpu().numpy(),
             n_steps=self._step,
             dt=self.dt,
+            collision_radius=self.r,
         )
 
 

@@ -29,7 +29,8 @@ def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
     """The MuJoCo backend for :class:`~madpinn.settings.SimSettings` ``sim`` (its ``mujoco``
     section; absent: the defaults) and :class:`~madpinn.settings.AgentLimits` ``limits``."""
     settings = sim.mujoco if sim.mujoco is not None else MujocoSettings.from_config(None)
-    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=settings, device=device, dtype=dtype)
+    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=settings, device=device, dtype=dtype,
+                         contacts=sim.contacts)
 
 
 __all__ = [

@@ -9,6 +9,12 @@ Setpoints: the policy acceleration ``a`` (clipped to the control box) drives a d
 reference (``madpinn.dynamics.DoubleIntegrator``, exact ZOH with velocity saturation) at the
 physics rate, so over one policy step the setpoint is the integral of ``a``; ``a`` itself is the
 feed-forward. Altitude setpoint ``altitude`` m, vertical velocity 0, yaw 0.
+
+``contacts`` (``sim.contacts``): drones carry their collision cylinders and touch each other and
+the floor; every world then holds whole scenarios, each at its own planar offset
+(:func:`~madpinn.simulation.mujoco.model.scenario_offsets`), so only drones of one scenario ever
+meet; positions in and out of the backend stay in the scenario's own frame. A drone that was hit
+keeps its controller, and whatever the physics does follows.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ import torch
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.simulation.mujoco.controller import CascadedController
 from madpinn.simulation.mujoco.forces import apply_rotor_thrusts
-from madpinn.simulation.mujoco.model import compile_world
+from madpinn.simulation.mujoco.model import compile_world, scenario_offsets
 from madpinn.simulation.mujoco.settings import MujocoSettings
 
 
@@ -34,7 +40,7 @@ class MujocoBackend:
     """Batched Crazyflie simulation; ``dt`` (s) is the step of :meth:`step`."""
 
     def __init__(self, dynamics: DoubleIntegrator, dt: float, settings: MujocoSettings = MujocoSettings(),
-                 device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32):
+                 device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32, contacts: bool = False):
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"sim.dt must be positive, got {dt}")
         settings.validate()
@@ -42,6 +48,7 @@ class MujocoBackend:
         self.dt = float(dt)
         self.settings = settings
         self.spec = settings.spec
+        self.contacts = bool(contacts)
         self.h = self.dt / int(settings.substeps)
         self.controller = CascadedController(settings.gains, self.spec)
         self.device, self.dtype = torch.device(device), dtype
@@ -64,7 +71,7 @@ class MujocoBackend:
         if not (np.isfinite(p).all() and np.isfinite(v).all()):
             raise ValueError("non-finite initial positions or velocities")
         self._shape = (S, N)
-        self._build_worlds(count)
+        self._build_worlds(count, N)
         self.qpos = np.zeros((count, 7))
         self.qvel = np.zeros((count, 6))
         self.qpos[:, 0:2] = p
@@ -73,7 +80,7 @@ class MujocoBackend:
         self.qvel[:, 0:2] = v
         for model, data, sl in self._worlds:
             mujoco.mj_resetData(model, data)
-            data.qpos[:] = self.qpos[sl].reshape(-1)
+            data.qpos[:] = self._to_world(self.qpos[sl], sl).reshape(-1)
             data.qvel[:] = self.qvel[sl].reshape(-1)
             mujoco.mj_forward(model, data)
         self.reference = np.concatenate([p, np.clip(v, -self.dynamics.v_max, self.dynamics.v_max)], axis=1)
@@ -124,14 +131,30 @@ class MujocoBackend:
         self.accel = np.zeros_like(p)
 
     # ------------------------------------------------------------------ internals
-    def _build_worlds(self, count: int) -> None:
+    def _build_worlds(self, count: int, group: int) -> None:
+        """Worlds of at most ``drones_per_world`` drones; with contacts each holds whole scenarios
+        of ``group`` drones (at least one, whatever its size) at their offsets."""
         per_world = int(self.settings.drones_per_world)
+        if self.contacts:
+            per_world = max(1, per_world // group) * group
         actuated = self.settings.force_application == "site"
         self._worlds = []
         for start in range(0, count, per_world):
             stop = min(count, start + per_world)
-            model = compile_world(stop - start, self.h, self.spec, actuated)
+            model = compile_world(stop - start, self.h, self.spec, actuated, self.contacts)
             self._worlds.append((model, mujoco.MjData(model), slice(start, stop)))
+        self._offsets = np.zeros((count, 2))
+        if self.contacts:
+            for _, _, sl in self._worlds:
+                self._offsets[sl] = scenario_offsets(sl.stop - sl.start, group)
+
+    def _to_world(self, qpos: np.ndarray, sl: slice) -> np.ndarray:
+        """Free-joint positions ``[M, 7]`` of drones ``sl`` in their world (scenario offsets added)."""
+        if not self.contacts:
+            return qpos
+        out = qpos.copy()
+        out[:, 0:2] += self._offsets[sl]
+        return out
 
     def _setpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p_d, v_d, a_ff) ``[M, 3]`` from the planar reference; altitude hold, no vertical motion."""
@@ -153,6 +176,8 @@ class MujocoBackend:
             apply_rotor_thrusts(mode, data, self.thrusts[sl], quat[sl], mixer)
             mujoco.mj_step(model, data)
             self.qpos[sl] = data.qpos.reshape(-1, 7)
+            if self.contacts:
+                self.qpos[sl, 0:2] -= self._offsets[sl]
             self.qvel[sl] = data.qvel.reshape(-1, 6)
         ref = self.dynamics.step(torch.from_numpy(self.reference), torch.from_numpy(self.accel), self.h)
         self.reference = ref.numpy()

@@ -6,8 +6,13 @@ Physical facts (public, see ``docs/mujoco.md``): mass 0.027 kg, arm (centre to r
 centre of mass is the body origin, so rotor forces can be applied as generalised forces on the
 free joint (see :mod:`madpinn.simulation.mujoco.forces`).
 
-Drones never touch each other (or anything): every geom has ``contype = conaffinity = 0`` and
-contacts are disabled globally, so the drones of a world are dynamically independent.
+Contacts (``sim.contacts``): off, drones never touch each other (or anything): every geom has
+``contype = conaffinity = 0`` and contacts are disabled globally, so the drones of a world are
+dynamically independent. On, each drone carries the collision body of the CF2X model of the
+simulator the paper cites (MuJoCo-drones-gym / gym-pybullet-drones: a cylinder of radius 0.06 m
+and height 0.03 m about the centre of mass), and drones touch each other and a floor at z = 0 with
+MuJoCo's default soft contacts; the backend keeps the drones of different scenarios apart by
+placing each scenario at its own offset in the world (:func:`scenario_offsets`).
 """
 
 from __future__ import annotations
@@ -24,6 +29,12 @@ GRAVITY = 9.81  # m/s²
 # 7.7 s for 5120), so the backend splits large batches into several worlds (``drones_per_world``);
 # this is the hard upper bound of one world.
 MAX_DRONES_PER_WORLD = 8192
+# CF2X collision cylinder of the cited simulator (radius, half height), m: two level drones touch
+# at a centre distance below 2 × 0.06 = 0.12 m.
+COLLISION_CYLINDER = (0.06, 0.015)
+# m between neighbouring scenarios' origins when contacts are on: far beyond any arena
+# (half width ≤ 4 m here) and any drift, so drones of different scenarios never meet.
+SCENARIO_SPACING = 100.0
 
 
 @dataclass(frozen=True)
@@ -70,9 +81,10 @@ def mixer_matrix(spec: CrazyflieSpec) -> np.ndarray:
     return np.stack([np.ones(4), xy[:, 1], -xy[:, 0], spec.rotor_spin * spec.km_over_kf])
 
 
-def _drone_xml(index: int, spec: CrazyflieSpec, actuated: bool) -> tuple[str, str]:
-    """One drone body (free joint, explicit inertia, visual-only geoms, rotor sites) and, when
-    ``actuated``, its four site actuators. Returns ``(body_xml, actuator_xml)``."""
+def _drone_xml(index: int, spec: CrazyflieSpec, actuated: bool, contacts: bool = False) -> tuple[str, str]:
+    """One drone body (free joint, explicit inertia, visual-only geoms, rotor sites; with
+    ``contacts`` its collision cylinder) and, when ``actuated``, its four site actuators. Returns
+    ``(body_xml, actuator_xml)``."""
     ix, iy, iz = spec.inertia
     rotors, arms, acts = [], [], []
     for k, ((x, y), s) in enumerate(zip(spec.rotor_positions.tolist(), spec.rotor_spin.tolist())):
@@ -90,14 +102,18 @@ def _drone_xml(index: int, spec: CrazyflieSpec, actuated: bool) -> tuple[str, st
         f'<body name="d{index}" pos="0 0 1"><freejoint/>'
         f'<inertial pos="0 0 0" mass="{spec.mass}" diaginertia="{ix} {iy} {iz}"/>'
         f'<geom class="visual" type="box" size="0.015 0.015 0.006" rgba="0.85 0.85 0.85 1"/>'
+        + (f'<geom name="d{index}hull" type="cylinder" size="{COLLISION_CYLINDER[0]!r} {COLLISION_CYLINDER[1]!r}" '
+           'mass="0" contype="1" conaffinity="1" group="3" rgba="0.8 0.2 0.2 0.2"/>' if contacts else "")
         + "".join(arms) + "".join(rotors) + "</body>"
     )
     return body, "".join(acts)
 
 
-def world_xml(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec(), actuated: bool = False) -> str:
+def world_xml(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec(), actuated: bool = False,
+              contacts: bool = False) -> str:
     """MJCF of a world holding ``count`` Crazyflies (all at the origin; :class:`MujocoBackend`
-    places them through ``qpos``), no contacts, physics step ``timestep`` (s), semi-implicit Euler.
+    places them through ``qpos``), physics step ``timestep`` (s), semi-implicit Euler; without
+    ``contacts`` nothing touches, with them drones touch each other and the floor.
 
     ``actuated`` adds four site actuators per drone (control = rotor thrust, N), used only to
     check that direct force application is physically identical; site transmissions cost O(N²)
@@ -108,18 +124,20 @@ def world_xml(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec()
     if not (math.isfinite(timestep) and timestep > 0):
         raise ValueError(f"physics timestep must be positive, got {timestep}")
     spec.validate()
-    parts = [_drone_xml(i, spec, actuated) for i in range(int(count))]
+    parts = [_drone_xml(i, spec, actuated, contacts) for i in range(int(count))]
+    floor_contact = 'contype="1" conaffinity="1"' if contacts else 'contype="0" conaffinity="0"'
+
     memory_mb = max(16, int(count) * (64 if actuated else 4) // 1024 + 16)
     return (
         '<mujoco model="crazyflie_swarm">'
         '<compiler angle="radian"/>'
         f'<size memory="{memory_mb}M"/>'
         f'<option timestep="{timestep!r}" gravity="0 0 {-GRAVITY}" integrator="Euler">'
-        '<flag contact="disable"/></option>'
+        + ('' if contacts else '<flag contact="disable"/>') + '</option>'
         '<visual><global offwidth="640" offheight="480"/></visual>'
         '<default><default class="visual"><geom contype="0" conaffinity="0" group="1" mass="0" rgba="0.1 0.1 0.1 1"/></default></default>'
         '<worldbody><light pos="0 0 6" dir="0 0 -1" directional="true"/>'
-        '<geom name="floor" type="plane" size="10 10 0.1" contype="0" conaffinity="0" rgba="0.9 0.9 0.9 1"/>'
+        f'<geom name="floor" type="plane" size="10 10 0.1" {floor_contact} rgba="0.9 0.9 0.9 1"/>'
         + "".join(b for b, _ in parts)
         + "</worldbody>"
         + ("<actuator>" + "".join(a for _, a in parts) + "</actuator>" if actuated else "")
@@ -128,6 +146,16 @@ def world_xml(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec()
 
 
 @functools.lru_cache(maxsize=8)
-def compile_world(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec(), actuated: bool = False) -> mujoco.MjModel:
+def compile_world(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec(), actuated: bool = False,
+                  contacts: bool = False) -> mujoco.MjModel:
     """Compiled (and cached per process) :func:`world_xml`. Models are read-only to callers."""
-    return mujoco.MjModel.from_xml_string(world_xml(count, timestep, spec, actuated))
+    return mujoco.MjModel.from_xml_string(world_xml(count, timestep, spec, actuated, contacts))
+
+
+def scenario_offsets(count: int, group: int) -> np.ndarray:
+    """Planar offsets ``[count, 2]`` (m) that put each run of ``group`` consecutive drones (one
+    scenario) on its own square of side :data:`SCENARIO_SPACING` of a grid, so drones of different
+    scenarios never touch while their own coordinates stay the scenario's."""
+    scenario = np.arange(int(count)) // int(group)
+    cols = max(1, math.ceil(math.sqrt(scenario[-1] + 1))) if count else 1
+    return SCENARIO_SPACING * np.stack([scenario % cols, scenario // cols], axis=1).astype(float)
