@@ -51,6 +51,7 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/conflicts.smk"  # structured-conflict tables, after the paper's
 include: "workflow/rules/report.smk"
+include: "workflow/rules/readings.smk"  # collision readings table, when contact studies are configured (issue 38)
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 

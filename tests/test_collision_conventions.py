@@ -163,3 +163,48 @@ def test_study_sim_overrides_reach_the_cell_and_its_hash():
     plain = load_config(["config.yaml"])
     assert job_config(cfg, "conflict_pairs", "nominal") != job_config(plain, "conflict_pairs", "nominal")
     assert job_config(cfg, "main", "nominal") == job_config(plain, "main", "nominal")
+
+
+def test_collision_readings_table_from_real_cells(tmp_path):
+    """Tiny MAD-PINN models, double integrator, 12 agents × 2 scenarios × 0.3 s of Table IV's k = 1
+    and k = ∞, pass-through and with contacts: the readings table holds every reading, the paper's
+    value, and the safety at 2r never exceeds the safety at r (a subset of agents, by construction)."""
+    from test_madpinn_policy import models_of, tiny_cfg
+
+    from madpinn.commands.evaluate import evaluate
+    from madpinn.evaluation.readings import READINGS, format_readings, mean_gap, readings_table
+
+    cfg = tiny_cfg(tmp_path)
+    cfg["sim"]["backend"] = "double_integrator"
+    cfg["arenas"]["small"]["episode_s"] = 0.3
+    base = dict(arena="small", agent_counts=[12], seeds=[100], scenarios=2, runs=["madpinn-k1", "madpinn-kinf"])
+    cfg["studies"]["ablation_update"] = dict(base)
+    cfg["studies"]["ablation_update_contacts"] = {**base, "sim": {"contacts": True}}
+    paths = []
+    for study in ("ablation_update", "ablation_update_contacts"):
+        for run in base["runs"]:
+            out = tmp_path / "eval" / study / run / "n12_seed100.parquet"
+            evaluate(cfg, study, run, 12, 100, out, models=models_of(cfg), progress=False, track=False)
+            paths.append(out)
+    table = readings_table(paths, cfg, {"ablation_update": "table_update_ablation"})
+    assert list(table["run"]) == ["madpinn-k1", "madpinn-kinf"]
+    assert table["paper_safety"].tolist() == [0.9999, 0.1592]
+    for reading in READINGS:
+        assert table[reading].between(0, 1).all()
+    assert (table["2r · pass"] <= table["r · pass"]).all() and (table["2r · contact"] <= table["r · contact"]).all()
+    gap = mean_gap(table)
+    assert gap["r · pass"] == pytest.approx((table["r · pass"] - table["paper_safety"]).abs().mean())
+    shown = format_readings(table)
+    assert shown.iloc[-1]["Table"] == "mean |ours − paper|" and shown.iloc[-1]["r · pass"].endswith(" pp")
+
+
+def test_a_contact_study_must_fly_with_contacts():
+    from madpinn.config import ConfigError
+    from madpinn.evaluation.readings import base_study
+
+    cfg = load_config(["config.yaml"])
+    cfg["studies"]["main_contacts"] = dict(cfg["studies"]["main"])
+    with pytest.raises(ConfigError, match="sim.contacts"):
+        base_study(cfg, "main_contacts")
+    cfg["studies"]["main_contacts"]["sim"] = {"contacts": True}
+    assert base_study(cfg, "main_contacts") == ("main", True) and base_study(cfg, "main") == ("main", False)

@@ -51,7 +51,8 @@ def test_tables_show_both_costs_and_the_oracle_row(small_run):
     assert orc["n_seeds"] == 2 and pd.isna(orc["safety_rate_mean"])
     assert (orc["cost_mean"] <= ours["cost_all_mean"] + 1e-4).all()
     table = format_table(agg, "safety_by_n")
-    assert list(table.columns) == ["Method", "3 agents · Safety", "3 agents · Safe Sc.", "3 agents · Cost ÷T", "3 agents · Cum. cost"]
+    assert list(table.columns) == ["Method", "3 agents · Safety", "3 agents · Safe Sc.", "3 agents · Cost ÷T", "3 agents · Cum. cost",
+                                   "3 agents · Cost ÷T all"]
     assert table.iloc[-1]["Method"].startswith("Oracle") and table.iloc[-1]["3 agents · Safety"] == "–"
     assert "±" in table.iloc[0]["3 agents · Cost ÷T"]            # two seeds
 

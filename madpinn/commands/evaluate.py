@@ -9,8 +9,8 @@ from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, c
 from madpinn.commands.finish import JobRecord, finish, job
 
 ECHO = ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")
-LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg", "elapsed_s",
-          "policy_us_per_agent_step")
+LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg",
+          "safety_rate_2r", "safe_scenarios_2r", "elapsed_s", "policy_us_per_agent_step")
 
 
 def evaluate(
@@ -29,7 +29,7 @@ def evaluate(
 ) -> dict:
     """Run one cell inside its live MLflow run (opened before the simulation), write its files,
     log them; return the summary."""
-    from madpinn.config import method_config
+    from madpinn.config import method_config, study_sim
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     cs = CellSettings.from_config(cfg, study, run)
@@ -39,7 +39,7 @@ def evaluate(
         job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
         wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
         params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
-                "scenarios": cs.scenarios, "sim": cfg["sim"], "observation": cfg["observation"]},
+                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": cfg["observation"]},
     )
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)

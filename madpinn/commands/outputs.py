@@ -63,20 +63,27 @@ def _oracle(args) -> int:
         return finish(run, record, echo=[out])
 
 
-def _reproduction(args) -> int:
-    import pandas as pd
-
+def _study_of(pairs: list[str]) -> dict[str, str]:
+    """``--tables NAME=STUDY`` pairs -> {table name: study}."""
     from madpinn.config import ConfigError
-    from madpinn.evaluation.reproduction import write_report
-    from madpinn.tracking.mlflow_store import git_commit
 
-    cfg = config_of(args)
     study_of = {}
-    for kv in args.tables:   # table name -> study
+    for kv in pairs:
         name, sep, study = kv.partition("=")
         if not sep or not name or not study:
             raise ConfigError(f"--tables expects NAME=STUDY, got '{kv}'")
         study_of[name] = study
+    return study_of
+
+
+def _reproduction(args) -> int:
+    import pandas as pd
+
+    from madpinn.evaluation.reproduction import write_report
+    from madpinn.tracking.mlflow_store import git_commit
+
+    cfg = config_of(args)
+    study_of = _study_of(args.tables)
     by_study: dict[str, list[str]] = {}
     for p in args.inputs:
         for study in pd.read_parquet(p, columns=["study"])["study"].unique():
@@ -86,6 +93,18 @@ def _reproduction(args) -> int:
     with job(cfg, record, not args.no_track) as run:
         record.artifacts = write_report(args.out_dir, tables, cfg, oracle_paths=args.oracle or (),
                                         model_paths=args.models or (), commit=git_commit())
+        return finish(run, record, echo=list(record.artifacts))
+
+
+def _collision_readings(args) -> int:
+    from madpinn.evaluation.readings import write_readings
+
+    cfg = config_of(args)
+    table_of = {study: name for name, study in _study_of(args.tables).items()}
+    record = JobRecord(job_key="table/table_collision_readings", rule="collision_readings",
+                       params={"tables": sorted(table_of.values()), "inputs": len(args.inputs)})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = write_readings(args.inputs, cfg, table_of, args.out_dir)
         return finish(run, record, echo=list(record.artifacts))
 
 
@@ -109,6 +128,14 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_reproduction)
+
+    p = sub.add_parser("collision-readings", help="every paper cell under each collision reading (issue 38)")
+    add_config_arg(p)
+    p.add_argument("--tables", nargs="+", required=True, help="NAME=STUDY pairs: paper table of each base study")
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of the base and <base>_contacts studies")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_collision_readings)
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)

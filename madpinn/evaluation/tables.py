@@ -7,7 +7,9 @@ Kinds:
   safety rate, safe scenarios (paper Tables II–IV).
 
 Both costs are the mean over collision-free agents (SPEC §3); "÷T" is the cumulative cost
-divided by the episode length T. Given oracle files (:mod:`madpinn.evaluation.oracle`), each
+divided by the episode length T. Beside them every table shows the time-averaged cost over all
+agents (collided ones included), and ``summary`` tables the safety under the disc reading (d ≤ 2r,
+from the same episodes; SPEC §1). Given oracle files (:mod:`madpinn.evaluation.oracle`), each
 table ends with an oracle row per agent count: the lone-agent cost lower bound on the same
 scenarios. Single-seed studies show the mean alone (no "± 0.00").
 
@@ -31,6 +33,7 @@ ORACLE_RUN, ORACLE_LABEL = "oracle", "Oracle (lone-agent lower bound)"
 # first-column header of the ``summary`` tables (what a row is), by table name
 ROW_HEADERS = {"table_update_ablation": "Update period k (steps)", "table_neighbour_ablation": "Neighbour selection"}
 COST_HEADER, CUM_HEADER = "Cost ÷T (time-avg.)", "Cumulative cost ∫ (m·s)"
+ALL_HEADER = "Cost ÷T, all agents"
 
 
 def load_results(paths: Iterable[str | Path]) -> pd.DataFrame:
@@ -98,7 +101,7 @@ def oracle_summary(oracle: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:
     seeds = merged.groupby(["n_agents", "seed"], as_index=False)[["oracle_cost", "oracle_cost_time_avg"]].mean()
     seeds = seeds.rename(columns={"oracle_cost": "cost", "oracle_cost_time_avg": "cost_time_avg"})
     seeds["run"] = ORACLE_RUN
-    for m in ("safety_rate", "safe_scenarios", "cost_all", "cost_all_time_avg"):
+    for m in ("safety_rate", "safe_scenarios", "cost_all", "cost_all_time_avg", "safety_rate_2r", "safe_scenarios_2r"):
         seeds[m] = float("nan")
     agg = across_seeds(seeds, ["run", "n_agents"])
     agg.insert(1, "label", ORACLE_LABEL)
@@ -125,14 +128,15 @@ def _cost(mean: float, std: float, n_seeds: int = 2) -> str:
 
 
 def _fmt(r, metric: str) -> str:
-    f = _pct if metric in ("safety_rate", "safe_scenarios") else _cost
+    f = _pct if metric.startswith(("safety_rate", "safe_scenarios")) else _cost
     return f(r[f"{metric}_mean"], r[f"{metric}_std"], int(r["n_seeds"]))
 
 
 def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd.DataFrame:
     """Display table of ``agg`` (:func:`summarize`, oracle rows appended); ``row_header`` names
     the first column of ``summary`` tables (e.g. "Update period k (steps)")."""
-    cols = (("safety_rate", "Safety"), ("safe_scenarios", "Safe Sc."), ("cost_time_avg", "Cost ÷T"), ("cost", "Cum. cost"))
+    cols = (("safety_rate", "Safety"), ("safe_scenarios", "Safe Sc."), ("cost_time_avg", "Cost ÷T"), ("cost", "Cum. cost"),
+            ("cost_all_time_avg", "Cost ÷T all"))
     if kind == "safety_by_n":
         counts = sorted(agg["n_agents"].unique())
         rows = []
@@ -153,6 +157,9 @@ def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd
             CUM_HEADER: [_fmt(r, "cost") for _, r in agg.iterrows()],
             "Safety Rate": [_fmt(r, "safety_rate") for _, r in agg.iterrows()],
             "Safe Scenarios": [_fmt(r, "safe_scenarios") for _, r in agg.iterrows()],
+            ALL_HEADER: [_fmt(r, "cost_all_time_avg") for _, r in agg.iterrows()],
+            "Safety (d ≤ 2r)": [_fmt(r, "safety_rate_2r") for _, r in agg.iterrows()],
+            "Safe Sc. (d ≤ 2r)": [_fmt(r, "safe_scenarios_2r") for _, r in agg.iterrows()],
         })
         return pd.DataFrame(table)
     raise ValueError(f"unknown table kind '{kind}' (have {KINDS})")

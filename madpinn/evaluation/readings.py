@@ -1,0 +1,132 @@
+"""Collision readings (SPEC §1, issue 38): every paper cell under each collision convention.
+
+The paper counts a failure at ``min d_ij ≤ r`` (r = 0.1 m, "a safety distance") but does not say
+whether r is a centre distance or each drone's radius, nor what happens at a contact. One table
+puts the readings side by side for every cell of the paper's Tables I, III and IV that our result
+files hold, beside the paper's value:
+
+- ``r · pass``: collision at centre distance d ≤ r, agents pass through each other (the first protocol);
+- ``2r · pass``: discs of radius r touching (d ≤ 2r), from the same episodes' minimum separations;
+- ``r · contact`` / ``2r · contact``: the same two counts on episodes flown with contact physics
+  (``sim.contacts``: CF2X collision cylinders in MuJoCo, frozen agents in the double integrator),
+  read from the study ``<base>_contacts`` of each base study.
+
+Every method keeps its own collision terms at r here (the shipped models were built for r), so the
+``2r`` columns measure the metric alone; the cost columns are the time-averaged cost over all
+agents (collided ones included), the quantity whose trend the paper's failure rows show.
+The last rows give the mean |ours − paper| safety over the cells each column holds.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from madpinn.config import ConfigError, study_sim
+from madpinn.evaluation.reproduction import paper_row_of, paper_values
+from madpinn.evaluation.tables import label_of, load_results, per_seed, to_markdown
+
+CONTACTS_SUFFIX = "_contacts"
+READINGS = {   # column -> (contacts study?, seed figure)
+    "r · pass": (False, "safety_rate"),
+    "2r · pass": (False, "safety_rate_2r"),
+    "r · contact": (True, "safety_rate"),
+    "2r · contact": (True, "safety_rate_2r"),
+}
+COSTS = {"cost ÷T all · pass": False, "cost ÷T all · contact": True}
+
+
+def base_study(cfg: Mapping, study: str) -> tuple[str, bool]:
+    """``(base study, contacts?)`` of a result's study: ``<base>_contacts`` must fly with contacts."""
+    contacts = bool(study_sim(cfg, study)["contacts"])
+    if study.endswith(CONTACTS_SUFFIX):
+        if not contacts:
+            raise ConfigError(f"study '{study}' is named as a contact reading but has sim.contacts false "
+                              f"(set studies.{study}.sim.contacts: true)")
+        return study[: -len(CONTACTS_SUFFIX)], True
+    return study, contacts
+
+
+def readings_table(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapping[str, str],
+                   paper: dict | None = None) -> pd.DataFrame:
+    """One row per (paper table, run, N) of the results: the paper's safety and cost, our safety
+    under each reading (mean over seeds) and the all-agent cost with and without contacts.
+    ``table_of``: base study -> paper table name (e.g. ``main`` -> ``table_safety_scaling``);
+    results of other studies are left out."""
+    paper = paper_values() if paper is None else paper
+    df = load_results(result_paths)
+    seeds = []
+    for study, g in df.groupby("study", sort=False):
+        base, contacts = base_study(cfg, str(study))
+        if base not in table_of:
+            continue
+        s = per_seed(g)
+        s["table"], s["contacts"] = table_of[base], contacts
+        seeds.append(s)
+    if not seeds:
+        raise ValueError(f"no results of the studies {sorted(table_of)} (or their {CONTACTS_SUFFIX} readings)")
+    seeds = pd.concat(seeds, ignore_index=True)
+    rows = []
+    for (table, run, n), g in seeds.groupby(["table", "run", "n_agents"], sort=False):
+        p = paper_row_of(paper.get(table, {}).get("runs", {})).get(run, {}).get("n", {}).get(int(n), {})
+        row = {"table": table, "run": run, "label": label_of(cfg, run), "n_agents": int(n),
+               "paper_safety": p.get("safety", np.nan), "paper_cost": p.get("cost", np.nan)}
+        for col, (contacts, metric) in READINGS.items():
+            sel = g[g["contacts"] == contacts]
+            row[col] = float(sel[metric].mean()) if len(sel) else np.nan
+        for col, contacts in COSTS.items():
+            sel = g[g["contacts"] == contacts]
+            row[col] = float(sel["cost_all_time_avg"].mean()) if len(sel) else np.nan
+        row["n_seeds"] = int(g["seed"].nunique())
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def mean_gap(table: pd.DataFrame) -> dict[str, float]:
+    """Mean |ours − paper| safety (fraction) per reading over the cells with a paper value and ours."""
+    out = {}
+    for col in READINGS:
+        both = table[["paper_safety", col]].dropna()
+        out[col] = float((both[col] - both["paper_safety"]).abs().mean()) if len(both) else float("nan")
+    return out
+
+
+def format_readings(table: pd.DataFrame) -> pd.DataFrame:
+    """Display table: percentages, costs with two decimals, a closing mean |ours − paper| row."""
+    pct = lambda x: "–" if pd.isna(x) else f"{100 * x:.1f}%"   # noqa: E731
+    cost = lambda x: "–" if pd.isna(x) else f"{x:.2f}"   # noqa: E731
+    rows = []
+    for _, r in table.iterrows():
+        row = {"Table": r["table"].removeprefix("table_").replace("_", " "), "Method": r["label"],
+               "N": int(r["n_agents"]), "Paper safety": pct(r["paper_safety"])}
+        row.update({col: pct(r[col]) for col in READINGS})
+        row["Paper cost"] = cost(r["paper_cost"])
+        row.update({col: cost(r[col]) for col in COSTS})
+        rows.append(row)
+    gap = mean_gap(table)
+    cells = int(table["paper_safety"].notna().sum())
+    summary = {"Table": "mean |ours − paper|", "Method": f"over {cells} paper cells", "N": "", "Paper safety": ""}
+    summary.update({col: "–" if np.isnan(v) else f"{100 * v:.1f} pp" for col, v in gap.items()})
+    summary.update({"Paper cost": "", **{col: "" for col in COSTS}})
+    return pd.DataFrame(rows + [summary])
+
+
+def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapping[str, str],
+                   out_dir: str | Path, name: str = "table_collision_readings") -> list[Path]:
+    """Write ``<name>.csv`` (numbers) and ``<name>.md`` (display, with the reading definitions)."""
+    table = readings_table(result_paths, cfg, table_of)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
+    table.to_csv(csv, index=False)
+    seeds = sorted({int(s) for st in cfg["studies"].values() for s in st["seeds"]})
+    md.write_text(
+        "Safety rate per paper cell under each collision reading (SPEC §1; madpinn/evaluation/readings.py).\n"
+        "r · pass: d ≤ r, agents pass through; 2r · pass: discs of radius r touching (d ≤ 2r), same episodes;\n"
+        "r / 2r · contact: the same counts with contact physics (sim.contacts). Every method keeps its\n"
+        f"collision terms at r. Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
+        + to_markdown(format_readings(table)))
+    return [csv, md]
