@@ -2,6 +2,7 @@
 
     PYTHONPATH=$PWD python benchmarks/bench_mujoco.py [--config config.yaml] [--steps 200] [--repeats 3]
     PYTHONPATH=$PWD python benchmarks/bench_mujoco.py --compare-forces   # qfrc vs xfrc vs site actuators
+    PYTHONPATH=$PWD python benchmarks/bench_mujoco.py --contacts         # contact physics vs pass-through
 
 For N ∈ {16, 256, 1024, 5120} drones in one backend (one job's S × N), times ``command`` +
 ``step`` (one ``sim.dt`` with ``sim.mujoco.substeps`` physics + controller substeps) under
@@ -9,6 +10,11 @@ bang-bang policy accelerations; prints best-of-``repeats`` µs per drone-step as
 (single-threaded, so equal to wall time on an idle machine, and much less disturbed by other
 jobs sharing the cores) and as wall time, with MuJoCo's bare free-body step for reference. The
 last line is ``us_per_drone_step_at_5120: X`` (CPU time).
+
+``--contacts`` times instead 1 024 drones as 64 scenarios of 16 in the small arena (the density
+of Table I's 16-agent cells, random bang-bang commands, so drones do collide) with ``sim.contacts``
+off and on, and prints ``contacts_time_ratio_at_1024: X`` (on ÷ off, CPU time; target ≤ 1.5) and
+how many drones came within the collision cylinders' reach (2 × 0.06 m).
 """
 
 from __future__ import annotations
@@ -78,18 +84,57 @@ def time_bare_mujoco(cfg: dict, count: int, steps: int, repeats: int) -> tuple[f
     return _best(run, repeats, steps * count)
 
 
+def time_contacts(cfg: dict, scenarios: int, agents: int, steps: int, repeats: int) -> dict:
+    """Best-of (CPU, wall) µs per drone-step for ``scenarios`` × ``agents`` drones (uniform starts
+    in [-1, 1]², bang-bang commands) with contacts off and on; and the share of drones that came
+    within 0.12 m of another of their scenario with contacts on."""
+    from madpinn.simulation.mujoco.model import COLLISION_CYLINDER
+
+    settings = MujocoSettings.from_config(cfg["sim"].get("mujoco"))
+    dyn = DoubleIntegrator(cfg["agents"]["u_max"], cfg["agents"]["v_max"])
+    gen = torch.Generator().manual_seed(0)
+    starts = torch.rand(scenarios, agents, 2, generator=gen, dtype=torch.float64) * 2 - 1
+    accel = (torch.randint(0, 2, (steps, scenarios, agents, 2), generator=gen) * 2 - 1).double() * cfg["agents"]["u_max"]
+    out = {}
+    for contacts in (False, True):
+        backend = MujocoBackend(dyn, cfg["sim"]["dt"], settings, dtype=torch.float64, contacts=contacts)
+        backend.reset(starts, torch.zeros_like(starts))   # warm-up: compile
+        touched = torch.zeros(scenarios, agents, dtype=torch.bool)
+
+        def episode():
+            nonlocal touched
+            for k in range(steps):
+                backend.command(accel[k], backend.dt)
+                p = backend.step()[..., 0:2]
+                d = torch.cdist(p, p) + torch.eye(agents, dtype=p.dtype) * 1e9
+                touched |= d.amin(-1) < 2 * COLLISION_CYLINDER[0]
+
+        out[contacts] = _best(episode, repeats, steps * scenarios * agents,
+                              setup=lambda: backend.reset(starts, torch.zeros_like(starts)))
+        out[f"touched_{contacts}"] = float(touched.double().mean())
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", nargs="+", default=["config.yaml"])
     ap.add_argument("--steps", type=int, default=200, help="sim steps timed per repeat")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--compare-forces", action="store_true", help="also time xfrc and site actuators")
+    ap.add_argument("--contacts", action="store_true", help="time contact physics against pass-through (1 024 drones)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     cfg = load_config(args.config)
     m = cfg["sim"].get("mujoco") or {}
     print(f"MuJoCo {mujoco.__version__}, dt = {cfg['sim']['dt']} s, substeps = {m.get('substeps')}, "
           f"force_application = {m.get('force_application')}, drones_per_world = {m.get('drones_per_world')}")
+    if args.contacts:
+        r = time_contacts(cfg, 64, 16, args.steps, args.repeats)
+        print(f"1024 drones (64 scenarios x 16): pass-through {r[False][0]:.3f} us/drone-step CPU ({r[False][1]:.3f} wall), "
+              f"contacts {r[True][0]:.3f} CPU ({r[True][1]:.3f} wall); drones within 0.12 m of another: "
+              f"{100 * r['touched_True']:.0f} % with contacts ({100 * r['touched_False']:.0f} % passing through)")
+        print(f"contacts_time_ratio_at_1024: {r[True][0] / r[False][0]:.3f}")
+        return
     if args.compare_forces:
         for count in (16, 64, 256, 1024):
             row = []

@@ -141,7 +141,7 @@ class MujocoBackend:
         self._worlds = []
         for start in range(0, count, per_world):
             stop = min(count, start + per_world)
-            model = compile_world(stop - start, self.h, self.spec, actuated, self.contacts)
+            model = compile_world(stop - start, self.h, self.spec, actuated, self.contacts, visual=False)
             self._worlds.append((model, mujoco.MjData(model), slice(start, stop)))
         self._offsets = np.zeros((count, 2))
         if self.contacts:
