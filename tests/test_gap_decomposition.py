@@ -9,6 +9,7 @@ import torch
 
 from conftest import REPO, SMOKE
 from madpinn.commands import main
+from madpinn.commands.gap import lookahead_of
 from madpinn.config import load_config
 from madpinn.evaluation import gap
 from policy_models import tiny_model_dir
@@ -26,7 +27,7 @@ def test_gap_decomposition_command_writes_every_row(tmp_path, one_thread):
                "--out-dir", str(out), "--no-progress"])
     assert rc == 0
     table = pd.read_csv(out / "decomposition.csv")
-    ahead = load_config([REPO / "config.yaml", SMOKE])["methods"]["madpinn"]["look_ahead"]
+    ahead = lookahead_of(load_config([REPO / "config.yaml", SMOKE]))
     assert ahead > 0
     names = [v.name for v in gap.default_variants(0.2, (0.3,), ahead)]
     assert "mujoco + look_ahead" in names

@@ -28,7 +28,7 @@ def small_run(tmp_path_factory):
     cfg["arenas"]["small"]["episode_s"] = T
     cfg["sim"]["backend"] = "double_integrator"
     cfg["paths"]["figures"] = str(tmp / "figs")
-    cfg["studies"]["main"].update(agent_counts=[3], seeds=[0, 1], scenarios=2, runs=["madpinn", "madpinn-measured", "nominal"])
+    cfg["studies"]["main"].update(agent_counts=[3], seeds=[0, 1], scenarios=2, runs=["madpinn", "madpinn-lookahead", "nominal"])
     cfg["studies"]["ablation_update"].update(agent_counts=[3], seeds=[0], scenarios=2, runs=["madpinn-k1", "madpinn-kinf"])
     results = {"main": [], "ablation_update": []}
     for study, st in (("main", cfg["studies"]["main"]), ("ablation_update", cfg["studies"]["ablation_update"])):
@@ -96,10 +96,11 @@ def test_reproduction_report_against_a_small_run(small_run):
     assert cell["paper_safety"] == 1.0 and cell["paper_cost"] is None     # Table I: costs only plotted
     assert cell["cost_time_avg"] == pytest.approx(cell["cost"] / T)
     assert 0.0 <= cell["safety"] <= 1.0 and cell["n_seeds"] == 2
-    # the paper's deployment (measured state) is compared with the same paper row, right after ours
-    measured = rep["table_safety_scaling"]["madpinn-measured"]["3"]
-    assert measured["paper_safety"] == 1.0 and measured["label"].startswith("Ours, measured state")
-    assert list(rep["table_safety_scaling"])[:2] == ["madpinn", "madpinn-measured"]
+    # the paper's deployment ("Ours") first; our look-ahead extension is compared with the same paper row
+    ahead = rep["table_safety_scaling"]["madpinn-lookahead"]["3"]
+    assert ahead["paper_safety"] == 1.0 and "not in paper" in ahead["label"]
+    assert cell["label"].startswith("Ours (paper's deployment)")
+    assert list(rep["table_safety_scaling"])[:2] == ["madpinn", "madpinn-lookahead"]
     # paper rows we did not run keep the paper's value and null figures of ours
     mppi = rep["table_safety_scaling"]["mppi"]["16"]
     assert mppi["safety"] is None and mppi["paper_safety"] == pytest.approx(0.488)
@@ -119,14 +120,14 @@ def test_reproduction_report_against_a_small_run(small_run):
     assert prov["cells"]["count"] == n_cells and prov["cells"]["time_h"] > 0 and prov["cells"]["devices"] == ["cpu"]
     md = (out / "reproduction.md").read_text()
     assert "## table_update_ablation" in md and "Oracle (lone-agent lower bound)" in md and "sha256" in md
-    # the look-ahead (not in the paper) is named with the runs that use it; the measured run does not
+    # the look-ahead (not in the paper) is named with the run that uses it; the paper's deployment is not
     deploy = prov["deployment"]
-    assert deploy["madpinn"]["look_ahead"] == cfg["methods"]["madpinn"]["look_ahead"] > 0
-    assert deploy["madpinn-measured"]["look_ahead"] == 0.0 and deploy["madpinn-k1"]["look_ahead"] > 0
+    assert deploy["madpinn"]["look_ahead"] == cfg["methods"]["madpinn"]["look_ahead"] == 0.0
+    assert deploy["madpinn-lookahead"]["look_ahead"] > 0 and deploy["madpinn-k1"]["look_ahead"] == 0.0
     assert "nominal" not in deploy
     line = next(l for l in md.splitlines() if l.startswith("- deployment not in the paper"))
-    assert "`madpinn`" in line and "`madpinn-k1`" in line and "keep the paper's measured state" in line
-    assert "`madpinn-measured`" in line.split("keep the paper")[0].split(";")[-1]
+    assert "`madpinn-lookahead`" in line and "keep the paper's measured state" in line
+    assert "`madpinn`)" in line.split("keep the paper")[0].split(";")[-1] and "`madpinn-k1`)" in line
 
 
 def test_paper_values_cite_the_tex_and_cover_tables_one_to_four():

@@ -50,7 +50,7 @@ def _gap(args) -> int:
     cfg = config_of(args)
     models = _models(args)
     margin = args.carrot_margin if args.carrot_margin is not None else float(cfg["observation"].get("carrot_margin", 0.0))
-    ahead = args.look_ahead if args.look_ahead is not None else float(cfg["methods"]["madpinn"].get("look_ahead", 0.0))
+    ahead = args.look_ahead if args.look_ahead is not None else lookahead_of(cfg)
     variants = gap.default_variants(margin, tuple(args.margin_sweep), ahead)
     commit = git_commit()   # the code the rows run, read before the (long) decomposition
     table, diagnostics = gap.decompose(cfg, variants, args.agents, args.seeds, args.scenarios, args.run,
@@ -88,6 +88,14 @@ def _diagnose(args) -> int:
     return 0
 
 
+def lookahead_of(cfg: dict) -> float:
+    """τ (s) of the look-ahead extension: the ``madpinn-lookahead`` run's (the paper's deployment,
+    ``madpinn``, has none)."""
+    from madpinn.config import method_config
+
+    return float(method_config(cfg, "madpinn-lookahead")[1]["look_ahead"])
+
+
 def register(sub) -> None:
     def common(p):
         add_config_arg(p)
@@ -103,7 +111,7 @@ def register(sub) -> None:
     p.add_argument("--scenarios", type=int, default=20, help="scenarios per seed")
     p.add_argument("--carrot-margin", type=float, default=None, help="margin of the carrot fix (m; default observation.carrot_margin)")
     p.add_argument("--margin-sweep", type=float, nargs="*", default=[], help="extra double-integrator rows with these carrot margins (m)")
-    p.add_argument("--look-ahead", type=float, default=None, help="τ (s) of the lag-compensation fix (default methods.madpinn.look_ahead; 0: no such rows)")
+    p.add_argument("--look-ahead", type=float, default=None, help="τ (s) of the lag-compensation fix (default: the madpinn-lookahead run's; 0: no such rows)")
     p.add_argument("--out-dir", required=True, help="writes decomposition.{csv,md,json} here")
     p.set_defaults(func=_gap)
 

@@ -11,8 +11,8 @@ MAD-PINN runs that the paper does not have) and per-table notes;
 Paper values come from ``paper_values.yaml`` (one transcription, citing the .tex lines). The
 paper's costs are compared with our *time-averaged* cost (SPEC §3): "Δ cost" is ours ÷T minus the
 paper's. Oracle rows (run ``oracle``) carry only costs. A paper row may name more of our runs
-(``also``) that measure the same method under another deployment (e.g. ``madpinn-measured``, the
-paper's deployment beside our look-ahead ``madpinn``); they show the same paper values.
+(``also``) that measure the same method with our labelled extensions (e.g. ``madpinn-lookahead``
+beside ``madpinn``, the paper's deployment); they show the same paper values.
 """
 
 from __future__ import annotations
