@@ -78,3 +78,80 @@ def _headless():
     import matplotlib
 
     matplotlib.use("Agg")
+
+
+def _traj_file(path, collide: bool):
+    """A trajectory file in the layout evaluation/cell.py writes: 3 agents on straight lines to their
+    goals over 1 s (agents 1 and 2 meet at the centre when ``collide``)."""
+    times = np.linspace(0.0, 1.0, 21)
+    start = np.array([[-0.8, 0.0], [0.8, 0.0], [0.0, -0.8]])
+    goals = np.array([[0.8, 0.0], [-0.8, 0.0] if collide else [0.8, 0.6], [0.0, 0.8]])
+    pos = start[None] + times[:, None, None] * (goals - start)[None]
+    first = np.array([200, 200, -1]) if collide else np.full(3, -1)
+    np.savez(path, times=times, positions=pos.astype(np.float32), goals=goals.astype(np.float32),
+             collided=first >= 0, first_collision_step=first, dt=0.0025, collision_radius=0.1, half_width=1.0)
+    return path
+
+
+def test_trajectories_one_panel_per_run_with_numbered_agents_and_goals(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from madpinn.figures import trajectories
+
+    paths = [_traj_file(tmp_path / "a.npz", True), _traj_file(tmp_path / "b.npz", False)]
+    files = trajectories.plot_trajectories(paths, ["Run A", "Run B"], tmp_path / "fig_trajectories")
+    fig = trajectories.draw_trajectories([np.load(p) for p in paths], ["Run A", "Run B"])
+    assert [f.suffix for f in files] == [".pdf", ".png"] and all(f.stat().st_size > 1000 for f in files)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in axes] == ["Run A\n2 of 3 agents collided", "Run B\nno collision"]
+    for ax in axes:   # every agent's number twice (start and goal)
+        assert sorted(t.get_text() for t in ax.texts) == ["1", "1", "2", "2", "3", "3"]
+    colours = trajectories.agent_colours(12)
+    assert len({tuple(c) for c in colours[:9]}) == 9
+    assert all(not (c[0] > 0.7 and c[1] < 0.3 and c[2] < 0.3) for c in colours)     # no red: red marks collisions
+    plt.close("all")
+
+
+def test_value_heatmap_scale_is_not_set_by_the_rims():
+    """A few large values (the rims of the infeasible regions) must not set the colour scale: it
+    ends at the HEATMAP_CLIP_PERCENTILE-th percentile, the arrow of the colour bar says more exists."""
+    import matplotlib.pyplot as plt
+    import torch
+
+    from madpinn.value_functions.figures import HEATMAP_CLIP_PERCENTILE, draw_value_heatmap
+
+    axis = torch.linspace(-1.0, 1.0, 41)
+    yy, xx = torch.meshgrid(axis, axis, indexing="ij")
+    z = 1.5 + ((xx + 0.5) ** 2 + yy ** 2).sqrt()             # low at the goal (-0.5, 0), ≤ 3.3
+    rim = ((xx + 0.3) ** 2 + (yy - 0.4) ** 2).sqrt()
+    feasible = rim > 0.12
+    z = torch.where(rim < 0.18, torch.full_like(z, 21.0), z)  # the rim: a few cells at 21
+    fig = draw_value_heatmap(axis, z, feasible)
+    mesh = fig.axes[0].collections[0]
+    expected = float(np.percentile(z[feasible].numpy(), HEATMAP_CLIP_PERCENTILE))
+    assert mesh.norm.vmax == pytest.approx(expected) and mesh.norm.vmax < 4.0
+    cbar = fig.axes[1]
+    assert "clipped" in cbar.get_ylabel() and "21.0" in cbar.get_ylabel()
+    plt.close(fig)
+
+
+def test_vs_grid_tick_labels_of_neighbouring_panels_do_not_meet():
+    import matplotlib.pyplot as plt
+    import torch
+
+    from conftest import REPO
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.value_functions import load_vs
+    from madpinn.value_functions.figures import draw_vs_grid
+    from madpinn.value_functions.grid_reference import solve_pair_grid
+
+    sol = solve_pair_grid(PairSystem(), 9, 1.0, 6.0, (0.0, 0.25, 0.5, 0.75), accuracy="low")
+    fig = draw_vs_grid(sol, load_vs(REPO / "models" / "vs.pt", dtype=torch.float64), (-3.0, 0.0))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [[t.get_window_extent(renderer) for t in ax.get_xticklabels() + ax.get_yticklabels() if t.get_text()]
+             for ax in fig.axes]
+    assert len(boxes) == 4
+    for left, right in zip(boxes, boxes[1:]):
+        assert max(b.x1 for b in left) < min(b.x0 for b in right)      # a gap between neighbours' labels
+    plt.close(fig)

@@ -158,7 +158,7 @@ def test_figures_from_the_small_run(small_run):
     files = plot_cost_safety(results["main"], cfg, tmp / "f" / "fig_cost_safety", oracle)
     assert all(f.stat().st_size > 1000 for f in files)
     traj = [p.with_name(p.stem + "_traj.npz") for p in results["main"] if p.stem.endswith("seed0")]
-    files = plot_trajectories(traj, ["Ours", "Nominal"], tmp / "f" / "fig_trajectories")
+    files = plot_trajectories(traj, [p.parent.name for p in traj], tmp / "f" / "fig_trajectories")
     assert all(f.stat().st_size > 1000 for f in files)
     plt.close("all")
 
