@@ -116,7 +116,10 @@ def format_readings(table: pd.DataFrame) -> pd.DataFrame:
 
 def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapping[str, str],
                    out_dir: str | Path, name: str = "table_collision_readings") -> list[Path]:
-    """Write ``<name>.csv`` (numbers) and ``<name>.md`` (display, with the reading definitions)."""
+    """Write ``<name>.csv`` (numbers), ``<name>.md`` and ``<name>.html`` (display, with the reading
+    definitions; the HTML page is what the Snakemake report shows)."""
+    from madpinn.evaluation.html import markdown_page
+
     table = readings_table(result_paths, cfg, table_of)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -129,4 +132,6 @@ def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
         "r / 2r · contact: the same counts with contact physics (sim.contacts). Every method keeps its\n"
         f"collision terms at r. Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
         + to_markdown(format_readings(table)))
-    return [csv, md]
+    page = out_dir / f"{name}.html"
+    page.write_text(markdown_page(md.read_text(), name))
+    return [csv, md, page]

@@ -52,6 +52,17 @@ TABLES = {
     "table_ours_scaling": ("scaling", "summary"),
 }
 
+# Sections of the Snakemake report in reading order (the report sorts their names): the comparison
+# with the paper and the paper's tables first. Items inside a section are ordered by their first
+# label ("Table I", "Fig. 2", ...).
+REPORT_SECTIONS = {
+    "reproduction": "1 · Paper vs ours",
+    "paper_tables": "2 · Paper tables (I–IV)",
+    "paper_figures": "3 · Paper figures",
+    "our_tables": "4 · Our tables (not in the paper)",
+    "value_functions": "5 · Value-function checks",
+}
+
 wildcard_constraints:
     backend=r"[a-z_]+",
     study=r"[a-z_]+",

@@ -11,7 +11,8 @@ if "main" in config["studies"]:
             results=study_results("main"),
             oracle=oracle_inputs("main"),
         output:
-            png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst", category="Figures"),
+            png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst",
+                       category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 2", "Shows": "cost vs safety"}),
             pdf=f"{FIGURES}/fig_cost_safety.pdf",
         params:
             config=RESOLVED,
@@ -37,7 +38,8 @@ rule fig_trajectories:
         tracking=TRACKING,
         traj=traj_inputs(),
     output:
-        png=report(f"{FIGURES}/fig_trajectories.png", caption="../report/fig_trajectories.rst", category="Figures"),
+        png=report(f"{FIGURES}/fig_trajectories.png", caption="../report/fig_trajectories.rst",
+                   category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 3", "Shows": "trajectories"}),
         pdf=f"{FIGURES}/fig_trajectories.pdf",
     params:
         config=RESOLVED,

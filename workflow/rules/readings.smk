@@ -13,8 +13,11 @@ if _READING_TABLES:
             tracking=TRACKING,
             results=sorted({p for s in _READING_TABLES.values() for st in (s, f"{s}{CONTACTS_SUFFIX}") for p in study_results(st)}),
         output:
-            csv=report(f"{FIGURES}/table_collision_readings.csv", caption="../report/table_collision_readings.rst", category="Tables"),
+            csv=f"{FIGURES}/table_collision_readings.csv",
             md=f"{FIGURES}/table_collision_readings.md",
+            html=report(f"{FIGURES}/table_collision_readings.html", caption="../report/table_collision_readings.rst",
+                        category=REPORT_SECTIONS["our_tables"],
+                        labels={"Item": "table_collision_readings", "Study": ", ".join(_READING_TABLES.values())}),
         params:
             config=RESOLVED,
             tables=[f"{n}={s}" for n, s in _READING_TABLES.items()],

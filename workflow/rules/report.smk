@@ -1,7 +1,10 @@
 # Reproduction report (issue 16): every paper table beside the paper's values, with provenance.
 # Included after every method's rule file (TABLES and METHOD_MODELS complete) and before tables.smk.
+from madpinn.evaluation.reproduction import paper_table_numbers
+
 _REPORT_TABLES = {name: study for name, (study, _) in TABLES.items() if study in config["studies"]}
-REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json"]
+REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json", f"{FIGURES}/reproduction.html"]
+PAPER_TABLE_NUMBERS = paper_table_numbers()   # table name -> the paper's number (I … IV): report order
 
 
 # `snakemake -j2 reproduction_report`: every table with our mean ± std beside the paper's values.
@@ -14,6 +17,8 @@ rule reproduction_report:
     output:
         md=REPORT_OUTPUTS[0],
         json=REPORT_OUTPUTS[1],
+        html=report(REPORT_OUTPUTS[2], caption="../report/reproduction.rst", category=REPORT_SECTIONS["reproduction"],
+                    labels={"Item": "Reproduction report", "Tables": ", ".join(f"Table {PAPER_TABLE_NUMBERS.get(n, n)}" for n in _REPORT_TABLES)}),
     params:
         config=RESOLVED,
         tables=[f"{n}={s}" for n, s in _REPORT_TABLES.items()],

@@ -2,6 +2,7 @@
 for _name, (_study, _kind) in TABLES.items():
     if _study not in config["studies"]:
         continue
+    _number = PAPER_TABLE_NUMBERS.get(_name)
 
     rule:
         name:
@@ -11,9 +12,12 @@ for _name, (_study, _kind) in TABLES.items():
             results=study_results(_study),
             oracle=oracle_inputs(_study),
         output:
-            csv=report(f"{FIGURES}/{_name}.csv", caption=f"../report/{_name}.rst", category="Tables"),
+            csv=f"{FIGURES}/{_name}.csv",
             md=f"{FIGURES}/{_name}.md",
             tex=f"{FIGURES}/{_name}.tex",
+            html=report(f"{FIGURES}/{_name}.html", caption=f"../report/{_name}.rst",
+                        category=REPORT_SECTIONS["paper_tables" if _number else "our_tables"],
+                        labels={"Item": f"Table {_number}" if _number else _name, "Study": _study}),
         params:
             config=RESOLVED,
             name=_name,

@@ -22,8 +22,13 @@ except TrackingError as exc:
 # first writers race while creating a SQLite schema): at a real start by start_tracking (Snakefile);
 # tracking_init writes the marker of disabled tracking and stands for the store in dry runs. Jobs
 # take the marker as ancient(): a new store does not rerun finished jobs.
+# `snakemake --report` lists the outputs of every job of the DAG, and the marker has no Snakemake
+# metadata when start_tracking wrote it ("Missing metadata for file …/store.json"): the report needs
+# no store, so its DAG leaves the marker out (also when a run is followed by --report-after-run,
+# the run's own DAG keeps it).
+REPORT_ONLY = any(a == "--report" or a.startswith("--report=") for a in sys.argv[1:]) and "--report-after-run" not in sys.argv
 TRACKING_STORE = TRACKING
-TRACKING = ancient(TRACKING_STORE)
+TRACKING = [] if REPORT_ONLY else ancient(TRACKING_STORE)
 
 
 rule tracking_init:

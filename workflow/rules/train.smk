@@ -68,7 +68,8 @@ rule validate_vs:
         model=str(rules.train_vs.output.model),  # str(): see run_models (shipped overlay)
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
-        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst", category="Value functions"),
+        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst",
+                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_slices", "Shows": "V_s slices"}),
         pdf=f"{FIGURES}/fig_vs_slices.pdf",
     params:
         config=RESOLVED,
@@ -117,7 +118,7 @@ rule fig_value_heatmap:
         model=str(rules.train_vhat.output.model),  # str(): see run_models (shipped overlay)
     output:
         png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
-                   category="Value functions"),
+                   category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 4", "Shows": "value heatmap"}),
         pdf=f"{FIGURES}/fig_value_heatmap.pdf",
     params:
         config=RESOLVED,
