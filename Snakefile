@@ -66,6 +66,13 @@ include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (
 # pass). A dry run writes nothing. (start_tracking: common.smk; the settings: tracking.smk)
 if not workflow.output_settings.dryrun and workflow.exec_mode == ExecMode.DEFAULT:
     start_tracking(TRACKING_SETTINGS, TRACKING_STORE)
+    # The terminal output of a real run fits on a screen: progress every 10 % of the jobs, warnings
+    # and errors; each job's block and output stay in its log (madpinn/run_log.py; MADPINN_LOG=full
+    # or --verbose: Snakemake's complete output).
+    if not workflow.output_settings.verbose:
+        from madpinn.run_log import install_summary
+
+        install_summary()
 
 
 rule all:
