@@ -194,3 +194,19 @@ def test_check_store_is_read_only(paper_cfg, tmp_path, monkeypatch):
                 check_store(replace(s, uri=f"sqlite:///{ro / 'sub' / 'mlflow.db'}"))
     finally:
         ro.chmod(0o700)
+
+
+def test_experiment_opens_in_the_model_training_view(paper_cfg, tmp_path, monkeypatch):
+    """MLflow 3's UI shows an experiment as model training (runs, curves, models), not as a GenAI
+    traces page, when it carries mlflow.experimentKind=custom_model_development; an older
+    experiment without the tag gets it at the next start."""
+    from madpinn.tracking.mlflow_store import EXPERIMENT_KIND, EXPERIMENT_KIND_TAG
+
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    settings = TrackingSettings.from_config(_cfg(paper_cfg, tmp_path))
+    info = init_store(settings)
+    c = MlflowClient(settings.uri)
+    assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND
+    c.delete_experiment_tag(info["experiment_id"], EXPERIMENT_KIND_TAG)
+    init_store(settings)
+    assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND

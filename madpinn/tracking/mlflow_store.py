@@ -93,13 +93,23 @@ def _artifact_location(settings: TrackingSettings) -> str | None:
     return (db.parent / "artifacts" / settings.experiment).as_uri() if db else None   # a server decides itself
 
 
+# MLflow 3's UI opens an experiment in its GenAI view (traces) unless this tag says otherwise; ours
+# are model training: runs table, metric curves, logged models.
+EXPERIMENT_KIND_TAG, EXPERIMENT_KIND = "mlflow.experimentKind", "custom_model_development"
+
+
 def experiment_id(c, settings: TrackingSettings) -> str:
+    """The configuration's experiment (restored when deleted, created when missing), tagged as
+    model training for MLflow 3's UI."""
     exp = c.get_experiment_by_name(settings.experiment)
     if exp is not None:
         if exp.lifecycle_stage == "deleted":
             c.restore_experiment(exp.experiment_id)
+        if exp.tags.get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:
+            c.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG, EXPERIMENT_KIND)
         return exp.experiment_id
-    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings))
+    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings),
+                               tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND})
 
 
 def init_store(settings: TrackingSettings) -> dict:
