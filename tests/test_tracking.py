@@ -196,10 +196,9 @@ def test_check_store_is_read_only(paper_cfg, tmp_path, monkeypatch):
         ro.chmod(0o700)
 
 
-def test_experiment_opens_in_the_model_training_view(paper_cfg, tmp_path, monkeypatch):
-    """MLflow 3's UI shows an experiment as model training (runs, curves, models), not as a GenAI
-    traces page, when it carries mlflow.experimentKind=custom_model_development; an older
-    experiment without the tag gets it at the next start."""
+def test_experiment_is_tagged_as_model_training(paper_cfg, tmp_path, monkeypatch):
+    """The experiment says it is model training (mlflow.experimentKind=custom_model_development,
+    not GenAI); an older experiment without the tag gets it at the next start."""
     from madpinn.tracking.mlflow_store import EXPERIMENT_KIND, EXPERIMENT_KIND_TAG
 
     monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)

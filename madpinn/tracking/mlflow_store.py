@@ -93,8 +93,9 @@ def _artifact_location(settings: TrackingSettings) -> str | None:
     return (db.parent / "artifacts" / settings.experiment).as_uri() if db else None   # a server decides itself
 
 
-# MLflow 3's UI opens an experiment in its GenAI view (traces) unless this tag says otherwise; ours
-# are model training: runs table, metric curves, logged models.
+# The experiment's kind for MLflow 3: model training (runs, metric curves, models), not GenAI traces.
+# The 3.17 UI itself opens in the mode of its per-browser toggle (GenAI by default) or of the URL's
+# `?workflowType=machine_learning` (README, MLflow section); the tag is what the API reports.
 EXPERIMENT_KIND_TAG, EXPERIMENT_KIND = "mlflow.experimentKind", "custom_model_development"
 
 
