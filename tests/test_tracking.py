@@ -1,4 +1,5 @@
 import json
+import logging
 import os
 import signal
 import time
@@ -111,6 +112,16 @@ def test_live_run_has_real_status_duration_and_step_curve(paper_cfg, tmp_path, m
     net = mlflow.pytorch.load_model(f"runs:/{run.run_id}/net")
     assert isinstance(net, torch.nn.Linear)
     assert c.get_run(run.run_id).data.params["a.b"] == "2"
+    # an MLflow 3 logged model, output of the run, loadable by its id found by name
+    exp = c.get_experiment_by_name(s.experiment).experiment_id
+    models = c.search_logged_models([exp], filter_string="name = 'net'")
+    assert [m.source_run_id for m in models] == [run.run_id]
+    assert [o.model_id for o in c.get_run(run.run_id).outputs.model_outputs] == [models[0].model_id]
+    assert isinstance(mlflow.pytorch.load_model(f"models:/{models[0].model_id}"), torch.nn.Linear)
+    # a rerun of the job replaces its run and its logged model
+    with job_run(s, job_key="train/x", rule="train_x") as again:
+        again.finish(models={"net": torch.nn.Linear(2, 1)})
+    assert [m.source_run_id for m in c.search_logged_models([exp], filter_string="name = 'net'")] == [again.run_id]
 
 
 def test_failed_and_killed_jobs_close_their_runs_with_that_status(paper_cfg, tmp_path, monkeypatch):
@@ -209,3 +220,26 @@ def test_experiment_is_tagged_as_model_training(paper_cfg, tmp_path, monkeypatch
     c.delete_experiment_tag(info["experiment_id"], EXPERIMENT_KIND_TAG)
     init_store(settings)
     assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND
+
+
+def test_models_are_saved_without_the_pickle_warning(paper_cfg, tmp_path, monkeypatch):
+    seen = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            seen.append(record.getMessage())
+
+    logger = logging.getLogger("mlflow.pytorch")       # mlflow's loggers do not propagate to root
+    handler = Keep(level=logging.WARNING)
+    logger.addHandler(handler)
+    try:
+        s = _settings(paper_cfg, tmp_path, monkeypatch)
+        with job_run(s, job_key="train/y", rule="train_y") as run:
+            run.finish(models={"net": torch.nn.Linear(2, 1)})
+        import mlflow.pytorch
+
+        mlflow.pytorch.save_model(torch.nn.Linear(2, 1), str(tmp_path / "direct"), serialization_format="pickle")
+    finally:
+        logger.removeHandler(handler)
+    assert len([m for m in seen if "Pickle" in m]) == 1               # the direct call's only
+    assert logger.filters == []                                       # silenced for our call only

@@ -146,6 +146,9 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
     store = _get_store(settings.uri)
     hard = hasattr(store, "_hard_delete_run")
     for run in runs:
+        for model in c.search_logged_models([run.info.experiment_id],
+                                            filter_string=f"source_run_id = '{run.info.run_id}'"):
+            c.delete_logged_model(model.model_id)          # the replaced run's models go with it
         if run.info.lifecycle_stage != "deleted":
             c.delete_run(run.info.run_id)
         if hard:

@@ -81,8 +81,24 @@ def log_files(c, run_id: str, artifacts, models: dict) -> list[str]:
         else:
             missing.append(str(path))
     for name, local in models.items():
-        c.log_artifacts(run_id, str(local), artifact_path=name)
+        c.log_artifacts(run_id, str(local), artifact_path=name)   # runs:/<run id>/<name>
+        log_logged_model(c, run_id, name, local)
     return missing
+
+
+def log_logged_model(c, run_id: str, name: str, local: str | Path) -> str:
+    """The saved model directory ``local`` as an MLflow 3 logged model named ``name``, an output
+    of run ``run_id`` (the experiment's Models tab and the run page list it; load with
+    ``mlflow.pytorch.load_model(f"models:/{model_id}")``, the id from
+    ``mlflow.search_logged_models(filter_string="name = '<name>'")``); returns its id."""
+    from mlflow.entities import LoggedModelOutput, LoggedModelStatus
+
+    exp_id = c.get_run(run_id).info.experiment_id
+    model = c.create_logged_model(exp_id, name=name, source_run_id=run_id, model_type="pytorch")
+    c.log_model_artifacts(model.model_id, str(local))
+    c.finalize_logged_model(model.model_id, LoggedModelStatus.READY)
+    c.log_outputs(run_id, [LoggedModelOutput(model.model_id, step=0)])
+    return model.model_id
 
 
 def _stem(job_key: str, source: str) -> str:
