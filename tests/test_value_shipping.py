@@ -54,6 +54,13 @@ def test_shipped_overlay_installs_instead_of_training(tmp_path):
     assert "install_shipped_model" in out and "train_vs" not in out and "train_vhat" in out
     run_snakemake(tmp_path, "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
     assert sha256(tmp_path / "results/smoke/models/vs.pt") == sha256(tmp_path / "models/vs.pt")
+    from mlflow.tracking import MlflowClient                     # the install job is an MLflow run too
+
+    c = MlflowClient(f"sqlite:///{tmp_path / 'mlflow' / 'mlflow.db'}")
+    runs = c.search_runs([c.get_experiment_by_name("madpinn-smoke").experiment_id])
+    install_runs = [r for r in runs if r.data.tags.get("madpinn.rule") == "install_shipped_model"]
+    assert [r.data.tags["madpinn.job"] for r in install_runs] == ["install/vs"]
+    assert install_runs[0].info.status == "FINISHED"
     # re-shipping another model rewrites manifest.json: vs's install (and so every cached cell that
     # uses V_s) stays done; a changed sha256 of vs's own entry reruns it
     manifest = tmp_path / "models" / "manifest.json"

@@ -9,7 +9,8 @@
 - ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states);
 - ``ship-models`` / ``install-shipped``: ``models/`` + ``manifest.json``; sha256-checked install.
 
-Every job but the last two runs in one live MLflow run (:mod:`madpinn.commands.finish`).
+Every job runs in one live MLflow run (:mod:`madpinn.commands.finish`), ``install-shipped`` when
+given ``--config`` (as the workflow does); ``ship-models``, a maintainer's command, has none.
 """
 
 from __future__ import annotations
@@ -294,8 +295,15 @@ def _fill_provenance(args, models: dict, manifest: dict) -> dict:
 def _install_shipped(args) -> int:
     from madpinn.value_functions.shipping import install
 
-    print(install(args.dir, args.name, args.out))
-    return 0
+    if not args.config:                       # by hand, without a config: no MLflow run
+        print(install(args.dir, args.name, args.out))
+        return 0
+    cfg = config_of(args)
+    record = JobRecord(job_key=f"install/{args.name}", rule="install_shipped_model", wildcards={"name": args.name},
+                       params={"dir": args.dir})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = [install(args.dir, args.name, args.out)]
+        return finish(run, record, echo=list(record.artifacts))
 
 
 def register(sub) -> None:
@@ -364,4 +372,7 @@ def register(sub) -> None:
     p.add_argument("--dir", default="models", help="shipped-models directory with manifest.json")
     p.add_argument("--name", required=True, help="model name in the manifest (vs, vhat, safemarl_nominal, ...)")
     p.add_argument("--out", required=True, help="destination, e.g. results/models/vs.pt")
+    p.add_argument("--config", nargs="+", default=None,
+                   help="config file(s): the job is logged as an MLflow run (the workflow passes it)")
+    p.add_argument("--no-track", action="store_true", help="do not log to MLflow")
     p.set_defaults(func=_install_shipped)
