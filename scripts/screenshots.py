@@ -6,9 +6,10 @@ experiment's runs table, a training run's page, its metric curves) and the Snake
 
 Starts ``mlflow server`` on a free local port for the SQLite store (stopped at the end; only the
 process it started), finds the experiment and a training run (``madpinn.rule`` starting with
-``train``; without one, e.g. from the shipped models, any run), and writes ``mlflow_experiment.png``, ``mlflow_run.png``,
+``train``; without one, e.g. from the shipped models, any run), and writes ``mlflow_experiment.png``, ``mlflow_models.png`` (logged models), ``mlflow_run.png``,
 ``mlflow_run_metrics.png`` and, with ``--report``, ``report.png`` (the report's landing page with
-its sections) into ``--out``. Needs a ``chromium`` (or ``--chromium PATH``) on the machine
+its sections), ``report_1.png`` (the reproduction page), ``report_2.png`` (Table I) and
+``report_3.png`` (the paper's figures, listed) into ``--out``. Needs a ``chromium`` (or ``--chromium PATH``) on the machine
 (Debian: ``apt-get install chromium``); prints each file written.
 """
 
@@ -72,6 +73,7 @@ def shoot(chromium: str, url: str, out: Path, size=(1500, 950), wait_ms: int = 1
     """One screenshot of ``url`` after ``wait_ms`` of page time (React pages render after load)."""
     with tempfile.TemporaryDirectory(prefix="madpinn-chromium-") as profile:
         subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                        "--run-all-compositor-stages-before-draw",      # charts drawn (MLflow's metric plots)
                         f"--user-data-dir={profile}", f"--window-size={size[0]},{size[1]}",
                         f"--virtual-time-budget={wait_ms}", f"--screenshot={out}", url],
                        check=True, capture_output=True, timeout=180)
@@ -118,8 +120,10 @@ def main(argv=None) -> int:
         # the model-training mode, as README's link does
         base, mode = f"{uri}/#/experiments/{exp.experiment_id}", "?workflowType=machine_learning"
         shoot(args.chromium, f"{base}/runs{mode}", out / "mlflow_experiment.png")
-        shoot(args.chromium, f"{base}/runs/{run.info.run_id}{mode}", out / "mlflow_run.png")
-        shoot(args.chromium, f"{base}/runs/{run.info.run_id}/model-metrics{mode}", out / "mlflow_run_metrics.png")
+        shoot(args.chromium, f"{base}/models{mode}", out / "mlflow_models.png")
+        shoot(args.chromium, f"{base}/runs/{run.info.run_id}{mode}", out / "mlflow_run.png", size=(1500, 1500))
+        shoot(args.chromium, f"{base}/runs/{run.info.run_id}/model-metrics{mode}", out / "mlflow_run_metrics.png",
+              wait_ms=30000)   # the charts fetch their histories after the page
     finally:
         _stop(proc)
 
@@ -132,7 +136,28 @@ def main(argv=None) -> int:
                 z.extractall(dest)
             report = next(dest.rglob("report.html"))
         shoot(args.chromium, report.resolve().as_uri(), out / "report.png", size=(1500, 1100), wait_ms=5000)
+        # the report is one page without URLs per view: a copy that clicks through to each section
+        sections = ["1 · Paper vs ours", "2 · Paper tables (I–IV)", "3 · Paper figures"]
+        first_view = "css:tr a[href='#']"       # the eye button of a section's first item
+        for i, clicks in enumerate([[sections[0], first_view], [sections[1], first_view], [sections[2]]], 1):
+            page = report.with_name(f"report_view{i}.html")
+            page.write_text(report.read_text() + _clicks(clicks))
+            shoot(args.chromium, page.resolve().as_uri(), out / f"report_{i}.png", size=(1500, 1100), wait_ms=8000)
     return 0
+
+
+def _clicks(texts: list[str]) -> str:
+    """A script that clicks, one after another, the report's elements showing exactly ``texts``
+    (``css:<selector>``: the first element matching it)."""
+    import json
+
+    return ("<script>window.addEventListener('load', () => {let texts = " + json.dumps(texts) + ";"
+            "function next() {if (!texts.length) return; const t = texts.shift();"
+            "const el = [...document.querySelectorAll('a, button, li, td, span, div')].reverse()"
+            ".find(e => e.textContent.trim() === t);"
+            "const hit = t.startsWith('css:') ? document.querySelector(t.slice(4)) : el;"
+            "if (hit) hit.click(); setTimeout(next, 700);}"
+            "setTimeout(next, 700);});</script>")
 
 
 if __name__ == "__main__":
