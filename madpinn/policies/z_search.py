@@ -213,6 +213,9 @@ def predict_index(last: torch.Tensor, before: torch.Tensor | None, cells: int) -
     return pred.clamp(1, cells)
 
 
+SECANT_ROUNDS = 2  # newton_search: secant / regula-falsi rounds on a bracket before plain bisection
+
+
 def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor) -> ZSearchResult:
     """Warm search with a Newton step on ``∂V̂/∂z`` (issue 37); ``obs [B, D]``, ``predicted [B]``.
 
@@ -225,8 +228,10 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
     3. Where ``c ≠ k`` and ``V̂(z_{c−1}) > 0``: one gradient row at ``c``; ``V̂(z_c) ≤ 0`` is a
        verified crossing and its gradient is the control's (no further row).
     4. Otherwise the known values give a bracket ``(lo, hi]`` with ``V̂(z_lo) > 0`` (or ``lo = 0``)
-       and ``V̂(z_hi) ≤ 0`` — the bisection's invariant — which :func:`_bisect` halves to one cell,
-       then one gradient row at the answer.
+       and ``V̂(z_hi) ≤ 0`` — the bisection's invariant. Up to :data:`SECANT_ROUNDS` rounds probe
+       the cell at the regula-falsi point (the secant through two known values where ``V̂(z_lo)``
+       is unknown, the midpoint where neither applies) and its lower neighbour, each keeping the
+       invariant; :func:`_bisect` halves what is left to one cell; one gradient row at the answer.
 
     Every feasible answer is a verified crossing and the feasibility flag is the cold search's, as
     for :func:`warm_search`; where V̂ is monotone in z the crossing is unique, so all three searches
@@ -251,8 +256,13 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
     below = ((c - 1 != k) & (c > 1) & ~(up & (k == cells))).nonzero(as_tuple=True)[0]
     ev_rows = torch.cat([top, below])
     ev_idx = torch.cat([torch.full_like(top, cells), c[below] - 1])
-    ok = _value(vhat, obs[ev_rows], grid, ev_idx) <= 0 if ev_rows.numel() else torch.zeros(0, dtype=torch.bool, device=dev)
+    vals = _value(vhat, obs[ev_rows], grid, ev_idx) if ev_rows.numel() else obs.new_zeros(0)
+    ok = vals <= 0
     value_rows += int(ev_rows.numel())
+    v_top = torch.full((B,), float("nan"), dtype=obs.dtype, device=dev)
+    v_top[top] = vals[: top.numel()]
+    v_below = torch.full((B,), float("nan"), dtype=obs.dtype, device=dev)
+    v_below[below] = vals[top.numel():]
     top_ok = ~up & (k == cells)
     top_ok[top] = ok[: top.numel()]
     below_pos = torch.ones(B, dtype=torch.bool, device=dev)        # V̂(z_{c−1}) > 0 (c − 1 = 0: never evaluated)
@@ -296,7 +306,41 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
         lo = torch.where(upr, lo_up, lo_dn).clamp(min=0)
         hi = torch.where(upr, hi_up, hi_dn)
         lo = torch.minimum(lo, hi - 1)
-        ans, r = _bisect(vhat, obs[rest], grid, lo.clone(), hi.clone())
+        # the values at the bracket's ends (NaN: lo = 0, never evaluated) and, for the extrapolation
+        # where V̂(z_lo) is unknown, a second point above hi (k)
+        vk, vb, vc_, vt = v_k[rest], v_below[rest], v_c[rest], v_top[rest]
+        vlo = torch.where(upr, torch.where(cp, vc_, torch.where(bp & (cr - 1 != kr) & (cr > 1), vb, vk)),
+                          torch.where(bp & (lo > 0), torch.where(cp, vc_, vb), torch.full_like(vk, float("nan"))))
+        vhi = torch.where(upr, torch.where(~bp, vb, vt), torch.where(bp, vk, vb))
+        a, va = kr.clone(), vk.clone()
+        o = obs[rest]
+        for _ in range(SECANT_ROUNDS):
+            act = (hi - lo > 1).nonzero(as_tuple=True)[0]
+            if act.numel() == 0:
+                break
+            l, u, fl, fu, aa, fa = lo[act], hi[act], vlo[act].double(), vhi[act].double(), a[act], va[act].double()
+            slope = (fa - fu) / (aa - u).clamp(min=1).double()
+            guess = torch.where(torch.isfinite(fl) & (fl > fu), l + (u - l) * fl / (fl - fu),
+                                torch.where((aa > u) & (slope < 0), u - fu / slope, (l + u) / 2.0))
+            cc = torch.minimum(torch.maximum(torch.ceil(guess.nan_to_num(0.0)).long(), l + 1), u)
+            p_lo = (cc - 1 > l).nonzero(as_tuple=True)[0]
+            p_hi = (cc < u).nonzero(as_tuple=True)[0]
+            pv = _value(vhat, o[torch.cat([act[p_lo], act[p_hi]])], grid, torch.cat([cc[p_lo] - 1, cc[p_hi]]))
+            value_rows += int(pv.numel())
+            v1 = torch.full_like(fu, float("nan")).to(obs.dtype)
+            v1[p_lo] = pv[: p_lo.numel()]
+            v2 = torch.full_like(v1, float("nan"))
+            v2[p_hi] = pv[p_lo.numel():]
+            lower = (cc - 1 > l) & (v1 <= 0)      # crossing below c − 1: hi = c − 1
+            upper = ~lower & (cc < u) & (v2 > 0)  # crossing above c: lo = c
+            cell = ~lower & ~upper                # V̂(z_{c−1}) > 0 (or c − 1 = lo) and V̂(z_c) ≤ 0 (or c = hi)
+            a[act] = torch.where(lower, u, aa)
+            va[act] = torch.where(lower, fu.to(obs.dtype), va[act])
+            hi[act] = torch.where(lower, cc - 1, torch.where(cell, cc, u))
+            vhi[act] = torch.where(lower, v1, torch.where(cell & (cc < u), v2, vhi[act]))
+            lo[act] = torch.where(upper, cc, torch.where(cell, cc - 1, l))
+            vlo[act] = torch.where(upper, v2, torch.where(cell & (cc - 1 > l), v1, vlo[act]))
+        ans, r = _bisect(vhat, o, grid, lo.clone(), hi.clone())
         value_rows += r
         idx[rest] = ans
         todo = torch.cat([todo, rest])
