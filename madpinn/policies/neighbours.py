@@ -185,7 +185,7 @@ def calibrate_drift_margins(vs, samples: int = MARGIN_SAMPLES, seed: int = MARGI
     system = vs.system
     g = torch.Generator().manual_seed(seed)
     x = system.sample(samples, g, dtype=torch.float64).to(torch.float32)
-    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius) - _vs_in_chunks(vs, x, chunk).to(x.dtype)
+    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius) - _vs_in_chunks(vs, x, chunk).to("cpu", x.dtype)
     top = float(system.v_range) * 2**0.5
     edges = torch.linspace(0.0, top, bins + 1)[1:]
     b = torch.bucketize(torch.linalg.vector_norm(x[:, 2:4], dim=-1), edges).clamp(max=bins - 1)
