@@ -79,6 +79,28 @@ def _key_path(error) -> str:
     return ".".join(parts) if parts else "<top level>"
 
 
+def _declared_keys(schema: Mapping[str, Any], root: Mapping[str, Any]) -> set[str]:
+    """Property names a schema declares itself or through ``allOf`` / local ``$ref`` parts."""
+    keys = set(schema.get("properties", {}))
+    ref = schema.get("$ref", "")
+    if ref.startswith("#/"):
+        node: Any = root
+        for part in ref[2:].split("/"):
+            node = node[part]
+        keys |= _declared_keys(node, root)
+    for part in schema.get("allOf", []):
+        keys |= _declared_keys(part, root)
+    return keys
+
+
+def _unknown_keys(error, root: Mapping[str, Any]) -> list[str]:
+    """The keys an ``unevaluatedProperties`` error really rejects. A failing ``allOf`` part (e.g.
+    ``value_functions.vhat.iterations: 0``) drops its annotations, so the validator lists every key
+    that part declares as unexpected; only the keys no part declares are."""
+    declared = _declared_keys(error.schema, root)
+    return sorted(k for k in error.instance if k not in declared)
+
+
 def validate_config(cfg: Mapping[str, Any]) -> None:
     """Validate against the JSON schema and cross-field rules; raise :class:`ConfigError`.
 
@@ -92,6 +114,12 @@ def validate_config(cfg: Mapping[str, Any]) -> None:
     for err in errors:
         if err.validator == "additionalProperties":
             lines.append(f"  - '{_key_path(err)}': {err.message} (unknown key)")
+        elif err.validator == "unevaluatedProperties":
+            unknown = _unknown_keys(err, validator.schema)
+            if unknown:   # else only a sibling error (reported on its own) left the known keys unevaluated
+                were = "was" if len(unknown) == 1 else "were"
+                lines.append(f"  - '{_key_path(err)}': Properties are not allowed ({', '.join(map(repr, unknown))} "
+                             f"{were} unexpected) (unknown key)")
         else:
             lines.append(f"  - '{_key_path(err)}': {err.message}")
     if not lines:

@@ -203,3 +203,19 @@ def test_paper_scale_overlay_trains_at_the_papers_budget_apart_from_the_default_
         assert not v["fine_tune"] and training_hash(cfg, kind) != training_hash(paper_cfg, kind)
     assert cfg["paths"]["results"] != paper_cfg["paths"]["results"] and cfg["experiment"] != paper_cfg["experiment"]
     assert cfg["studies"] == paper_cfg["studies"]
+
+
+@pytest.mark.parametrize("kind", ["vhat", "vs"])
+def test_bad_value_under_a_value_function_names_only_that_key(kind):
+    """Issue 35 item 4: a bad value inside ``value_functions.<kind>`` (its keys come through
+    ``allOf`` + ``unevaluatedProperties``) used to also call every valid key of the block
+    unexpected; now only the offending key is named, and a real unknown key alone."""
+    base = load_yaml(REPO / "config.yaml")
+    with pytest.raises(ConfigError) as exc:
+        validate_config(deep_merge(base, {"value_functions": {kind: {"iterations": 0}}}))
+    lines = str(exc.value).splitlines()[1:]
+    assert lines == [f"  - 'value_functions.{kind}.iterations': 0 is less than the minimum of 1"], lines
+    with pytest.raises(ConfigError) as exc:
+        validate_config(deep_merge(base, {"value_functions": {kind: {"iterations": 0, "iteratoins": 5}}}))
+    lines = str(exc.value).splitlines()[1:]
+    assert len(lines) == 2 and "'iteratoins' was unexpected" in lines[0] and "batch_size" not in str(exc.value), lines
