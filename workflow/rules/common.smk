@@ -362,24 +362,16 @@ def shipped_sha256(wildcards):
 
 
 def check_shipped_models(shipped):
-    """Stop at parse time when a shipped model (V̂, V_s or a MARL policy) was trained for another
-    configuration than this one (madpinn.value_functions.shipping.check_training_hash)."""
+    """Stop before any job (dry runs included) when a shipped model (V̂, V_s or a MARL policy) is
+    missing, unreadable, of another kind (V̂ and V_s swapped), not the manifest's bytes (sha256), or
+    trained for another configuration than this one (madpinn.value_functions.shipping.check_shipped)."""
+    from madpinn.commands.errors import stop_workflow
     from madpinn.value_functions.build import KINDS, training_hash
-    from madpinn.value_functions.shipping import ShippedModelError, check_training_hash, read_manifest
+    from madpinn.value_functions.shipping import check_shipped
 
-    for name in shipped["names"]:
-        try:
-            if name in KINDS:
-                check_training_hash(shipped["dir"], name, training_hash(config, name))
-            elif is_marl_model(name):
-                entry = read_manifest(shipped["dir"])["models"].get(name)
-                expected = marl_training_hash(config, name)
-                if entry is not None and entry.get("training_config_hash") != expected:
-                    raise ShippedModelError(
-                        f"shipped policy '{name}' was trained for configuration hash {entry.get('training_config_hash')}, "
-                        f"this configuration's is {expected} (agents, observation, arenas, dtype or the method's "
-                        f"training settings changed since it was shipped); drop '{name}' from shipped_models.names "
-                        "to train it, or re-ship a policy trained with this configuration")
-        except (ShippedModelError, OSError, ValueError, ConfigError) as exc:
-            sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-            raise SystemExit(1)
+    try:
+        check_shipped(shipped["dir"], {name: training_hash(config, name) if name in KINDS
+                                       else marl_training_hash(config, name) if is_marl_model(name) else None
+                                       for name in shipped["names"]})
+    except Exception as exc:
+        stop_workflow(exc)
