@@ -10,7 +10,7 @@ from pathlib import Path
 sys.path.insert(0, workflow.basedir)  # the package, also when not pip-installed
 
 from madpinn.commands.errors import stop_workflow
-from madpinn.config import load_yaml, validate_config
+from madpinn.config import check_output_paths, load_yaml, validate_config
 
 DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
 
@@ -29,6 +29,7 @@ configfile: str(DEFAULT_CONFIG)
 
 try:
     validate_config(config)
+    check_output_paths(config)   # paths.results / paths.figures can be written (nothing is written here)
 except Exception as exc:
     stop_workflow(exc)
 

@@ -300,3 +300,40 @@ def write_if_changed(path: str | Path, text: str) -> Path:
     if path.is_file() and path.read_text() == text:
         return path
     return atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+OUTPUT_PATH_KEYS = ("paths.results", "paths.figures")
+"""the directories the workflow writes (checked before any job, dry runs included)"""
+
+
+def unwritable_reason(path: str | Path) -> str | None:
+    """Why directory ``path`` could not be created or written, or None when it can, found without
+    writing anything (a dry run's check): the path or its nearest existing ancestor must be a
+    directory this process may write (``os.access``: permissions, read-only mounts, immutable
+    directories) on a file system with storage (``/proc``, ``/sys`` have none)."""
+    import os
+
+    path = Path(path).absolute()
+    node = path
+    while not node.exists() and node != node.parent:
+        node = node.parent
+    if not node.is_dir():
+        return f"{node} is not a directory"
+    if not os.access(node, os.W_OK | os.X_OK):
+        return f"{node} is not writable" + (" (read-only file system)" if os.statvfs(node).f_flag & os.ST_RDONLY else "")
+    if os.statvfs(node).f_blocks == 0:
+        return f"{node} is on a file system without storage (e.g. /proc, /sys)"
+    return None
+
+
+def check_output_paths(cfg: Mapping[str, Any]) -> None:
+    """:class:`ConfigError` naming each key of :data:`OUTPUT_PATH_KEYS` whose directory cannot be
+    written (:func:`unwritable_reason`); relative paths are taken from the working directory."""
+    lines = []
+    for key in OUTPUT_PATH_KEYS:
+        value = lookup_key(cfg, key)
+        reason = unwritable_reason(value) if value is not None else None
+        if reason:
+            lines.append(f"  - '{key}': {value!r} cannot be written: {reason}")
+    if lines:
+        raise ConfigError("invalid configuration:\n" + "\n".join(lines))

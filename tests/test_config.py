@@ -219,3 +219,26 @@ def test_bad_value_under_a_value_function_names_only_that_key(kind):
         validate_config(deep_merge(base, {"value_functions": {kind: {"iterations": 0, "iteratoins": 5}}}))
     lines = str(exc.value).splitlines()[1:]
     assert len(lines) == 2 and "'iteratoins' was unexpected" in lines[0] and "batch_size" not in str(exc.value), lines
+
+
+def test_unwritable_results_path_is_one_line_before_any_job_dry_run_too(tmp_path):
+    """Issue 35 item 3: ``paths.results: /proc/r`` passed the dry run and the real run ended in a
+    traceback from common.smk (onstart / start_tracking). Both now stop while parsing, with one line
+    naming the key, and write nothing."""
+    from conftest import SMOKE, run_snakemake
+    from madpinn.config import unwritable_reason
+
+    (tmp_path / "a_file").write_text("")
+    assert "is not a directory" in unwritable_reason(tmp_path / "a_file" / "r")
+    assert unwritable_reason(tmp_path / "new" / "r") is None
+    for results in ("/proc/r", "a_file/r"):
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(f"paths: {{results: {results}}}\ntracking: {{enabled: false}}\n")
+        for dry in (["-n"], []):
+            before = sorted(p.name for p in tmp_path.iterdir())
+            proc = run_snakemake(tmp_path, *dry, "-j1", "all", configfiles=(SMOKE, bad), check=False)
+            lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+            assert proc.returncode != 0 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+            assert len(lines) == 1 and "'paths.results'" in lines[0] and "cannot be written" in lines[0], lines
+            assert sorted(p.name for p in tmp_path.iterdir() if p.name != ".snakemake") == \
+                [n for n in before if n != ".snakemake"]
