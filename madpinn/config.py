@@ -23,6 +23,10 @@ class ConfigError(ValueError):
     """Invalid configuration; the message names the offending key."""
 
 
+class TargetError(ConfigError):
+    """A workflow target (an output path asked for by name) outside this configuration."""
+
+
 def deep_merge(base: Mapping[str, Any], overlay: Mapping[str, Any]) -> dict:
     """Recursively merge ``overlay`` into a copy of ``base`` (dicts merge, everything else replaces)."""
     out = copy.deepcopy(dict(base))
@@ -337,3 +341,35 @@ def check_output_paths(cfg: Mapping[str, Any]) -> None:
             lines.append(f"  - '{key}': {value!r} cannot be written: {reason}")
     if lines:
         raise ConfigError("invalid configuration:\n" + "\n".join(lines))
+
+
+def check_cell(cfg: Mapping[str, Any], n_agents: int, seed: int, study: str | None = None, run: str | None = None,
+               arena: str | None = None, pattern: str | None = None) -> None:
+    """The checks :func:`validate_config` makes of configured cells, for one cell named by a
+    workflow target instead (an evaluation cell: ``study``, ``run``; an oracle file: ``arena``,
+    ``pattern``): the study, run and arena exist and ``n_agents`` fit in the arena (the scenario
+    sampler's bound, :func:`madpinn.scenarios.max_agents`, or the pattern's layout). Raises
+    :class:`TargetError` (a :class:`ConfigError`)."""
+    from madpinn.scenarios import UNIFORM, Arena, ScenarioInfeasibleError, generate_scenario, max_agents
+
+    if study is not None:
+        if study not in cfg["studies"]:
+            raise TargetError(f"unknown study '{study}' (this configuration's studies: {', '.join(sorted(cfg['studies']))})")
+        arena, pattern = cfg["studies"][study]["arena"], study_pattern(cfg["studies"][study])
+    if run is not None:
+        try:
+            method_config(cfg, run)
+        except ConfigError as exc:
+            raise TargetError(str(exc)) from exc
+    if arena not in cfg["arenas"]:
+        raise TargetError(f"unknown arena '{arena}' (this configuration's arenas: {', '.join(sorted(cfg['arenas']))})")
+    r = float(cfg["agents"]["collision_radius"])
+    limit = max_agents(float(cfg["arenas"][arena]["half_width"]), r)
+    if pattern in (None, UNIFORM) and not 1 <= n_agents <= limit:
+        raise TargetError(f"{n_agents} agents do not fit in arena '{arena}' with separation 2r = {2 * r:g} m (1 to "
+                          f"{limit}: the scenario sampler's coverage limit)")
+    if pattern not in (None, UNIFORM):   # as _infeasible_patterns: the pattern's first scenario
+        try:
+            generate_scenario(Arena.from_config(cfg, arena), n_agents, seed, 0, r, pattern)
+        except (ScenarioInfeasibleError, ValueError) as exc:   # ValueError: an unknown pattern
+            raise TargetError(str(exc)) from exc

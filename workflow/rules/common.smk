@@ -86,11 +86,29 @@ def model_args(wildcards):
 def cell_key(wildcards):
     """The job's wildcards as a param: the output cache hashes a rule's code and params, not its
     wildcards, so without it every cell of one (study, run) would share one cache entry."""
+    checked_cell(wildcards)
     return dict(wildcards.items())
+
+
+def checked_cell(wildcards):
+    """Stop with one line (dry runs too) when an evaluation cell or oracle file asked for by path is
+    outside this configuration: unknown study, run or arena, or more agents than the arena holds
+    (madpinn.config.check_cell: the checks validate_config makes of the configured cells)."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.config import TargetError, check_cell
+
+    w = dict(wildcards.items())
+    try:
+        check_cell(config, int(w["n"]), int(w["seed"]), study=w.get("study"), run=w.get("run"), arena=w.get("arena"),
+                   pattern=w.get("pattern"))
+    except TargetError as exc:
+        where = (f"{w['study']}/{w['run']}" if "study" in w else f"{w['arena']}/{w.get('pattern', 'uniform')}")
+        stop_workflow(TargetError(f"target {where} n{w['n']}_seed{w['seed']}: {exc}"))
 
 
 def job_hash(wildcards):
     """Hash of the config an evaluation cell depends on (``madpinn.config.job_config``) and dtype."""
+    checked_cell(wildcards)
     return config_hash({**job_config(config, wildcards.study, wildcards.run), "dtype": config["dtype"]})
 
 
