@@ -20,7 +20,7 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from madpinn.tracking.mlflow_store import client, experiment_id, job_runs, purge_runs
+from madpinn.tracking.mlflow_store import TrackingError, check_store, client, experiment_id, job_runs, purge_runs
 from madpinn.tracking.settings import TrackingSettings
 
 PARAMS_PER_BATCH = 100     # MLflow's log_batch limits
@@ -152,9 +152,8 @@ def flush_pending(settings: TrackingSettings) -> dict:
     failing record stays pending and is reported on stderr."""
     from dataclasses import replace
 
-    from madpinn.tracking.mlflow_store import TrackingError, check_store
-
     counts = {"logged": 0, "dropped": 0, "failed": 0, "kept": 0}
+    reachable: dict[str, bool] = {}
     if not settings.enabled or not settings.pending_dir.is_dir():
         return counts
     files = sorted(settings.pending_dir.glob("*.json"), key=lambda p: p.stat().st_mtime)
@@ -164,18 +163,22 @@ def flush_pending(settings: TrackingSettings) -> dict:
             if record.tags.get("madpinn.experiment_config", settings.experiment) != settings.experiment:
                 continue   # another configuration's run: flushed by its own workflow
             target = settings if record.uri in (None, settings.uri) else replace(settings, uri=record.uri)
-            if target is not settings:
+            if target is not settings and record.uri not in reachable:   # each other store checked once
                 try:
                     check_store(target)
+                    reachable[record.uri] = True
                 except TrackingError:
-                    counts["kept"] += 1
-                    print(f"WARNING: pending MLflow run {path} belongs to {record.uri}, which is unreachable; kept "
-                          f"pending (not logged to {settings.uri})", file=sys.stderr)
-                    continue
+                    reachable[record.uri] = False
+            if target is not settings and not reachable[record.uri]:
+                counts["kept"] += 1
+                print(f"WARNING: pending MLflow run {path} belongs to {record.uri}, which is unreachable; kept "
+                      f"pending (not logged to {settings.uri})", file=sys.stderr)
+                continue
             logged = replay(target, record)
         except Exception as exc:  # noqa: BLE001
             counts["failed"] += 1
-            print(f"WARNING: pending MLflow run {path} could not be logged to {settings.uri}: {exc}", file=sys.stderr)
+            print(f"WARNING: pending MLflow run {path} could not be logged to {record.uri or settings.uri}: {exc}",
+                  file=sys.stderr)
             continue
         counts["logged" if logged else "dropped"] += 1
         remove_pending(settings, record.job_key, record.source)
