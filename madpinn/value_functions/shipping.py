@@ -4,9 +4,12 @@ The manifest maps a model name (``vs``, ``vhat``, ``safemarl_nominal``, ``defmar
 ``{file, sha256, bytes, training_config_hash, git_commit, iterations, batch_size, samples,
 device, wall_s, validation}``, read from the checkpoint's own metadata (any checkpoint written
 by this project: a dict with a ``meta`` entry) plus the validation reports given. The workflow's
-``shipped`` overlay installs a shipped file into ``results/models/`` only after its sha256
-matches the manifest (:func:`install`), so a changed or corrupted file stops the run with a
-clear error instead of silently evaluating another model.
+``shipped`` overlay checks every shipped file before any job, dry runs included
+(:func:`check_shipped`: readable with ``weights_only=True``, of its kind, the manifest's sha256,
+trained for this configuration) and installs it into ``results/models/`` only after the same
+check (:func:`install`), so a changed, corrupted or swapped file stops the run with one clear
+line instead of silently evaluating another model. :func:`ship` reads and checks every new file
+before it writes anything.
 """
 
 from __future__ import annotations
