@@ -132,6 +132,13 @@ def test_shipped_policy_replaces_its_training_or_stops_the_workflow_when_trained
     assert not (tmp_path / "results").exists()
 
 
+def test_shipping_knows_the_checkpoint_formats():
+    from madpinn.marl import checkpoint
+    from madpinn.value_functions import model, shipping
+
+    assert (shipping.VALUE_FORMAT, shipping.MARL_FORMAT) == (model.FORMAT, checkpoint.FORMAT)
+
+
 def _snapshot(directory):
     return {p.name: p.read_bytes() for p in sorted(directory.iterdir())}
 

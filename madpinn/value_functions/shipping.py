@@ -28,7 +28,9 @@ class ShippedModelError(RuntimeError):
     bytes (sha256) or trained for another configuration; or a file given to ship is unusable."""
 
 
-VALUE_FORMAT = "madpinn-value-function"   # = value_functions.model.FORMAT (not imported: no torch at import)
+# The checkpoint formats, not imported from value_functions.model / marl.checkpoint (torch at import; the
+# MARL package is not a source of the value-function jobs); tests/test_value_shipping.py checks they agree.
+VALUE_FORMAT = "madpinn-value-function"   # = value_functions.model.FORMAT
 MARL_FORMAT = "madpinn-marl-ppo"           # = marl.checkpoint.FORMAT
 
 
