@@ -9,7 +9,8 @@ from pathlib import Path
 
 sys.path.insert(0, workflow.basedir)  # the package, also when not pip-installed
 
-from madpinn.config import ConfigError, load_yaml, validate_config
+from madpinn.commands.errors import stop_workflow
+from madpinn.config import check_output_paths, load_yaml, validate_config
 
 DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
 
@@ -19,9 +20,8 @@ DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
 try:
     for _path in [DEFAULT_CONFIG, *workflow.configfiles]:
         load_yaml(_path)
-except ConfigError as exc:
-    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-    raise SystemExit(1)
+except Exception as exc:
+    stop_workflow(exc)   # an expected error: its one line, as the commands print it (madpinn/commands/errors.py)
 
 
 configfile: str(DEFAULT_CONFIG)
@@ -29,9 +29,9 @@ configfile: str(DEFAULT_CONFIG)
 
 try:
     validate_config(config)
-except ConfigError as exc:
-    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-    raise SystemExit(1)
+    check_output_paths(config)   # paths.results / paths.figures can be written (nothing is written here)
+except Exception as exc:
+    stop_workflow(exc)
 
 
 report: "workflow/report/workflow.rst"

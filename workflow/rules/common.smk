@@ -86,11 +86,29 @@ def model_args(wildcards):
 def cell_key(wildcards):
     """The job's wildcards as a param: the output cache hashes a rule's code and params, not its
     wildcards, so without it every cell of one (study, run) would share one cache entry."""
+    checked_cell(wildcards)
     return dict(wildcards.items())
+
+
+def checked_cell(wildcards):
+    """Stop with one line (dry runs too) when an evaluation cell or oracle file asked for by path is
+    outside this configuration: unknown study, run or arena, or more agents than the arena holds
+    (madpinn.config.check_cell: the checks validate_config makes of the configured cells)."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.config import TargetError, check_cell
+
+    w = dict(wildcards.items())
+    try:
+        check_cell(config, int(w["n"]), int(w["seed"]), study=w.get("study"), run=w.get("run"), arena=w.get("arena"),
+                   pattern=w.get("pattern"))
+    except TargetError as exc:
+        where = (f"{w['study']}/{w['run']}" if "study" in w else f"{w['arena']}/{w.get('pattern', 'uniform')}")
+        stop_workflow(TargetError(f"target {where} n{w['n']}_seed{w['seed']}: {exc}"))
 
 
 def job_hash(wildcards):
     """Hash of the config an evaluation cell depends on (``madpinn.config.job_config``) and dtype."""
+    checked_cell(wildcards)
     return config_hash({**job_config(config, wildcards.study, wildcards.run), "dtype": config["dtype"]})
 
 
@@ -362,24 +380,16 @@ def shipped_sha256(wildcards):
 
 
 def check_shipped_models(shipped):
-    """Stop at parse time when a shipped model (V̂, V_s or a MARL policy) was trained for another
-    configuration than this one (madpinn.value_functions.shipping.check_training_hash)."""
+    """Stop before any job (dry runs included) when a shipped model (V̂, V_s or a MARL policy) is
+    missing, unreadable, of another kind (V̂ and V_s swapped), not the manifest's bytes (sha256), or
+    trained for another configuration than this one (madpinn.value_functions.shipping.check_shipped)."""
+    from madpinn.commands.errors import stop_workflow
     from madpinn.value_functions.build import KINDS, training_hash
-    from madpinn.value_functions.shipping import ShippedModelError, check_training_hash, read_manifest
+    from madpinn.value_functions.shipping import check_shipped
 
-    for name in shipped["names"]:
-        try:
-            if name in KINDS:
-                check_training_hash(shipped["dir"], name, training_hash(config, name))
-            elif is_marl_model(name):
-                entry = read_manifest(shipped["dir"])["models"].get(name)
-                expected = marl_training_hash(config, name)
-                if entry is not None and entry.get("training_config_hash") != expected:
-                    raise ShippedModelError(
-                        f"shipped policy '{name}' was trained for configuration hash {entry.get('training_config_hash')}, "
-                        f"this configuration's is {expected} (agents, observation, arenas, dtype or the method's "
-                        f"training settings changed since it was shipped); drop '{name}' from shipped_models.names "
-                        "to train it, or re-ship a policy trained with this configuration")
-        except (ShippedModelError, OSError, ValueError, ConfigError) as exc:
-            sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-            raise SystemExit(1)
+    try:
+        check_shipped(shipped["dir"], {name: training_hash(config, name) if name in KINDS
+                                       else marl_training_hash(config, name) if is_marl_model(name) else None
+                                       for name in shipped["names"]})
+    except Exception as exc:
+        stop_workflow(exc)
