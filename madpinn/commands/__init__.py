@@ -45,3 +45,14 @@ def main(argv: list[str] | None = None) -> int:
     debug = debug_requested(argv)
     args = build_parser().parse_args([a for a in argv if a != "--debug"])
     return run_reporting(lambda: args.func(args), debug)
+
+
+def handler_entry(command: str) -> str:
+    """``module:function`` of the handler that ``python -m madpinn <command>`` runs: the entry of
+    the job's code for :func:`madpinn.provenance.source_hash` (the workflow's ``source`` params)."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    if command not in sub.choices:
+        raise ValueError(f"unknown command '{command}' (have {sorted(sub.choices)})")
+    func = sub.choices[command].get_default("func")
+    return f"{func.__module__}:{func.__qualname__}"

@@ -6,7 +6,10 @@ import os
 import yaml
 
 from madpinn.config import ConfigError, config_hash, job_config, method_config, study_pattern, subtree_hash, write_if_changed
+from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
+from madpinn.provenance import plugin_module, registry
+from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
@@ -145,79 +148,32 @@ def settings_hash(*keys, extra=None):
     return subtree_hash(config, keys, extra)
 
 
-PACKAGE = Path(workflow.basedir) / "madpinn"
-
-# Parts of the package (sub-packages or modules under madpinn/) that each job family runs. Editing
-# a file there reruns the family's jobs (through their `source` param) and everything downstream;
-# the glue (commands, config, tracking, hints, checksums) changes no result and reruns
-# nothing. Evaluation cells list their modules of `evaluation/` one by one, so that editing the
-# tables, the report or the oracle does not rerun hours of cells (tests/test_workflow_sources.py
-# checks every module a family's entry imports is listed).
-SOURCES = {
-    "value": ["dynamics", "value_functions", "observation.py", "device.py", "settings.py", "atomic.py"],
-    "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py", "settings.py", "atomic.py"],
-    "evaluate": ["dynamics", "policies/__init__.py", "policies/base.py", "simulation", "evaluation/__init__.py",
-                 "evaluation/cell.py", "evaluation/metrics.py", "observation.py", "scenarios.py", "conflicts.py",
-                 "device.py", "settings.py"],
-    "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
-            "evaluation/cell.py", "evaluation/metrics.py", "evaluation/collisions.py", "evaluation/gap.py",
-            "observation.py", "scenarios.py", "conflicts.py", "device.py", "settings.py"],
-    "tables": ["evaluation", "figures", "scenarios.py", "conflicts.py"],
-    "report": ["evaluation", "scenarios.py", "conflicts.py"],
-    "oracle": ["evaluation/oracle.py", "scenarios.py", "conflicts.py"],
-    "render": ["simulation", "dynamics", "observation.py", "settings.py"],
-}
-# Each method's own modules, on top of SOURCES["evaluate"] for its evaluation cells: editing the
-# MAD-PINN policy reruns the MAD-PINN cells, not MPPI's or the baselines' (tests/test_workflow_sources.py
-# checks each method module's imports are covered). A method missing here gets the safe superset.
-# Of value_functions/, a cell runs only loading and inference (VF_INFERENCE); training, the grid
-# reference and the verification reach it through the trained model file, its input.
-VF_INFERENCE = ["value_functions/__init__.py", "value_functions/model.py", "value_functions/problems.py",
-                "value_functions/siren.py", "value_functions/symmetry.py", "value_functions/sampling.py",
-                "value_functions/validation.py"]
-METHOD_SOURCES = {
-    "nominal": ["policies/nominal.py"],
-    "madpinn": ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py", "policies/z_search.py",
-                "policies/safety_filter.py", "policies/cbvf_qp.py", *VF_INFERENCE],
-    "mppi": ["policies/mppi.py"],
-    "safemarl": ["policies/safemarl.py", "policies/safety_filter.py", "policies/cbvf_qp.py", *VF_INFERENCE, "marl"],
-    "defmarl": ["policies/defmarl.py", "marl"],
-}
-ANY_METHOD_SOURCES = ["policies", "value_functions", "marl"]
+# A rule's `source` param hashes the package code its command runs, computed from the import graph
+# (madpinn/provenance.py: the static closure of the command's handler, lazy imports included):
+# editing a module a job imports reruns the job and everything downstream, nothing else. The glue
+# (commands, config, tracking, checksums) changes no result and reruns nothing. Policies are loaded
+# by name (the registry `_MODULES` of madpinn/policies/base.py), so a cell hashes its own method's
+# policy module on top of the evaluate command: editing the MAD-PINN policy reruns the MAD-PINN
+# cells, not MPPI's or the baselines' (tests/test_workflow_sources.py).
+POLICY_REGISTRY = "madpinn.policies.base"
 _SOURCE_HASHES = {}
 
 
+def source_hash(command, *methods):
+    """sha256 (12 hex) of the package files `python -m madpinn <command>` runs, with the policy
+    modules of ``methods`` (a method the registry lacks: every policy)."""
+    key = (command, *methods)
+    if key not in _SOURCE_HASHES:
+        policies = [plugin_module(POLICY_REGISTRY, m) for m in methods]
+        if None in policies:
+            policies = list(registry(POLICY_REGISTRY).values())
+        _SOURCE_HASHES[key] = package_source_hash(handler_entry(command), *policies)
+    return _SOURCE_HASHES[key]
+
+
 def eval_source_hash(wildcards):
-    """An evaluation cell's source param: the shared evaluation code and its method's own modules."""
-    method = wildcards.run.partition("-")[0]
-    return f"{source_hash('evaluate')}-{source_hash(f'method:{method}')}"
-
-
-SOURCE_SUFFIXES = (".py", ".yaml", ".yml", ".json", ".csv", ".xml")   # code and package data (not caches or editor files)
-
-
-def _is_source(path):
-    """A file of the package that a job runs or reads (``SOURCE_SUFFIXES``)."""
-    return path.is_file() and path.suffix in SOURCE_SUFFIXES and "__pycache__" not in path.parts
-
-
-def source_hash(family):
-    """sha256 (12 hex) over the path and bytes of every file of ``SOURCES[family]`` (or, for
-    ``method:<m>``, of ``METHOD_SOURCES[m]``): the .py files and the package data beside them
-    (e.g. evaluation/paper_values.yaml), never caches (read only)."""
-    if family not in _SOURCE_HASHES:
-        if family.startswith("method:"):
-            parts = METHOD_SOURCES.get(family.removeprefix("method:"), ANY_METHOD_SOURCES)
-        else:
-            parts = SOURCES[family]
-        h = hashlib.sha256()
-        for part in parts:
-            root = PACKAGE / part
-            files = sorted(f for f in root.rglob("*") if _is_source(f)) if root.is_dir() else [root]
-            for f in files:
-                h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
-        _SOURCE_HASHES[family] = h.hexdigest()[:12]
-    return _SOURCE_HASHES[family]
+    """An evaluation cell's source param: the evaluate command and its run's method's policy."""
+    return source_hash("evaluate", wildcards.run.partition("-")[0])
 
 
 # --- one real run at a time; recovery after kill -9 with the plain command ---

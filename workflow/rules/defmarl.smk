@@ -22,7 +22,7 @@ if "defmarl" in config["methods"]:
         params:
             config=RESOLVED,
             train_hash=defmarl_train_hash,
-            source=source_hash("marl"),
+            source=source_hash("train-defmarl"),
         threads: 1
         resources:
             mem_mb=3000,

@@ -16,7 +16,7 @@ if "main" in config["studies"]:
         params:
             config=RESOLVED,
             settings=settings_hash("experiment", extra=run_labels("main")),
-            source=source_hash("tables"),
+            source=source_hash("figure"),
             out_dir=out_dir_of("png"),
         resources:
             mem_mb=2000,
@@ -42,7 +42,7 @@ rule fig_trajectories:
     params:
         config=RESOLVED,
         settings=settings_hash("experiment", "figures.trajectories", extra=run_labels(TRAJ["study"])),
-        source=source_hash("tables"),
+        source=source_hash("figure"),
         out_dir=out_dir_of("png"),
     resources:
         mem_mb=2000,

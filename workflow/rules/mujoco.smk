@@ -14,7 +14,7 @@ if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
         params:
             config=RESOLVED,
             settings=settings_hash("sim.mujoco", "arenas"),
-            source=source_hash("render"),
+            source=source_hash("render-clip"),
         resources:
             mem_mb=2000,
             runtime=15,

@@ -18,7 +18,7 @@ rule reproduction_report:
         config=RESOLVED,
         tables=[f"{n}={s}" for n, s in _REPORT_TABLES.items()],
         settings=settings_hash("experiment", extra={s: run_labels(s) for s in _REPORT_TABLES.values()}),
-        source=source_hash("report"),
+        source=source_hash("reproduction"),
         out_dir=out_dir_of("md"),
     resources:
         mem_mb=2000,

@@ -16,7 +16,7 @@ if "safemarl" in config["methods"]:
         params:
             config=RESOLVED,
             train_hash=safemarl_train_hash(),
-            source=source_hash("marl"),
+            source=source_hash("train-safemarl-nominal"),
         threads: 1
         resources:
             mem_mb=3000,

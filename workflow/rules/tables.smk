@@ -19,7 +19,7 @@ for _name, (_study, _kind) in TABLES.items():
             name=_name,
             kind=_kind,
             settings=settings_hash("experiment", extra=run_labels(_study)),
-            source=source_hash("tables"),
+            source=source_hash("table"),
             out_dir=out_dir_of("csv"),
         resources:
             mem_mb=1000,

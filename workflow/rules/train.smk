@@ -16,7 +16,7 @@ rule train_vhat:
         config=RESOLVED,
         init=init_arg("vhat"),
         settings=train_settings("vhat"),
-        source=source_hash("value"),
+        source=source_hash("train-value"),
     threads: VF_THREADS
     resources:
         mem_mb=4000,
@@ -45,7 +45,7 @@ rule train_vs:
         config=RESOLVED,
         init=init_arg("vs"),
         settings=train_settings("vs"),
-        source=source_hash("value"),
+        source=source_hash("train-value"),
     threads: VF_THREADS
     resources:
         mem_mb=4000,
@@ -74,7 +74,7 @@ rule validate_vs:
         config=RESOLVED,
         stem=stem_of("png"),
         settings=settings_hash("value_functions.vs.validation", "value_functions.seed", "dtype"),
-        source=source_hash("value"),
+        source=source_hash("validate-vs"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -97,7 +97,7 @@ rule validate_vhat:
     params:
         config=RESOLVED,
         settings=settings_hash("value_functions.vhat.validation", "value_functions.seed", "dtype"),
-        source=source_hash("value"),
+        source=source_hash("validate-vhat"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -123,7 +123,7 @@ rule fig_value_heatmap:
         config=RESOLVED,
         stem=stem_of("png"),
         settings=settings_hash("arenas.small", "dtype"),
-        source=source_hash("value"),
+        source=source_hash("fig-value-heatmap"),
     threads: 1
     resources:
         mem_mb=2000,

@@ -10,7 +10,7 @@ rule solve_vs_grid:
     params:
         config=RESOLVED,
         settings=settings_hash("agents", "value_functions.vs.validation.grid"),
-        source=source_hash("value"),
+        source=source_hash("solve-vs-grid"),
     threads: 2
     resources:
         mem_mb=4000,
@@ -37,7 +37,7 @@ rule validate_vs_grid:
     params:
         config=RESOLVED,
         stem=stem_of("png"),
-        source=source_hash("value"),
+        source=source_hash("validate-vs-grid"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -66,7 +66,7 @@ rule verify_vhat:
     params:
         config=RESOLVED,
         settings=settings_hash("value_functions.vhat.validation.scenario", "value_functions.seed", "dtype"),
-        source=source_hash("value"),
+        source=source_hash("verify-vhat"),
     threads: 1
     resources:
         mem_mb=2000,

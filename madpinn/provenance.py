@@ -1,0 +1,185 @@
+"""The package code a job runs: the static import closure of its entry and a hash over those files.
+
+The workflow's rules carry :func:`source_hash` of the command they run in their params, so that
+editing a module a job imports reruns that job (and what depends on it) and nothing else. Read on
+the source (``ast``; nothing is imported): every ``import`` of a module, function-level (lazy) ones
+included and ``if TYPE_CHECKING:`` blocks left out, and every package module named by a string
+constant (imported by name: ``importlib.import_module``, a package's PEP 562 ``_HOMES``). A
+superset of what runs, never less.
+
+Two refinements keep unrelated edits from rerunning hours of jobs:
+
+- An entry ``"module:function"`` (a command's handler) counts only the module-level imports of
+  ``module`` and those of ``function`` and of the module's functions and classes it names, so the
+  four commands of one command module hash their own code paths.
+- Plugin registries (a module-level dict ``_MODULES``: name -> module, one imported per job, e.g.
+  the policy of a run's method) are not followed; a job names the plugin it loads as an entry
+  (:func:`plugin_module`).
+
+:data:`GLUE` (the command layer, config parsing, tracking, checksums, atomic writes) changes no
+result: it is neither hashed nor followed beyond an entry.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+from functools import lru_cache
+from pathlib import Path
+from typing import Iterable
+
+PACKAGE = Path(__file__).resolve().parent
+GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
+        "madpinn.atomic", "madpinn.provenance")
+"""modules (and their sub-modules) that change no result"""
+REGISTRY = "_MODULES"
+"""name of a plugin registry: a module-level dict ``{name: module}``, one module imported per job"""
+DATA_SUFFIXES = (".yaml", ".yml", ".json", ".csv", ".xml")
+"""package data a module may read by file name (e.g. ``evaluation/paper_values.yaml``)"""
+
+
+def module_path(module: str) -> Path | None:
+    """The file of package module ``module`` (dotted, ``madpinn.x.y``), or None when it is none."""
+    if not all(part.isidentifier() for part in module.split(".")) or module.split(".")[0] != "madpinn":
+        return None
+    p = PACKAGE.joinpath(*module.split(".")[1:])
+    if (p / "__init__.py").is_file():
+        return p / "__init__.py"
+    return p.with_suffix(".py") if p.with_suffix(".py").is_file() else None
+
+
+def is_glue(module: str) -> bool:
+    return any(module == g or module.startswith(g + ".") for g in GLUE)
+
+
+@lru_cache(maxsize=None)
+def _tree(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(), filename=str(path))
+
+
+def _runtime_nodes(node: ast.AST):
+    """``node`` and every node below it except those under ``if TYPE_CHECKING:`` (never run) and
+    the values of a plugin registry (one is imported per job, named as an entry)."""
+    todo = [node]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.If) and getattr(node.test, "id", None) == "TYPE_CHECKING":
+            todo += node.orelse
+        elif not _is_registry(node):
+            yield node
+            todo += ast.iter_child_nodes(node)
+
+
+def _is_registry(node: ast.AST) -> bool:
+    return (isinstance(node, (ast.Assign, ast.AnnAssign)) and isinstance(node.value, ast.Dict)
+            and any(getattr(t, "id", None) == REGISTRY for t in getattr(node, "targets", [getattr(node, "target", None)])))
+
+
+def _edges(nodes: Iterable[ast.AST], module: str) -> set[str]:
+    """What ``nodes`` of ``module`` import: ``m`` for a whole module (``import m``, ``from p import m``,
+    ``from m import *``, a module named by a string), ``m:name`` for a name taken from module ``m``
+    (``from m import name``), and ``p:`` for each package whose ``__init__`` the import runs."""
+    out = set()
+    for top in nodes:
+        for node in _runtime_nodes(top):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    raise ValueError(f"{module}: relative import (line {node.lineno}); the package imports absolutely")
+                names = [node.module if a.name == "*" else f"{node.module}.{a.name}"
+                         if module_path(f"{node.module}.{a.name}") else f"{node.module}:{a.name}" for a in node.names]
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                names = [node.value]
+            else:
+                continue
+            for name in names:
+                m = name.partition(":")[0]
+                if module_path(m):
+                    parts = m.split(".")
+                    out |= {name} | {".".join(parts[:i]) + ":" for i in range(1, len(parts))}
+    return out
+
+
+_DEFS = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
+
+
+def _selected_nodes(tree: ast.Module, names: Iterable[str] | None) -> list[ast.AST]:
+    """The parts of a module that run when ``names`` of it are used (None: every part): its
+    module-level statements, the decorators, bases and defaults of its definitions (all run at
+    import), and, transitively, the definitions those and ``names`` name."""
+    if names is None:
+        return [tree]
+    defs = {n.name: n for n in tree.body if isinstance(n, _DEFS)}
+    nodes = [n for n in tree.body if not isinstance(n, _DEFS)]
+    for d in defs.values():
+        nodes += d.decorator_list + (d.bases + [k.value for k in d.keywords] if isinstance(d, ast.ClassDef)
+                                     else d.args.defaults + [x for x in d.args.kw_defaults if x is not None])
+    seen, todo = set(), [n.id for top in nodes for n in ast.walk(top) if isinstance(n, ast.Name)] + list(names)
+    while todo:
+        name = todo.pop()
+        if name in defs and name not in seen:
+            seen.add(name)
+            nodes.append(defs[name])
+            todo += [n.id for n in ast.walk(defs[name]) if isinstance(n, ast.Name)]
+    return nodes
+
+
+def imports(entry: str) -> set[str]:
+    """What ``entry`` imports (see :func:`_edges`): ``module`` (all of it), ``module:name`` (the
+    module-level code and the definition ``name``), ``module:`` (the module-level code only)."""
+    module, colon, name = entry.partition(":")
+    path = module_path(module)
+    if path is None:
+        raise ValueError(f"'{module}' is not a module of the madpinn package")
+    names = None if not colon else [name] if name else []
+    return _edges(_selected_nodes(_tree(path), names), module)
+
+
+def closure(entries: Iterable[str]) -> set[str]:
+    """Modules that the entries (``module`` or ``module:function``) reach, the entries' own
+    modules and their packages included; glue reached on the way is not followed further."""
+    entries = list(entries)
+    seen, todo = set(), list(entries)
+    while todo:
+        e = todo.pop()
+        if e not in seen:
+            seen.add(e)
+            if e in entries or not is_glue(e.partition(":")[0]):
+                todo += imports(e)
+    return {e.partition(":")[0] for e in seen}
+
+
+def data_files(module: str) -> list[Path]:
+    """Package data beside ``module`` that it names by file name (a string constant)."""
+    path = module_path(module)
+    names = {n.value for n in ast.walk(_tree(path)) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    return sorted(f for f in path.parent.iterdir() if f.suffix in DATA_SUFFIXES and f.name in names)
+
+
+def source_files(entries: Iterable[str]) -> list[Path]:
+    """Every file a job with these entries runs or reads: the closure less glue, with its data."""
+    modules = sorted(m for m in closure(entries) if not is_glue(m))
+    files = {module_path(m) for m in modules} | {f for m in modules for f in data_files(m)}
+    return sorted(files)
+
+
+def source_hash(*entries: str) -> str:
+    """sha256 (12 hex) over the package-relative path and bytes of :func:`source_files`."""
+    h = hashlib.sha256()
+    for f in source_files(entries):
+        h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
+    return h.hexdigest()[:12]
+
+
+def registry(module: str) -> dict[str, str]:
+    """The plugin registry (``_MODULES``) of ``module``: name -> module, read from the source."""
+    for node in _tree(module_path(module)).body:
+        if _is_registry(node):
+            return ast.literal_eval(node.value)
+    raise ValueError(f"{module} has no {REGISTRY}")
+
+
+def plugin_module(module: str, name: str) -> str | None:
+    """The module registered under ``name`` in ``module``'s registry (None: not a plugin there)."""
+    return registry(module).get(name)
