@@ -1,7 +1,10 @@
-"""The package code a job runs: the static import closure of its entry and a hash over those files.
+"""What a job depends on: the package code it runs and the part of the config it reads.
 
-The workflow's rules carry :func:`source_hash` of the command they run in their params, so that
-editing a module a job imports reruns that job (and what depends on it) and nothing else. Read on
+The workflow's rules carry both in their params (``source``, ``settings``), so that editing a
+module a job imports, or changing a setting it reads, reruns that job (and what depends on it) and
+nothing else.
+
+**Code** (:func:`source_hash`): the static import closure of the job's entry, read on
 the source (``ast``; nothing is imported): every ``import`` of a module, function-level (lazy) ones
 included and ``if TYPE_CHECKING:`` blocks left out, and every package module named by a string
 constant (imported by name: ``importlib.import_module``, a package's PEP 562 ``_HOMES``). A
@@ -18,6 +21,12 @@ Two refinements keep unrelated edits from rerunning hours of jobs:
 
 :data:`GLUE` (the command layer, config parsing, tracking, checksums, atomic writes) changes no
 result: it is neither hashed nor followed beyond an entry.
+
+**Config** (:func:`job_settings`, :func:`settings_hash`): per command, the one package function
+that says what its jobs read: a trained model's own training hash
+(:func:`madpinn.value_functions.build.training_hash`, :func:`madpinn.marl_hash.marl_training_hash`:
+never validation or deployment-only settings), an evaluation cell's
+:func:`madpinn.config.job_config`, and for the checks and outputs the config subtrees they read.
 """
 
 from __future__ import annotations
@@ -26,7 +35,9 @@ import ast
 import hashlib
 from functools import lru_cache
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Mapping
+
+from madpinn.config import lookup_key
 
 PACKAGE = Path(__file__).resolve().parent
 GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
@@ -183,3 +194,77 @@ def registry(module: str) -> dict[str, str]:
 def plugin_module(module: str, name: str) -> str | None:
     """The module registered under ``name`` in ``module``'s registry (None: not a plugin there)."""
     return registry(module).get(name)
+
+
+# --- the config a job reads ---
+
+def _keys(*keys: str):
+    """A job that reads these config subtrees (dotted keys) and nothing else."""
+    return lambda cfg, **_: {k: lookup_key(cfg, k) for k in keys}
+
+
+def _labels(cfg: Mapping, *studies: str) -> dict:
+    """The labels tables, figures and the report print for the studies' runs."""
+    from madpinn.config import method_config
+
+    return {st: {run: method_config(cfg, run)[1].get("label", run) for run in cfg["studies"][st]["runs"]}
+            for st in studies}
+
+
+def _training(cfg: Mapping, kind: str) -> str:
+    from madpinn.value_functions.build import training_hash
+
+    return training_hash(cfg, kind)
+
+
+def _marl(cfg: Mapping, name: str) -> str:
+    from madpinn.marl_hash import marl_training_hash
+
+    return marl_training_hash(cfg, name)
+
+
+def _cell(cfg: Mapping, study: str, run: str) -> dict:
+    from madpinn.config import job_config
+
+    return {**job_config(cfg, study, run), "dtype": cfg["dtype"]}
+
+
+_VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
+READS = {
+    "train-value": lambda cfg, kind: _training(cfg, kind),
+    "train-safemarl-nominal": lambda cfg: _marl(cfg, "safemarl_nominal"),
+    "train-defmarl": lambda cfg, variant: _marl(cfg, f"defmarl_{variant}"),
+    "evaluate": _cell,
+    "validate-vs": _keys("value_functions.vs.validation", *_VF_RUN),
+    "validate-vhat": _keys("value_functions.vhat.validation.samples", *_VF_RUN),
+    "verify-vhat": _keys("value_functions.vhat.validation.scenario", *_VF_RUN),
+    "fig-value-heatmap": _keys("arenas.small.half_width", *_VF_RUN),
+    "solve-vs-grid": _keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
+                           "value_functions.vs.v_range", "value_functions.vs.validation.grid"),
+    "validate-vs-grid": _keys(*_VF_RUN),
+    "oracle": lambda cfg, arena: {"oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena]},
+    "table": lambda cfg, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study)},
+    "figure": lambda cfg, name, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study),
+                                        **({"trajectories": cfg["figures"]["trajectories"]}
+                                           if name == "fig_trajectories" else {})},
+    "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
+    "render-clip": _keys("sim.mujoco", "arenas"),
+    "gap-decomposition": _keys("gap_decomposition", "agents", "observation", "sim", "arenas", "methods.madpinn",
+                               "dtype"),
+}
+"""command -> function(cfg, **job) -> what its jobs read (``job``: the job's wildcards)"""
+
+
+def job_settings(cfg: Mapping, command: str, **job) -> object:
+    """The part of the validated config that one job of ``python -m madpinn <command>`` reads
+    (``job``: e.g. ``kind``, ``study`` and ``run``, ``arena``)."""
+    if command not in READS:
+        raise ValueError(f"no config dependency declared for command '{command}' (madpinn.provenance.READS)")
+    return READS[command](cfg, **job)
+
+
+def settings_hash(cfg: Mapping, command: str, **job) -> str:
+    """Hash (12 hex) of :func:`job_settings`: the rules' ``settings`` param."""
+    from madpinn.config import config_hash
+
+    return config_hash(job_settings(cfg, command, **job))

@@ -5,10 +5,11 @@ import os
 
 import yaml
 
-from madpinn.config import ConfigError, config_hash, job_config, method_config, study_pattern, subtree_hash, write_if_changed
+from madpinn.config import ConfigError, study_pattern, write_if_changed
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.provenance import plugin_module, registry
+from madpinn.provenance import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 
@@ -92,11 +93,6 @@ def cell_key(wildcards):
     return dict(wildcards.items())
 
 
-def job_hash(wildcards):
-    """Hash of the config an evaluation cell depends on (``madpinn.config.job_config``) and dtype."""
-    return config_hash({**job_config(config, wildcards.study, wildcards.run), "dtype": config["dtype"]})
-
-
 def _cell_size(wildcards):
     """Agent-steps of one evaluation cell (scenarios × N × steps)."""
     st = config["studies"][wildcards.study]
@@ -140,12 +136,19 @@ def all_targets():
 EXTRA_TARGETS = []
 
 
-# --- what each job depends on: config subtrees and package sources (params -> rerun-triggers) ---
+# --- what each job depends on: the config it reads and the package code it runs (params -> rerun-triggers) ---
+# A rule's `settings` param hashes the part of the config its command's jobs read, said once by the
+# package (madpinn.provenance.READS: a trained model's own training hash, an evaluation cell's
+# job_config, the subtrees a check or an output reads): a change of exactly that reruns the job and
+# everything downstream; a deployment knob or a validation setting never reruns a training.
 
-def settings_hash(*keys, extra=None):
-    """Hash of the config subtrees a job reads (dotted keys) plus ``extra``; a rule's ``params``
-    carries it, so that a change of exactly those settings reruns the job and its dependents."""
-    return subtree_hash(config, keys, extra)
+def settings_hash(command, *wildcard_names, **job):
+    """The `settings` param of the jobs of `python -m madpinn <command>`, with fixed job arguments
+    ``job`` and, by name, arguments taken from each job's wildcards (then it is a function)."""
+    if wildcard_names:
+        return lambda wildcards: package_settings_hash(
+            config, command, **job, **{n: getattr(wildcards, n) for n in wildcard_names})
+    return package_settings_hash(config, command, **job)
 
 
 # A rule's `source` param hashes the package code its command runs, computed from the import graph
@@ -253,11 +256,6 @@ def init_arg(kind):
     return [a for p in init_model(kind) for a in ("--model", f"init={p}")]
 
 
-def train_settings(kind):
-    """Everything the trained weights and their summary depend on (the job's params hash)."""
-    return settings_hash(f"value_functions.{kind}", "value_functions.seed", "agents", "observation", "dtype")
-
-
 def train_runtime(kind):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
     v = config["value_functions"][kind]
@@ -265,22 +263,9 @@ def train_runtime(kind):
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
 
-def defmarl_train_hash(wildcards):
-    return marl_training_hash(config, f"defmarl_{wildcards.variant}")
-
-
-def safemarl_train_hash():
-    return marl_training_hash(config, "safemarl_nominal")
-
-
 def traj_inputs(wildcards=None):
     st = config["studies"][TRAJ["study"]]
     return [eval_path(TRAJ["study"], run, TRAJ["n_agents"], TRAJ["seed"]).replace(".parquet", "_traj.npz") for run in st["runs"]]
-
-
-def run_labels(study):
-    """Labels the tables and figures print for a study's runs (part of their params hash)."""
-    return {run: method_config(config, run)[1].get("label", run) for run in config["studies"][study]["runs"]}
 
 
 # --- oracle (oracle.smk) and reproduction report (report.smk) helpers ---

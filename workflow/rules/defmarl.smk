@@ -2,7 +2,6 @@
 # evaluation jobs of run defmarl-<variant> depend on that variant's model only.
 # CPU budget (paper config, 1 100 iterations, 1 thread): ~1 h per model on the 2-core CI-class machine
 # (docs/defmarl.md); smoke: seconds.
-# Helpers (defmarl_train_hash): common.smk.
 if "defmarl" in config["methods"]:
     DEFMARL_VARIANTS = sorted(config["methods"]["defmarl"]["variants"])
     for _v in DEFMARL_VARIANTS:
@@ -21,7 +20,7 @@ if "defmarl" in config["methods"]:
             variant="|".join(DEFMARL_VARIANTS),
         params:
             config=RESOLVED,
-            train_hash=defmarl_train_hash,
+            settings=settings_hash("train-defmarl", "variant"),
             source=source_hash("train-defmarl"),
         threads: 1
         resources:

@@ -15,7 +15,7 @@ if "main" in config["studies"]:
             pdf=f"{FIGURES}/fig_cost_safety.pdf",
         params:
             config=RESOLVED,
-            settings=settings_hash("experiment", extra=run_labels("main")),
+            settings=settings_hash("figure", name="fig_cost_safety", study="main"),
             source=source_hash("figure"),
             out_dir=out_dir_of("png"),
         resources:
@@ -41,7 +41,7 @@ rule fig_trajectories:
         pdf=f"{FIGURES}/fig_trajectories.pdf",
     params:
         config=RESOLVED,
-        settings=settings_hash("experiment", "figures.trajectories", extra=run_labels(TRAJ["study"])),
+        settings=settings_hash("figure", name="fig_trajectories", study=TRAJ["study"]),
         source=source_hash("figure"),
         out_dir=out_dir_of("png"),
     resources:

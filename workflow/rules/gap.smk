@@ -19,7 +19,7 @@ rule gap_decomposition:
         scenarios=GAP["scenarios"],
         sweep=["--margin-sweep", *map(str, GAP["margin_sweep"])] if GAP["margin_sweep"] else [],
         out_dir=out_dir_of("csv"),
-        settings=settings_hash("gap_decomposition", "agents", "observation", "sim", "arenas", "methods.madpinn", "dtype"),
+        settings=settings_hash("gap-decomposition"),
         source=source_hash("gap-decomposition", "madpinn"),
     threads: 1
     resources:

@@ -13,7 +13,7 @@ if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
             f"{RESULTS}/clips/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.json",
         params:
             config=RESOLVED,
-            settings=settings_hash("sim.mujoco", "arenas"),
+            settings=settings_hash("render-clip"),
             source=source_hash("render-clip"),
         resources:
             mem_mb=2000,

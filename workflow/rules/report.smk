@@ -17,7 +17,7 @@ rule reproduction_report:
     params:
         config=RESOLVED,
         tables=[f"{n}={s}" for n, s in _REPORT_TABLES.items()],
-        settings=settings_hash("experiment", extra={s: run_labels(s) for s in _REPORT_TABLES.values()}),
+        settings=settings_hash("reproduction", studies=sorted(set(_REPORT_TABLES.values()))),
         source=source_hash("reproduction"),
         out_dir=out_dir_of("md"),
     resources:

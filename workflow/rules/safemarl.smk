@@ -15,7 +15,7 @@ if "safemarl" in config["methods"]:
             summary=f"{RESULTS}/models/safemarl_nominal.json",
         params:
             config=RESOLVED,
-            train_hash=safemarl_train_hash(),
+            settings=settings_hash("train-safemarl-nominal"),
             source=source_hash("train-safemarl-nominal"),
         threads: 1
         resources:

@@ -18,7 +18,7 @@ for _name, (_study, _kind) in TABLES.items():
             config=RESOLVED,
             name=_name,
             kind=_kind,
-            settings=settings_hash("experiment", extra=run_labels(_study)),
+            settings=settings_hash("table", study=_study),
             source=source_hash("table"),
             out_dir=out_dir_of("csv"),
         resources:

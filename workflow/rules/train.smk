@@ -1,6 +1,6 @@
 # Value functions (issue 3): train V̂ and V_s, validate them, and draw their figures.
 # Other rule files read the models as `rules.train_vhat.output.model` / `rules.train_vs.output.model`.
-# Helpers (init_model, init_arg, train_settings, train_runtime): common.smk.
+# Helpers (init_model, init_arg, train_runtime): common.smk.
 VF_THREADS = int(config["value_functions"]["threads"])
 
 
@@ -15,7 +15,7 @@ rule train_vhat:
     params:
         config=RESOLVED,
         init=init_arg("vhat"),
-        settings=train_settings("vhat"),
+        settings=settings_hash("train-value", kind="vhat"),
         source=source_hash("train-value"),
     threads: VF_THREADS
     resources:
@@ -44,7 +44,7 @@ rule train_vs:
     params:
         config=RESOLVED,
         init=init_arg("vs"),
-        settings=train_settings("vs"),
+        settings=settings_hash("train-value", kind="vs"),
         source=source_hash("train-value"),
     threads: VF_THREADS
     resources:
@@ -73,7 +73,7 @@ rule validate_vs:
     params:
         config=RESOLVED,
         stem=stem_of("png"),
-        settings=settings_hash("value_functions.vs.validation", "value_functions.seed", "dtype"),
+        settings=settings_hash("validate-vs"),
         source=source_hash("validate-vs"),
     threads: 1
     resources:
@@ -96,7 +96,7 @@ rule validate_vhat:
         report=f"{RESULTS}/validation/vhat_residuals.json",
     params:
         config=RESOLVED,
-        settings=settings_hash("value_functions.vhat.validation", "value_functions.seed", "dtype"),
+        settings=settings_hash("validate-vhat"),
         source=source_hash("validate-vhat"),
     threads: 1
     resources:
@@ -122,7 +122,7 @@ rule fig_value_heatmap:
     params:
         config=RESOLVED,
         stem=stem_of("png"),
-        settings=settings_hash("arenas.small", "dtype"),
+        settings=settings_hash("fig-value-heatmap"),
         source=source_hash("fig-value-heatmap"),
     threads: 1
     resources:

@@ -9,7 +9,7 @@ rule solve_vs_grid:
         solution=f"{RESULTS}/validation/vs_grid_solution.npz",
     params:
         config=RESOLVED,
-        settings=settings_hash("agents", "value_functions.vs.validation.grid"),
+        settings=settings_hash("solve-vs-grid"),
         source=source_hash("solve-vs-grid"),
     threads: 2
     resources:
@@ -37,6 +37,7 @@ rule validate_vs_grid:
     params:
         config=RESOLVED,
         stem=stem_of("png"),
+        settings=settings_hash("validate-vs-grid"),
         source=source_hash("validate-vs-grid"),
     threads: 1
     resources:
@@ -65,7 +66,7 @@ rule verify_vhat:
         report=f"{RESULTS}/validation/vhat_scenario.json",
     params:
         config=RESOLVED,
-        settings=settings_hash("value_functions.vhat.validation.scenario", "value_functions.seed", "dtype"),
+        settings=settings_hash("verify-vhat"),
         source=source_hash("verify-vhat"),
     threads: 1
     resources:
