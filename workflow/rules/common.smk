@@ -44,17 +44,33 @@ OUTPUT_CACHE = os.environ.setdefault(
     "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
 )
 
-# Trained files a run's policy loads: run name (`method-variant`, looked up first) or method ->
-# function(wildcards) -> {name: path}, written with the training rules' outputs
-# (`rules.train_vs.output.model`); each rule file of a method registers its own. The evaluate
-# rule depends on these files and passes them as `--model NAME=PATH`.
-METHOD_MODELS = {}
+# --- what rule files add: one registry, read lazily (when `all`, the evaluate rule and the report
+# build their inputs), so the order of the includes does not matter ---
+# targets: final outputs `all` builds besides the evaluation cells and the tables;
+# models: run name (`method-variant`, looked up first) or method -> function(wildcards) -> {name: path}
+#   of the trained files its policy loads (the evaluate rule depends on them and passes them as
+#   `--model NAME=PATH`); tables: table name -> (study, kind), each its own rule (register_table).
+REGISTERED = {"targets": [], "models": {}, "tables": {}}
 
-# table name -> (study, kind); a table is built when its study is configured.
-TABLES = {
-    "table_safety_scaling": ("main", "safety_by_n"),
-    "table_ours_scaling": ("scaling", "summary"),
-}
+
+def register_targets(*paths):
+    """Final outputs a rule file adds to `all`."""
+    REGISTERED["targets"].extend(str(p) for p in paths)
+
+
+def register_models(run, models):
+    """The trained files run ``run`` (a method, or `method-variant`) loads: ``models(wildcards)`` ->
+    {name: path}, written with the training rules' outputs (`rules.train_vs.output.model`)."""
+    REGISTERED["models"][run] = models
+
+
+def register_table(name, study, kind):
+    """A table built from ``study``'s cells when the study is configured: its rule ``name``
+    (`snakemake -j2 <name>`), a target of `all` and a table of the reproduction report."""
+    REGISTERED["tables"][name] = (study, kind)
+    if study in config["studies"]:
+        table_rule(name, study, kind)
+
 
 wildcard_constraints:
     backend=r"[a-z_]+",
@@ -77,7 +93,8 @@ def run_models(wildcards):
     """{name: path} of the trained files run ``wildcards.run`` loads (full run name first, then method).
     Plain strings: a ``rules.X.output`` reference would pin the file's producer to rule X, and the
     shipped overlay (workflow/configs/shipped.yaml) provides it by its install rule instead."""
-    models = METHOD_MODELS.get(wildcards.run, METHOD_MODELS.get(wildcards.run.split("-")[0]))
+    registered = REGISTERED["models"]
+    models = registered.get(wildcards.run, registered.get(wildcards.run.split("-")[0]))
     return {k: str(v) for k, v in models(wildcards).items()} if models else {}
 
 
@@ -118,22 +135,22 @@ def eval_runtime(wildcards):
     return 10 + int(2 * 200e-6 * _cell_size(wildcards) / 60)
 
 
-def table_targets():
-    return [
-        f"{FIGURES}/{name}.{ext}"
-        for name, (study, _) in TABLES.items()
-        if study in config["studies"]
-        for ext in ("csv", "md", "tex")
-    ]
+def configured_tables():
+    """Registered tables whose study is configured: name -> study."""
+    return {name: study for name, (study, _) in REGISTERED["tables"].items() if study in config["studies"]}
 
 
-def all_targets():
+def report_studies():
+    """The studies of the configured tables (the reproduction report's)."""
+    return sorted(set(configured_tables().values()))
+
+
+def all_targets(wildcards=None):
+    """Every final output: the evaluation cells, the tables and the registered targets (an input
+    function of `all`: called after every rule file has registered its part)."""
     evals = [p for study in config["studies"] for p in study_results(study)]
-    return evals + table_targets()
-
-
-# Rule files included later may extend this list (figures, validation outputs).
-EXTRA_TARGETS = []
+    tables = [f"{FIGURES}/{name}.{ext}" for name in configured_tables() for ext in ("csv", "md", "tex")]
+    return evals + tables + REGISTERED["targets"]
 
 
 # --- what each job depends on: the config it reads and the package code it runs (params -> rerun-triggers) ---
@@ -143,11 +160,13 @@ EXTRA_TARGETS = []
 # everything downstream; a deployment knob or a validation setting never reruns a training.
 
 def settings_hash(command, *wildcard_names, **job):
-    """The `settings` param of the jobs of `python -m madpinn <command>`, with fixed job arguments
-    ``job`` and, by name, arguments taken from each job's wildcards (then it is a function)."""
-    if wildcard_names:
+    """The `settings` param of the jobs of `python -m madpinn <command>`, with job arguments ``job``
+    (a callable one is called when the job is built) and, by name, arguments taken from each job's
+    wildcards (with either, the param is a function)."""
+    if wildcard_names or any(callable(v) for v in job.values()):
         return lambda wildcards: package_settings_hash(
-            config, command, **job, **{n: getattr(wildcards, n) for n in wildcard_names})
+            config, command, **{k: v() if callable(v) else v for k, v in job.items()},
+            **{n: getattr(wildcards, n) for n in wildcard_names})
     return package_settings_hash(config, command, **job)
 
 
@@ -266,6 +285,41 @@ def train_runtime(kind):
 def traj_inputs(wildcards=None):
     st = config["studies"][TRAJ["study"]]
     return [eval_path(TRAJ["study"], run, TRAJ["n_agents"], TRAJ["seed"]).replace(".parquet", "_traj.npz") for run in st["runs"]]
+
+
+# --- tables (register_table): one rule per table, defined where the table is registered ---
+
+def table_rule(name, study, kind):
+    """Define the rule ``name`` that builds table ``name`` (csv, md, tex) of ``kind`` from ``study``."""
+
+    rule:
+        name:
+            name
+        input:
+            tracking=TRACKING,
+            results=study_results(study),
+            oracle=oracle_inputs(study),
+        output:
+            csv=report(f"{FIGURES}/{name}.csv", caption=f"../report/{name}.rst", category="Tables"),
+            md=f"{FIGURES}/{name}.md",
+            tex=f"{FIGURES}/{name}.tex",
+        params:
+            config=RESOLVED,
+            name=name,
+            kind=kind,
+            settings=settings_hash("table", study=study),
+            source=source_hash("table"),
+            out_dir=out_dir_of("csv"),
+        resources:
+            mem_mb=1000,
+            runtime=10,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/{name}.log",
+        shell:
+            "python -m madpinn table --config {params.config:q} --name {params.name:q} --kind {params.kind:q}"
+            " --inputs {input.results:q} --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
 # --- oracle (oracle.smk) and reproduction report (report.smk) helpers ---

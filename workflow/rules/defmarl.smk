@@ -5,9 +5,9 @@
 if "defmarl" in config["methods"]:
     DEFMARL_VARIANTS = sorted(config["methods"]["defmarl"]["variants"])
     for _v in DEFMARL_VARIANTS:
-        METHOD_MODELS[f"defmarl-{_v}"] = lambda wildcards: {
+        register_models(f"defmarl-{_v}", lambda wildcards: {
             "policy": expand(rules.train_defmarl.output.model, variant=wildcards.run.partition("-")[2])[0]
-        }
+        })
 
     rule train_defmarl:
         input:

@@ -29,7 +29,7 @@ if "main" in config["studies"]:
             "python -m madpinn figure --config {params.config:q} --name fig_cost_safety --inputs {input.results:q}"
             " --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
-    EXTRA_TARGETS += expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS)
+    register_targets(*expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS))
 
 
 rule fig_trajectories:
@@ -56,4 +56,4 @@ rule fig_trajectories:
         " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS)
+register_targets(*expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS))

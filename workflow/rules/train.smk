@@ -137,8 +137,8 @@ rule fig_value_heatmap:
         " --threads {threads} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += [
+register_targets(
     f"{RESULTS}/validation/vs_rollouts.json",
     f"{RESULTS}/validation/vhat_residuals.json",
     *[f"{FIGURES}/{name}.{ext}" for name in ("fig_value_heatmap", "fig_vs_slices") for ext in ("pdf", "png")],
-]
+)

@@ -52,10 +52,7 @@ rule validate_vs_grid:
         " --out {output.report:q} --fig-stem {params.stem:q} --threads {threads} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += [
-    f"{RESULTS}/validation/vs_grid.json",
-    *[f"{FIGURES}/fig_vs_grid.{ext}" for ext in ("pdf", "png")],
-]
+register_targets(f"{RESULTS}/validation/vs_grid.json", *[f"{FIGURES}/fig_vs_grid.{ext}" for ext in ("pdf", "png")])
 
 
 rule verify_vhat:
@@ -81,4 +78,4 @@ rule verify_vhat:
         " --threads {threads} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += [f"{RESULTS}/validation/vhat_scenario.json"]
+register_targets(f"{RESULTS}/validation/vhat_scenario.json")
