@@ -44,12 +44,13 @@ OUTPUT_CACHE = os.environ.setdefault(
     "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
 )
 
-# --- what rule files add: one registry, read lazily (when `all`, the evaluate rule and the report
-# build their inputs), so the order of the includes does not matter ---
-# targets: final outputs `all` builds besides the evaluation cells and the tables;
-# models: run name (`method-variant`, looked up first) or method -> function(wildcards) -> {name: path}
-#   of the trained files its policy loads (the evaluate rule depends on them and passes them as
-#   `--model NAME=PATH`); tables: table name -> (study, kind), each its own rule (register_table).
+# --- what the rule files add, registered in one place and read lazily (when `all`, the evaluate
+# rule and the report build their inputs), so that the order of the includes does not matter ---
+#   targets = final outputs `all` builds besides the evaluation cells and the tables;
+#   models = run name (`method-variant`, looked up first) or method -> function(wildcards) -> {name: path}
+#     of the trained files its policy loads (the evaluate rule depends on them and passes them as
+#     `--model NAME=PATH`);
+#   tables = table name -> (study, kind), each with its own rule (register_table).
 REGISTERED = {"targets": [], "models": {}, "tables": {}}
 
 
