@@ -63,8 +63,14 @@ def is_glue(module: str) -> bool:
     return any(module == g or module.startswith(g + ".") for g in GLUE)
 
 
-@lru_cache(maxsize=None)
 def _tree(path: Path) -> ast.Module:
+    """The parsed module (cached while the file keeps its size and mtime)."""
+    st = path.stat()
+    return _parse(path, st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=None)
+def _parse(path: Path, mtime_ns: int, size: int) -> ast.Module:
     return ast.parse(path.read_text(), filename=str(path))
 
 
@@ -82,8 +88,9 @@ def _runtime_nodes(node: ast.AST):
 
 
 def _is_registry(node: ast.AST) -> bool:
-    return (isinstance(node, (ast.Assign, ast.AnnAssign)) and isinstance(node.value, ast.Dict)
-            and any(getattr(t, "id", None) == REGISTRY for t in getattr(node, "targets", [getattr(node, "target", None)])))
+    """``_MODULES = {...}`` (or annotated)."""
+    targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+    return isinstance(getattr(node, "value", None), ast.Dict) and any(getattr(t, "id", None) == REGISTRY for t in targets)
 
 
 def _edges(nodes: Iterable[ast.AST], module: str) -> set[str]:

@@ -1,6 +1,5 @@
 # Shared paths, target lists and helpers. Later rule files register what their methods need.
 import fcntl
-import hashlib
 import os
 
 import yaml
