@@ -45,12 +45,15 @@ GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints
 """modules (and their sub-modules) that change no result"""
 REGISTRY = "_MODULES"
 """name of a plugin registry: a module-level dict ``{name: module}``, one module imported per job"""
+_DEFS = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
 DATA_SUFFIXES = (".yaml", ".yml", ".json", ".csv", ".xml")
 """package data a module may read by file name (e.g. ``evaluation/paper_values.yaml``)"""
 
 
+@lru_cache(maxsize=None)
 def module_path(module: str) -> Path | None:
-    """The file of package module ``module`` (dotted, ``madpinn.x.y``), or None when it is none."""
+    """The file of package module ``module`` (dotted, ``madpinn.x.y``), or None when it is none
+    (cached: a process sees the package's layout once)."""
     if not all(part.isidentifier() for part in module.split(".")) or module.split(".")[0] != "madpinn":
         return None
     p = PACKAGE.joinpath(*module.split(".")[1:])
@@ -63,15 +66,31 @@ def is_glue(module: str) -> bool:
     return any(module == g or module.startswith(g + ".") for g in GLUE)
 
 
-def _tree(path: Path) -> ast.Module:
-    """The parsed module (cached while the file keeps its size and mtime)."""
+def _stat(path: Path) -> tuple[Path, int, int]:
     st = path.stat()
-    return _parse(path, st.st_mtime_ns, st.st_size)
+    return path, st.st_mtime_ns, st.st_size
 
 
 @lru_cache(maxsize=None)
 def _parse(path: Path, mtime_ns: int, size: int) -> ast.Module:
+    """The parsed module (cached while the file keeps its size and mtime)."""
     return ast.parse(path.read_text(), filename=str(path))
+
+
+@lru_cache(maxsize=None)
+def _layout(path: Path, mtime_ns: int, size: int, module: str):
+    """The parts of a module, each with what it imports (:func:`_scan`) and the names it uses: the
+    code that runs at import (key None: its statements, the decorators, bases and defaults of its
+    definitions) and each definition by name; with the whole module's imports and strings."""
+    tree = _parse(path, mtime_ns, size)
+    defs = {n.name: n for n in tree.body if isinstance(n, _DEFS)}
+    base = [n for n in tree.body if not isinstance(n, _DEFS)]
+    for d in defs.values():
+        base += d.decorator_list + (d.bases + [k.value for k in d.keywords] if isinstance(d, ast.ClassDef)
+                                    else d.args.defaults + [x for x in d.args.kw_defaults if x is not None])
+    parts = {k: _scan([d], module) for k, d in defs.items()}
+    parts[None] = _scan(base, module)
+    return parts, set().union(*(e for e, _, _ in parts.values())), set().union(*(s for _, _, s in parts.values()))
 
 
 def _runtime_nodes(node: ast.AST):
@@ -93,13 +112,17 @@ def _is_registry(node: ast.AST) -> bool:
     return isinstance(getattr(node, "value", None), ast.Dict) and any(getattr(t, "id", None) == REGISTRY for t in targets)
 
 
-def _edges(nodes: Iterable[ast.AST], module: str) -> set[str]:
-    """What ``nodes`` of ``module`` import: ``m`` for a whole module (``import m``, ``from p import m``,
-    ``from m import *``, a module named by a string), ``m:name`` for a name taken from module ``m``
-    (``from m import name``), and ``p:`` for each package whose ``__init__`` the import runs."""
-    out = set()
+def _scan(nodes: Iterable[ast.AST], module: str) -> tuple[set[str], set[str], set[str]]:
+    """What ``nodes`` of ``module`` import, the names they use and their string constants. Imports:
+    ``m`` for a whole module (``import m``, ``from p import m``, ``from m import *``, a module named
+    by a string), ``m:name`` for a name taken from module ``m`` (``from m import name``), and ``p:``
+    for each package whose ``__init__`` the import runs."""
+    out, used, strings = set(), set(), set()
     for top in nodes:
         for node in _runtime_nodes(top):
+            if isinstance(node, ast.Name):
+                used.add(node.id)
+                continue
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom):
@@ -109,6 +132,7 @@ def _edges(nodes: Iterable[ast.AST], module: str) -> set[str]:
                          if module_path(f"{node.module}.{a.name}") else f"{node.module}:{a.name}" for a in node.names]
             elif isinstance(node, ast.Constant) and isinstance(node.value, str):
                 names = [node.value]
+                strings.add(node.value)
             else:
                 continue
             for name in names:
@@ -116,42 +140,35 @@ def _edges(nodes: Iterable[ast.AST], module: str) -> set[str]:
                 if module_path(m):
                     parts = m.split(".")
                     out |= {name} | {".".join(parts[:i]) + ":" for i in range(1, len(parts))}
-    return out
-
-
-_DEFS = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
-
-
-def _selected_nodes(tree: ast.Module, names: Iterable[str] | None) -> list[ast.AST]:
-    """The parts of a module that run when ``names`` of it are used (None: every part): its
-    module-level statements, the decorators, bases and defaults of its definitions (all run at
-    import), and, transitively, the definitions those and ``names`` name."""
-    if names is None:
-        return [tree]
-    defs = {n.name: n for n in tree.body if isinstance(n, _DEFS)}
-    nodes = [n for n in tree.body if not isinstance(n, _DEFS)]
-    for d in defs.values():
-        nodes += d.decorator_list + (d.bases + [k.value for k in d.keywords] if isinstance(d, ast.ClassDef)
-                                     else d.args.defaults + [x for x in d.args.kw_defaults if x is not None])
-    seen, todo = set(), [n.id for top in nodes for n in ast.walk(top) if isinstance(n, ast.Name)] + list(names)
-    while todo:
-        name = todo.pop()
-        if name in defs and name not in seen:
-            seen.add(name)
-            nodes.append(defs[name])
-            todo += [n.id for n in ast.walk(defs[name]) if isinstance(n, ast.Name)]
-    return nodes
+    return out, used, strings
 
 
 def imports(entry: str) -> set[str]:
-    """What ``entry`` imports (see :func:`_edges`): ``module`` (all of it), ``module:name`` (the
+    """What ``entry`` imports (see :func:`_scan`): ``module`` (all of it), ``module:name`` (the
     module-level code and the definition ``name``), ``module:`` (the module-level code only)."""
     module, colon, name = entry.partition(":")
     path = module_path(module)
     if path is None:
         raise ValueError(f"'{module}' is not a module of the madpinn package")
-    names = None if not colon else [name] if name else []
-    return _edges(_selected_nodes(_tree(path), names), module)
+    return _imports(*_stat(path), module, None if not colon else (name,) if name else ())
+
+
+@lru_cache(maxsize=None)
+def _imports(path: Path, mtime_ns: int, size: int, module: str, names: tuple[str, ...] | None) -> frozenset[str]:
+    """The imports of the code that runs when ``names`` of the module are used (None: all of it):
+    the code run at import and, transitively, the definitions it and ``names`` name."""
+    parts, whole, _ = _layout(path, mtime_ns, size, module)
+    if names is None:
+        return frozenset(whole)
+    out, used = set(parts[None][0]), parts[None][1]
+    seen, todo = set(), [*used, *names]
+    while todo:
+        name = todo.pop()
+        if name in parts and name is not None and name not in seen:
+            seen.add(name)
+            out |= parts[name][0]
+            todo += parts[name][1]
+    return frozenset(out)
 
 
 def closure(entries: Iterable[str]) -> set[str]:
@@ -171,7 +188,7 @@ def closure(entries: Iterable[str]) -> set[str]:
 def data_files(module: str) -> list[Path]:
     """Package data beside ``module`` that it names by file name (a string constant)."""
     path = module_path(module)
-    names = {n.value for n in ast.walk(_tree(path)) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    names = _layout(*_stat(path), module)[2]
     return sorted(f for f in path.parent.iterdir() if f.suffix in DATA_SUFFIXES and f.name in names)
 
 
@@ -192,7 +209,7 @@ def source_hash(*entries: str) -> str:
 
 def registry(module: str) -> dict[str, str]:
     """The plugin registry (``_MODULES``) of ``module``: name -> module, read from the source."""
-    for node in _tree(module_path(module)).body:
+    for node in _parse(*_stat(module_path(module))).body:
         if _is_registry(node):
             return ast.literal_eval(node.value)
     raise ValueError(f"{module} has no {REGISTRY}")
