@@ -39,6 +39,7 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/tracking.smk"
+include: "workflow/rules/tables.smk"  # rule files register tables, models and targets (common.smk): any order
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/oracle.smk"
 include: "workflow/rules/train.smk"
@@ -52,7 +53,6 @@ include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/conflicts.smk"  # structured-conflict tables, after the paper's
 include: "workflow/rules/report.smk"
 include: "workflow/rules/readings.smk"  # collision readings table, when contact studies are configured (issue 38)
-include: "workflow/rules/tables.smk"
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 
 
@@ -71,4 +71,4 @@ if not workflow.output_settings.dryrun and workflow.exec_mode == ExecMode.DEFAUL
 rule all:
     default_target: True
     input:
-        ALL_TARGETS,
+        all_targets,   # common.smk: called after every rule file registered its outputs

@@ -278,6 +278,10 @@ def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
 
 
 FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
+# ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
+# (value_functions.build.training_hash leaves them out); here, not in madpinn.observation, so that
+# the workflow reads them without importing torch
+DEPLOYMENT_ONLY_KEYS = ("carrot_margin", "neighbour_goal")
 
 
 def study_sim(cfg: Mapping[str, Any], study: str | None = None) -> dict:

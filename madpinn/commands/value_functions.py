@@ -57,12 +57,18 @@ def _train(args) -> int:
 
     cfg = config_of(args)
     kind = args.kind
-    vcfg = cfg["value_functions"][kind]
+    vcfg = _training_settings(cfg, kind)
     record = JobRecord(job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
                        params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
                                "config_hash": training_hash(cfg, kind)})
     with job(cfg, record, not args.no_track) as run:
         return _train_job(cfg, kind, args, run, record)
+
+
+def _training_settings(cfg: dict, kind: str) -> dict:
+    """``value_functions.<kind>`` without its ``validation`` section: what the training reads (the
+    validation jobs read the rest; a validation setting never reruns a training)."""
+    return {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
 
 
 EXIT_PAUSED = 75   # EX_TEMPFAIL: --time-limit reached, checkpoint kept; run the same command again
@@ -89,7 +95,7 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
 
     device, dtype = _setup(cfg, args.threads)
     problem = problem_from_config(cfg, kind)
-    vcfg = cfg["value_functions"][kind]
+    vcfg = _training_settings(cfg, kind)
     settings = TrainSettings.from_config(vcfg, cfg["value_functions"]["seed"])
     models = parse_models(args.model)
     if "init" in models:   # the workflow resolves value_functions.<kind>.init_from and passes it in
@@ -116,9 +122,8 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
             "init_from": settings.init_from, "batch_offset": info["batch_offset"],
             "final_loss": float(np.mean(history[-100:])), "settings": {**vcfg, "seed": settings.seed}}
     model = model_from_payload(model_payload(problem, net, settings.output_scale, meta), device=device, dtype=dtype)
-    val = vcfg.get("validation", {})
-    samples = int(val.get("samples", val.get("rollout_samples", 65536)))
-    meta["residual"] = residual_stats(problem, model, samples, settings.seed)
+    # held-out residual over one training batch of fresh states (validate-vhat: the validation's count)
+    meta["residual"] = residual_stats(problem, model, settings.batch_size, settings.seed)
     save_atomic(model_payload(problem, net, settings.output_scale, meta), out)
     stem = out.with_suffix("")
     loss_csv = stem.with_name(stem.name + "_loss.csv")
