@@ -75,7 +75,7 @@ class JobRun:
             **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, **(tags or {}),
         }
         self.record = RunRecord(job_key=job_key, source=settings.source, tags=tags, start_ms=now_ms(),
-                                params=flatten(params or {}))
+                                params=flatten(params or {}), uri=settings.uri)
         self._client = None
         self._unsent: list = []
         self._last_flush = time.monotonic()

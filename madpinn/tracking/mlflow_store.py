@@ -156,7 +156,28 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
                 get_artifact_repository(run.info.artifact_uri).delete_artifacts()
             except Exception:  # noqa: BLE001 - no artifacts, or already gone (as mlflow gc)
                 pass
+            _remove_empty_run_dir(run.info.artifact_uri, run.info.run_id)
             store._hard_delete_run(run.info.run_id)
+
+
+def _remove_empty_run_dir(artifact_uri: str, run_id: str) -> None:
+    """A purged run's local artifact directories ``…/<run_id>/artifacts`` and ``…/<run_id>``, once
+    empty (``delete_artifacts`` empties them but leaves them: one empty directory per replaced run)."""
+    from urllib.parse import unquote, urlparse
+
+    parsed = urlparse(artifact_uri)
+    if parsed.scheme not in ("", "file"):
+        return
+    artifacts = Path(unquote(parsed.path))
+    for d in (artifacts, artifacts.parent):
+        if d.name not in ("artifacts", run_id) or run_id not in d.parts:
+            return
+        try:
+            d.rmdir()   # only when empty
+        except FileNotFoundError:
+            continue
+        except OSError:
+            return
 
 
 def git_commit() -> str:

@@ -12,7 +12,7 @@ rule evaluate:
         traj=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}_traj.npz",
     params:
         config=RESOLVED,
-        job_hash=job_hash,
+        settings=settings_hash("evaluate", "study", "run"),
         source=eval_source_hash,
         models=model_args,
         cell=cell_key,

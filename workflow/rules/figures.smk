@@ -16,8 +16,8 @@ if "main" in config["studies"]:
             pdf=f"{FIGURES}/fig_cost_safety.pdf",
         params:
             config=RESOLVED,
-            settings=settings_hash("experiment", extra=run_labels("main")),
-            source=source_hash("tables"),
+            settings=settings_hash("figure", name="fig_cost_safety", study="main"),
+            source=source_hash("figure"),
             out_dir=out_dir_of("png"),
         resources:
             mem_mb=2000,
@@ -30,7 +30,7 @@ if "main" in config["studies"]:
             "python -m madpinn figure --config {params.config:q} --name fig_cost_safety --inputs {input.results:q}"
             " --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
-    EXTRA_TARGETS += expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS)
+    register_targets(*expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS))
 
 
 rule fig_trajectories:
@@ -43,8 +43,8 @@ rule fig_trajectories:
         pdf=f"{FIGURES}/fig_trajectories.pdf",
     params:
         config=RESOLVED,
-        settings=settings_hash("experiment", "figures.trajectories", extra=run_labels(TRAJ["study"])),
-        source=source_hash("tables"),
+        settings=settings_hash("figure", name="fig_trajectories", study=TRAJ["study"]),
+        source=source_hash("figure"),
         out_dir=out_dir_of("png"),
     resources:
         mem_mb=2000,
@@ -58,4 +58,4 @@ rule fig_trajectories:
         " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS)
+register_targets(*expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS))

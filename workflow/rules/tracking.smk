@@ -1,5 +1,5 @@
 # MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
-from madpinn.tracking import TrackingError, TrackingSettings, check_store
+from madpinn.tracking import TrackingSettings, check_store
 from madpinn.tracking.settings import SOURCE_ENV
 from snakemake_interface_executor_plugins.settings import ExecMode
 
@@ -11,9 +11,8 @@ TRACKING_SETTINGS = TrackingSettings.from_config(config)
 # Every start, dry runs included, stops here when the store is unreachable (read-only check).
 try:
     check_store(TRACKING_SETTINGS)
-except TrackingError as exc:
-    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-    raise SystemExit(1)
+except Exception as exc:
+    stop_workflow(exc)
 
 # The store is brought up to date at the end of the Snakefile, after every parse-time check.
 
