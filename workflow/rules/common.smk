@@ -105,13 +105,18 @@ def study_results(study):
 def run_models(wildcards):
     """{name: path} of the trained files run ``wildcards.run`` loads (full run name first, then method).
     Plain strings: a ``rules.X.output`` reference would pin the file's producer to rule X, and the
-    shipped overlay (workflow/configs/shipped.yaml) provides it by its install rule instead.
-    The evaluate rule's input function, so the first thing Snakemake asks of a cell: a cell outside
-    the configuration stops here with one line, before any param reads its study."""
-    checked_cell(wildcards)
+    shipped overlay (workflow/configs/shipped.yaml) provides it by its install rule instead."""
     registered = REGISTERED["models"]
     models = registered.get(wildcards.run, registered.get(wildcards.run.split("-")[0]))
     return {k: str(v) for k, v in models(wildcards).items()} if models else {}
+
+
+def cell_models(wildcards):
+    """The evaluate rule's input function (:func:`run_models` of a cell), so the first thing
+    Snakemake asks of a cell: a cell outside the configuration stops here with one line, before
+    any param reads its study."""
+    checked_cell(wildcards)
+    return run_models(wildcards)
 
 
 def model_args(wildcards):

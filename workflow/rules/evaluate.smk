@@ -4,7 +4,7 @@
 # or training jobs) is already in paths.output_cache is restored from there instead of recomputed.
 rule evaluate:
     input:
-        unpack(run_models),
+        unpack(cell_models),
         tracking=TRACKING,
     output:
         parquet=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.parquet",
