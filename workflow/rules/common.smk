@@ -342,9 +342,19 @@ def traj_inputs(wildcards=None):
 
 # --- tables (register_table): one rule per table, defined where the table is registered ---
 
+def table_section(name):
+    """The report section of table ``name``: the paper's tables, or ours."""
+    return REPORT_SECTIONS["paper_tables" if name in PAPER_TABLE_NUMBERS else "our_tables"]
+
+
+def table_labels(name, study):
+    """The report labels of table ``name`` (items sort by the first: "Table I" … "Table IV")."""
+    return {"Item": f"Table {PAPER_TABLE_NUMBERS[name]}" if name in PAPER_TABLE_NUMBERS else name, "Study": study}
+
+
 def table_rule(name, study, kind):
-    """Define the rule ``name`` that builds table ``name`` (csv, md, tex, html: the report's page) of
-    ``kind`` from ``study``."""
+    """Define the rule ``name`` that builds table ``name`` (csv, md, tex, and html, the report's page)
+    of ``kind`` from ``study``."""
 
     rule:
         name:
@@ -357,10 +367,8 @@ def table_rule(name, study, kind):
             csv=f"{FIGURES}/{name}.csv",
             md=f"{FIGURES}/{name}.md",
             tex=f"{FIGURES}/{name}.tex",
-            html=report(f"{FIGURES}/{name}.html", caption=f"../report/{name}.rst",
-                        category=REPORT_SECTIONS["paper_tables" if name in PAPER_TABLE_NUMBERS else "our_tables"],
-                        labels={"Item": f"Table {PAPER_TABLE_NUMBERS[name]}" if name in PAPER_TABLE_NUMBERS else name,
-                                "Study": study}),
+            html=report(f"{FIGURES}/{name}.html", caption=f"../report/{name}.rst", category=table_section(name),
+                        labels=table_labels(name, study)),
         params:
             config=RESOLVED,
             name=name,
