@@ -157,10 +157,12 @@ def test_frozen_agents_stay_where_they_collided():
 
 def test_study_sim_overrides_reach_the_cell_and_its_hash():
     cfg = load_config(["config.yaml"])
+    cfg["sim"]["contacts"] = False
     cfg["studies"]["conflict_pairs"]["sim"] = {"contacts": True}
     assert CellSettings.from_config(cfg, "conflict_pairs", "nominal").sim.contacts is True
     assert CellSettings.from_config(cfg, "main", "nominal").sim.contacts is False
     plain = load_config(["config.yaml"])
+    plain["sim"]["contacts"] = False
     assert job_config(cfg, "conflict_pairs", "nominal") != job_config(plain, "conflict_pairs", "nominal")
     assert job_config(cfg, "main", "nominal") == job_config(plain, "main", "nominal")
 
@@ -178,7 +180,7 @@ def test_collision_readings_table_from_real_cells(tmp_path):
     cfg["sim"]["backend"] = "double_integrator"
     cfg["arenas"]["small"]["episode_s"] = 0.3
     base = dict(arena="small", agent_counts=[12], seeds=[100], scenarios=2, runs=["madpinn-k1", "madpinn-kinf"])
-    cfg["studies"]["ablation_update"] = dict(base)
+    cfg["studies"]["ablation_update"] = {**base, "sim": {"contacts": False}}
     cfg["studies"]["ablation_update_contacts"] = {**base, "sim": {"contacts": True}}
     paths = []
     for study in ("ablation_update", "ablation_update_contacts"):
@@ -203,6 +205,7 @@ def test_a_contact_study_must_fly_with_contacts():
     from madpinn.evaluation.readings import base_study
 
     cfg = load_config(["config.yaml"])
+    cfg["sim"]["contacts"] = False
     cfg["studies"]["main_contacts"] = dict(cfg["studies"]["main"])
     with pytest.raises(ConfigError, match="sim.contacts"):
         base_study(cfg, "main_contacts")

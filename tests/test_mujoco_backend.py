@@ -23,6 +23,7 @@ def _run(backend, accel):
 
 def test_registered_backend_returns_planar_state_on_requested_dtype():
     cfg = load_config([REPO_ROOT / "config.yaml"])
+    cfg["sim"]["contacts"] = False   # random starts may overlap; contacts: tests/test_collision_conventions.py
     backend = make_registered_backend("mujoco", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
                                       torch.device("cpu"), torch.float32)
     assert isinstance(backend, MujocoBackend) and backend.dt == cfg["sim"]["dt"]
