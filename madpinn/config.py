@@ -246,6 +246,8 @@ def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
 
 
 FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
+TRAINING_ONLY_KEYS = ("validation",)
+"""method keys that only a training job reads (its validation curve): not in the cells' hash"""
 
 
 def study_sim(cfg: Mapping[str, Any], study: str | None = None) -> dict:
@@ -267,7 +269,7 @@ def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
         "sim": study_sim(cfg, study),
         "observation": cfg["observation"],
         "method": method,
-        "method_config": mcfg,
+        "method_config": {k: v for k, v in mcfg.items() if k not in TRAINING_ONLY_KEYS},
     }
 
 

@@ -60,6 +60,9 @@ class DefMarlTrainer(PPOTrainer):
     def extra_modules(self) -> dict[str, nn.Module]:
         return {"cost_critic": self.cost_critic}
 
+    def extra_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        return {"cost": self.cost_optimizer}
+
     # ---- per-episode epigraph state -----------------------------------------------------------
     def on_reset(self, n_envs: int, n_agents: int) -> None:
         if self.fixed_z is None:
