@@ -85,6 +85,10 @@ def test_continue_a_model_without_training_state(smoke_cfg, tmp_path):
     assert pd.read_csv(tmp_path / "cont_history.csv")["iteration"].tolist() == [2]
     with pytest.raises(CheckpointError, match="raise the iterations"):
         train_defmarl(_cfg(smoke_cfg, iterations=2, every=0), "n3", tmp_path / "x.pt", progress=False, track=False, init=base)
+    other = copy.deepcopy(_cfg(smoke_cfg, iterations=3, every=0))
+    other["methods"]["defmarl"]["epigraph"]["z_max"] = 4.0
+    with pytest.raises(CheckpointError, match="epigraph settings"):
+        train_defmarl(other, "n3", tmp_path / "z.pt", progress=False, track=False, init=base)
     with pytest.raises(CheckpointError, match="does not fit"):
         train_defmarl(_cfg(smoke_cfg, iterations=3, every=0, network={"hidden": 8}), "n3", tmp_path / "y.pt",
                       progress=False, track=False, init=base)

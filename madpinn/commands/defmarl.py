@@ -106,6 +106,8 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
     run = f"defmarl-{variant}"
     _, mcfg = method_config(cfg, run)
     tcfg = mcfg["training"]
+    if init is not None:
+        _check_init(init, mcfg)
     validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if "validation" in mcfg else None
     curves = DEFMARL_CURVES + (validation.curves() if validation is not None else ())
     return train_and_record(
@@ -120,6 +122,19 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
         threads=threads, progress=progress, track=track, checkpoint=checkpoint, time_limit=time_limit, init=init,
         resume_hash=resume_hash(cfg, variant), validation=validation,
     )
+
+
+def _check_init(init: str | Path, mcfg: dict) -> None:
+    """An ``--init`` model must be a DEF-MARL model of the same epigraph settings (z range, h)."""
+    from madpinn.marl.checkpoint import CheckpointError, load_checkpoint
+    from madpinn.marl.defmarl.epigraph import EpigraphConfig
+
+    meta = load_checkpoint(init)["meta"]
+    if meta.get("method") != "defmarl":
+        raise CheckpointError(f"--init {init} is not a DEF-MARL model (method {meta.get('method')!r})")
+    want = asdict(EpigraphConfig.from_config(mcfg["epigraph"]))
+    if meta.get("epigraph") != want:
+        raise CheckpointError(f"--init {init} was trained with epigraph settings {meta.get('epigraph')}, the config has {want}")
 
 
 def _train(args) -> int:
