@@ -106,7 +106,7 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
     run = f"defmarl-{variant}"
     _, mcfg = method_config(cfg, run)
     tcfg = mcfg["training"]
-    if init is not None:
+    if init is not None and not (checkpoint is not None and Path(checkpoint).is_file()):   # read only to start
         _check_init(init, mcfg)
     validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if "validation" in mcfg else None
     curves = DEFMARL_CURVES + (validation.curves() if validation is not None else ())
