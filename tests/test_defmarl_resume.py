@@ -58,9 +58,14 @@ def test_time_boxed_pieces_give_the_uninterrupted_model(smoke_cfg, tmp_path):
     _same(_weights(tmp_path / "full" / "m.pt"), _weights(out))
     a = pd.read_csv(tmp_path / "full" / "m_history.csv")
     b = pd.read_csv(tmp_path / "pieces" / "m_history.csv")
-    keys = ["iteration", "episode_return", "violation_rate", "val_safety_n3", "val_safety_n4", "val_cost_n4"]
+    keys = ["iteration", "episode_return", "violation_rate", "val_safety_n3", "val_safety_n4", "val_cost_n4", "val_best"]
     pd.testing.assert_frame_equal(a[keys], b[keys], rtol=1e-6)
     assert a["val_safety_n3"].notna().tolist() == [False, True, False, True]   # every 2 iterations
+    # the best validation model so far is kept beside the model, the same in pieces
+    assert a["val_best"].tolist()[1] == 1.0 and list(a["val_best"].fillna(-1)) == list(b["val_best"].fillna(-1))
+    best = load_checkpoint(tmp_path / "full" / "m_best.pt")
+    assert best["meta"]["validation"]["val_safety_n3"] == a["val_safety_n3"].max()
+    _same(best["modules"], _weights(tmp_path / "pieces" / "m_best.pt"))
     # a finished checkpoint is not trained again; a larger budget continues it
     again = train_defmarl(cfg, "n3", out, progress=False, track=False, checkpoint=ckpt, time_limit=0.0)
     assert again["iterations"] == 4

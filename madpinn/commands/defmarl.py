@@ -87,8 +87,13 @@ class CellValidation:
         curve = [h[key] for h in history if key in h]
         return plateau(curve, self.settings.window, self.settings.min_gain)
 
+    def score(self, stats) -> float | None:
+        """Validation safety (%) at the first training agent count: the best model's criterion."""
+        return stats.get(f"val_safety_n{self.train_n}")
+
     def curves(self) -> tuple[str, ...]:
-        return tuple(f"val_{m}_n{n}" for n in self.counts for m in ("safety", "safe_scenarios", "cost")) + ("val_plateau",)
+        return tuple(f"val_{m}_n{n}" for n in self.counts for m in ("safety", "safe_scenarios", "cost")) + (
+            "val_plateau", "val_best")
 
 
 def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True,

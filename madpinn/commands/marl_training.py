@@ -24,6 +24,9 @@ class Validation(Protocol):
 
     def plateau(self, history: Sequence[dict]) -> bool: ...
 
+    def score(self, stats: Mapping) -> float | None:
+        """The validation figure the best model is selected on (None on rows without one)."""
+
 
 def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out: str | Path, *, desc: str, meta: Callable,
                      first: Sequence[str], last: Sequence[str], curves: Sequence[str], record: JobRecord,
@@ -42,7 +45,9 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
     the same call again to go on. ``init``: start from a trained model without training state
     (fresh optimizers, :meth:`PPOTrainer.skip_to` its iterations). ``validation``: every
     ``validation.every`` iterations, its metrics and ``val_plateau`` join the iteration's curve
-    row; with ``validation.stop_at_plateau`` training ends (completed) at the plateau."""
+    row; with ``validation.stop_at_plateau`` training ends (completed) at the plateau. The model
+    with the best ``validation.score`` so far is kept as ``<out>_best.pt`` (``val_best`` = 1 on
+    its curve row): selection on the validation seed, never on protocol seeds."""
     import pandas as pd
 
     from madpinn.device import seed_everything
@@ -68,12 +73,23 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
             return save_checkpoint(checkpoint, trainer, meta=meta(trainer, wall()),
                                    train_state={"config_hash": resume_hash, "wall_s": wall()})
 
+        best_path = out.with_name(out.stem + "_best.pt")
+
+        def best_so_far() -> float:
+            scores = [validation.score(h) for h in trainer.history[:-1]] if validation is not None else []
+            return max((x for x in scores if x is not None), default=float("-inf"))
+
         def on_iteration(stats: dict) -> bool:
             stop = False
             if validation is not None and validation.every > 0 and trainer.iteration % validation.every == 0:
                 model = save_state() if checkpoint is not None else save_checkpoint(Path(tmp) / "model.pt", trainer, meta(trainer, wall()))
                 stats.update(validation(model))
                 stats["val_plateau"] = float(validation.plateau(trainer.history))
+                score = validation.score(stats)
+                stats["val_best"] = float(score is not None and score > best_so_far())
+                if stats["val_best"]:
+                    save_checkpoint(best_path, trainer, meta={**meta(trainer, wall()), "validation": dict(
+                        {k: v for k, v in stats.items() if k.startswith("val_")}, iteration=trainer.iteration)})
                 stop = validation.stop_at_plateau and stats["val_plateau"] > 0
             log(stats)
             return stop
@@ -97,9 +113,12 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
         summary = training_summary(history, w, first, last, extra=extra)
         if stopped_early:
             summary["stopped_at_plateau"] = trainer.iteration
+        best = [h for h in history if h.get("val_best")]
+        if best:
+            summary["best_validation"] = {k: v for k, v in best[-1].items() if k.startswith("val_") or k == "iteration"}
         pd.DataFrame(history).to_csv(curve_path, index=False)
         json_path = write_json(out.with_suffix(".json"), summary)
-        record.artifacts = [out, curve_path, json_path]
+        record.artifacts = [out, curve_path, json_path, *([best_path] if best_path.is_file() else [])]
         record.metrics = {k: v for k, v in summary.items() if k not in (extra or {})}
         record.step = len(history)
         record.models = {"actor": trainer.actor}
