@@ -9,7 +9,7 @@ import torch
 
 from madpinn.atomic import save_torch
 from madpinn.hints import build_hint
-from madpinn.marl.networks import GaussianActor
+from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
 
 FORMAT = "madpinn-marl-ppo"
@@ -40,6 +40,7 @@ def save_checkpoint(path: str | Path, trainer, meta: dict | None = None, train_s
             "neighbour_features": trainer.obs_norm.neighbours.mean.numel(),
             "extra_features": trainer.extra_features,
             "hidden": trainer.hidden,
+            "encoder": trainer.encoder,
             "neighbours": trainer.env.cfg.neighbours,
             "critic_heads": trainer.critic_heads,
             "u_max": float(trainer.u_max),
@@ -93,7 +94,7 @@ def load_actor(path: str | Path, device: torch.device | str = "cpu", dtype: torc
     """-> ``(actor, obs_normalizer, meta)`` in eval mode."""
     ck = load_checkpoint(path, device)
     m = ck["meta"]
-    actor = GaussianActor(m["ego_features"], m["neighbour_features"], m["hidden"])
+    actor = GaussianActor(m["ego_features"], m["neighbour_features"], m["hidden"], encoder=m.get("encoder", DEFAULT_ENCODER))
     try:
         actor.load_state_dict(ck["modules"]["actor"])
         norm = ObsNormalizer(m["ego_features"], m["neighbour_features"])

@@ -36,7 +36,7 @@ from madpinn.marl.buffer import RolloutBuffer
 from madpinn.marl.env import GoalReachingEnv, RewardConfig, StepInfo, goal_reward
 from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
 from madpinn.marl.gae import gae
-from madpinn.marl.networks import GaussianActor, ValueCritic
+from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor, ValueCritic
 from madpinn.marl.normalize import ObsNormalizer, ReturnNormalizer
 from madpinn.marl.ppo import PPOBatch, PPOConfig, ppo_update
 
@@ -55,6 +55,7 @@ class PPOTrainer:
         agent_counts: Sequence[int],
         hidden: int,
         seed: int,
+        encoder: str = DEFAULT_ENCODER,
     ):
         if not agent_counts or min(agent_counts) < 1:
             raise ValueError(f"agent_counts must be non-empty positive integers, got {agent_counts}")
@@ -63,14 +64,17 @@ class PPOTrainer:
         self.reward_cfg = reward
         self.agent_counts = [int(n) for n in agent_counts]
         self.hidden = int(hidden)
+        self.encoder = str(encoder)
         self.seed = int(seed)
         self.device = env.device
         self.u_max = env.dynamics.u_max
         self.generator = torch.Generator().manual_seed(self.seed)
         torch.manual_seed(self.seed)  # network initialisation
         ego = EGO_FEATURES + self.extra_features
-        self.actor = GaussianActor(ego, NEIGHBOUR_FEATURES, self.hidden, init_log_std=ppo.init_log_std).to(self.device, env.dtype)
-        self.critic = ValueCritic(ego, NEIGHBOUR_FEATURES, self.hidden, heads=self.critic_heads).to(self.device, env.dtype)
+        self.actor = GaussianActor(ego, NEIGHBOUR_FEATURES, self.hidden, init_log_std=ppo.init_log_std,
+                                   encoder=self.encoder).to(self.device, env.dtype)
+        self.critic = ValueCritic(ego, NEIGHBOUR_FEATURES, self.hidden, heads=self.critic_heads,
+                                  encoder=self.encoder).to(self.device, env.dtype)
         self.obs_norm = ObsNormalizer(ego, NEIGHBOUR_FEATURES)
         self.ret_norm = ReturnNormalizer(ppo.discount)
         self.optimizer = torch.optim.Adam(list(self.actor.parameters()) + list(self.critic.parameters()), lr=ppo.lr, eps=1e-5)

@@ -17,7 +17,7 @@ import torch
 from madpinn.marl.checkpoint import CheckpointError, load_actor, load_checkpoint
 from madpinn.marl.defmarl.root import CONSENSUS, agree, smallest_safe_z
 from madpinn.marl.features import EGO_FEATURES, local_observation
-from madpinn.marl.networks import GaussianActor, ValueCritic
+from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor, ValueCritic
 from madpinn.marl.normalize import CLIP, ObsNormalizer
 from madpinn.observation import ObservationSpec
 
@@ -110,7 +110,8 @@ def load_defmarl(path, obs_spec: ObservationSpec, u_max: float, collision_radius
     if meta.get("method") != FORMAT_METHOD or "epigraph" not in meta:
         raise CheckpointError(f"{path} is not a DEF-MARL checkpoint (method {meta.get('method')!r})")
     ck = load_checkpoint(path, device)
-    critic = ValueCritic(meta["ego_features"], meta["neighbour_features"], meta["hidden"], heads=meta["critic_heads"])
+    critic = ValueCritic(meta["ego_features"], meta["neighbour_features"], meta["hidden"], heads=meta["critic_heads"],
+                         encoder=meta.get("encoder", DEFAULT_ENCODER))
     try:
         critic.load_state_dict(ck["modules"]["critic"])
     except (RuntimeError, KeyError) as exc:
