@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import random
+import sys
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Sequence
@@ -143,6 +144,9 @@ def _check_init(init: str | Path, mcfg: dict) -> None:
 
 
 def _train(args) -> int:
+    if args.time_limit is not None and args.checkpoint is None:
+        print("madpinn: train-defmarl --time-limit needs --checkpoint (the state the next piece resumes from)", file=sys.stderr)
+        return 2
     summary = train_defmarl(config_of(args), args.variant, args.out, threads=args.threads, progress=not args.no_progress,
                             track=not args.no_track, checkpoint=args.checkpoint, time_limit=args.time_limit, init=args.init)
     return EXIT_PAUSED if summary is None else 0
