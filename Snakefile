@@ -9,7 +9,8 @@ from pathlib import Path
 
 sys.path.insert(0, workflow.basedir)  # the package, also when not pip-installed
 
-from madpinn.config import ConfigError, load_yaml, validate_config
+from madpinn.commands.errors import stop_workflow
+from madpinn.config import check_output_paths, load_yaml, validate_config
 
 DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
 
@@ -19,9 +20,8 @@ DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
 try:
     for _path in [DEFAULT_CONFIG, *workflow.configfiles]:
         load_yaml(_path)
-except ConfigError as exc:
-    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-    raise SystemExit(1)
+except Exception as exc:
+    stop_workflow(exc)   # an expected error: its one line, as the commands print it (madpinn/commands/errors.py)
 
 
 configfile: str(DEFAULT_CONFIG)
@@ -29,9 +29,9 @@ configfile: str(DEFAULT_CONFIG)
 
 try:
     validate_config(config)
-except ConfigError as exc:
-    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-    raise SystemExit(1)
+    check_output_paths(config)   # paths.results / paths.figures can be written (nothing is written here)
+except Exception as exc:
+    stop_workflow(exc)
 
 
 report: "workflow/report/workflow.rst"
@@ -39,6 +39,7 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/tracking.smk"
+include: "workflow/rules/tables.smk"  # rule files register tables, models and targets (common.smk): any order
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/oracle.smk"
 include: "workflow/rules/train.smk"
@@ -52,7 +53,6 @@ include: "workflow/rules/madpinn.smk"
 include: "workflow/rules/conflicts.smk"  # structured-conflict tables, after the paper's
 include: "workflow/rules/report.smk"
 include: "workflow/rules/readings.smk"  # collision readings table, when contact studies are configured (issue 38)
-include: "workflow/rules/tables.smk"
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 
 
@@ -66,9 +66,16 @@ include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (
 # pass). A dry run writes nothing. (start_tracking: common.smk; the settings: tracking.smk)
 if not workflow.output_settings.dryrun and workflow.exec_mode == ExecMode.DEFAULT:
     start_tracking(TRACKING_SETTINGS, TRACKING_STORE)
+    # The terminal output of a real run fits on a screen: progress every 10 % of the jobs, warnings
+    # and errors; each job's block and output stay in its log (madpinn/run_log.py; MADPINN_LOG=full
+    # or --verbose: Snakemake's complete output).
+    if not workflow.output_settings.verbose:
+        from madpinn.run_log import install_summary
+
+        install_summary()
 
 
 rule all:
     default_target: True
     input:
-        ALL_TARGETS,
+        all_targets,   # common.smk: called after every rule file registered its outputs

@@ -4,7 +4,8 @@ For N ∈ {16, 64, 256, 1024} at the density of 256 agents in the large arena ([
 64 and 128 agents there are 1 and 2/m²; half width 4·√(N/256) m), one scenario, mid-episode velocities uniform in [-2, 2] m/s:
 
 - ``batched``: :class:`madpinn.policies.madpinn.MadPinnPolicy` — all agents in one batch, V_s only
-  on in-domain pairs, warm-started bisection (a step right after a warm-up step, with the
+  on the in-domain pairs the bounds cannot exclude (issue 37; before it: all in-domain pairs, as in
+  the tables of docs/performance.md dated before 2026-11-26), warm-started bisection (a step right after a warm-up step, with the
   neighbour update included);
 - ``batched_plain``: the same batch without pruning and without warm start (cold bisection);
 - ``look_ahead``: the overhead (%) of the actuator-lag compensation (``look_ahead: 0.075``, the

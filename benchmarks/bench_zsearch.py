@@ -11,11 +11,16 @@ gradient; the cold search needs 1 + steps + 1 = 12), the warm hit rate, policy C
 (process time, so other jobs on the machine do not count), and the episode outcomes of both
 runs (collided agents, mean cost). With ``--verify`` every warm step also runs the cold search on
 the same observations and counts answers that differ (index, feasibility), and how many of
-those rows have a V̂ that is not monotone in z between the two answers.
+those rows have a V̂ that is not monotone in z between the two answers. With ``--newton`` a third
+run uses the Newton-stepped search (``MadPinnSettings.z_newton``,
+:func:`madpinn.policies.z_search.newton_search`), and every step of the warm run also runs the
+Newton search on the same observations and prediction, counting its rows and the answers that
+differ from the warm search's (index, feasibility; V̂ not monotone in between).
 
     PYTHONPATH=$PWD python benchmarks/bench_zsearch.py --vhat results/models/vhat.pt --vs results/models/vs.pt --verify
 
-Last line: ``warm_vhat_evals_per_agent_step: X`` (mean over the cells).
+Last line: ``warm_vhat_evals_per_agent_step: X`` (mean over the cells); with ``--newton`` also
+``newton_vhat_evals_per_agent_step: Y``.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import make_selector
-from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search
+from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
@@ -65,11 +70,46 @@ class VerifiedPolicy(MadPinnPolicy):
         return u
 
 
-def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bool, verify: bool) -> dict:
+class NewtonComparedPolicy(MadPinnPolicy):
+    """Warm-started policy that also runs the Newton search on every warm step's observations and prediction."""
+
+    def reset(self, state, goals):
+        super().reset(state, goals)
+        self.check = {"rows": 0, "warm_rows": 0, "newton_rows": 0, "index_diff": 0, "feasible_diff": 0,
+                      "diff_not_monotone": 0}
+
+    def act(self, state, goals, t):
+        grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
+        pred = None if self._k_last is None else predict_index(self._k_last, self._k_before, grid.cells)
+        u = super().act(state, goals, t)
+        S, N, _ = state.shape
+        if pred is None or pred.shape[0] != S * N:
+            return u
+        obs = build_observation(state, goals, self.neighbours, self.spec).reshape(S * N, -1)
+        warm, new = self.last_search, newton_search(self.vhat, obs, grid, pred)
+        c = self.check
+        c["rows"] += obs.shape[0]
+        c["warm_rows"] += warm.value_rows + warm.grad_rows
+        c["newton_rows"] += new.value_rows + new.grad_rows
+        diff = (new.index != warm.index).nonzero(as_tuple=True)[0]
+        c["index_diff"] += int(diff.numel())
+        c["feasible_diff"] += int((new.feasible != warm.feasible).sum())
+        for i in diff.tolist():
+            a, b = sorted((int(new.index[i]), int(warm.index[i])))
+            idx = torch.arange(max(a - 1, 1), b + 1)
+            v = self.vhat.value(obs[i].expand(idx.numel(), -1), grid.z(idx, obs.dtype), 0.0)
+            c["diff_not_monotone"] += int(bool((v[1:] > v[:-1]).any()))
+        return u
+
+
+def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bool, verify: bool,
+             newton: bool = False, compare_newton: bool = False) -> dict:
     starts, goals = generate_scenarios(arena, N, seed, scenarios, SPEC.collision_radius)
     cls = VerifiedPolicy if (warm and verify) else MadPinnPolicy
+    if warm and compare_newton and not newton:
+        cls = NewtonComparedPolicy
     pol = cls(vhat, make_selector("value", SPEC.n_neighbours, vs=vs), SPEC,
-              MadPinnSettings(warm_start=warm), DT)
+              MadPinnSettings(warm_start=warm, z_newton=newton), DT)
     t_search = time.process_time()
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     # policy CPU time: run_episode times the policy in wall time; we take process time around it
@@ -82,7 +122,7 @@ def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bo
            "cpu_us_per_agent_step": 1e6 * cpu / (steps * scenarios * N),
            "policy_wall_share": stats["policy_s"] / stats["wall_s"],
            "collided_agents": int(result.collided.sum()), "cost": float(result.cost.mean()), "result": result}
-    if warm and verify:
+    if hasattr(pol, "check"):
         out["check"] = pol.check
     return out
 
@@ -96,13 +136,14 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
     ap.add_argument("--episode-s", type=float, default=None, help="shorter episodes than the arenas' (s)")
     ap.add_argument("--verify", action="store_true", help="also run the cold search at every warm step")
+    ap.add_argument("--newton", action="store_true", help="also run the Newton-stepped search (and compare it per step)")
     ap.add_argument("--threads", type=int, default=1)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
     print(f"models: {args.vhat} {args.vs}; torch threads {args.threads}; seed {args.seed}; CPU process time; "
           f"episodes {args.episode_s or 'of the arenas'} s")
-    means = []
+    means: dict = {}
     with torch.no_grad():
         for name in args.cells:
             N, arena = CELLS[name]
@@ -110,24 +151,34 @@ def main() -> None:
                 arena = Arena(arena.name, arena.half_width, args.episode_s)
             S = args.scenarios[0 if name == "small" else 1]
             runs = {}
-            for warm in (True, False):
-                r = runs[warm] = run_cell(vhat, vs, N, arena, S, args.seed, warm, args.verify)
-                label = "warm" if warm else "cold"
+            variants = [("warm", True, False), ("cold", False, False)] + ([("newton", True, True)] if args.newton else [])
+            for label, warm, newton in variants:
+                if args.verify and args.newton and label == "warm":
+                    raise SystemExit("--verify and --newton: run them separately")
+                r = runs[label] = run_cell(vhat, vs, N, arena, S, args.seed, warm, args.verify, newton, args.newton)
                 print(f"{name:5s} N={N:3d} S={S:3d} {label}: vhat_evals/agent-step={r['evals']:6.3f} "
                       f"(with grad {r['grad_evals']:.3f}) hit={r['hit']:.3f} infeasible={r['infeasible']:.3f} "
                       f"episode_cpu={r['cpu_us_per_agent_step']:7.1f}us/agent-step policy_share={r['policy_wall_share']:.2f} "
                       f"collided_agents={r['collided_agents']} cost={r['cost']:.6f}", flush=True)
-                if "check" in r:
+                if "check" in r and "newton_rows" in r["check"]:
+                    c = r["check"]
+                    print(f"      newton on the warm run's observations: {c['rows']} agent-steps, rows/agent-step "
+                          f"warm {c['warm_rows'] / c['rows']:.3f} newton {c['newton_rows'] / c['rows']:.3f}; index differs "
+                          f"{c['index_diff']} (V̂ not monotone in between: {c['diff_not_monotone']}), feasibility differs "
+                          f"{c['feasible_diff']}", flush=True)
+                elif "check" in r:
                     c = r["check"]
                     print(f"      verify: {c['rows']} agent-steps, index differs {c['index_diff']} "
                           f"(of which V̂ not monotone in between: {c['diff_not_monotone']}), "
                           f"feasibility differs {c['feasible_diff']}", flush=True)
-                if warm:
-                    means.append(r["evals"])
-            a, b = runs[True]["result"], runs[False]["result"]
-            print(f"      warm vs cold episodes: same collision flags {bool((a.collided == b.collided).all())}, "
-                  f"max |cost difference| {abs(a.cost - b.cost).max():.2e} (mean cost {b.cost.mean():.4f})", flush=True)
-    print(f"warm_vhat_evals_per_agent_step: {sum(means) / len(means):.3f}")
+                if label in ("warm", "newton"):
+                    means.setdefault(label, []).append(r["evals"])
+            for other in [v[0] for v in variants if v[0] != "warm"]:
+                a, b = runs["warm"]["result"], runs[other]["result"]
+                print(f"      warm vs {other} episodes: same collision flags {bool((a.collided == b.collided).all())}, "
+                      f"max |cost difference| {abs(a.cost - b.cost).max():.2e} (mean cost {b.cost.mean():.4f})", flush=True)
+    for label, vals in means.items():
+        print(f"{label}_vhat_evals_per_agent_step: {sum(vals) / len(vals):.3f}")
 
 
 if __name__ == "__main__":

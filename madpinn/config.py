@@ -23,6 +23,10 @@ class ConfigError(ValueError):
     """Invalid configuration; the message names the offending key."""
 
 
+class TargetError(ConfigError):
+    """A workflow target (an output path asked for by name) outside this configuration."""
+
+
 def deep_merge(base: Mapping[str, Any], overlay: Mapping[str, Any]) -> dict:
     """Recursively merge ``overlay`` into a copy of ``base`` (dicts merge, everything else replaces)."""
     out = copy.deepcopy(dict(base))
@@ -79,6 +83,28 @@ def _key_path(error) -> str:
     return ".".join(parts) if parts else "<top level>"
 
 
+def _declared_keys(schema: Mapping[str, Any], root: Mapping[str, Any]) -> set[str]:
+    """Property names a schema declares itself or through ``allOf`` / local ``$ref`` parts."""
+    keys = set(schema.get("properties", {}))
+    ref = schema.get("$ref", "")
+    if ref.startswith("#/"):
+        node: Any = root
+        for part in ref[2:].split("/"):
+            node = node[part]
+        keys |= _declared_keys(node, root)
+    for part in schema.get("allOf", []):
+        keys |= _declared_keys(part, root)
+    return keys
+
+
+def _unknown_keys(error, root: Mapping[str, Any]) -> list[str]:
+    """The keys an ``unevaluatedProperties`` error really rejects. A failing ``allOf`` part (e.g.
+    ``value_functions.vhat.iterations: 0``) drops its annotations, so the validator lists every key
+    that part declares as unexpected; only the keys no part declares are."""
+    declared = _declared_keys(error.schema, root)
+    return sorted(k for k in error.instance if k not in declared)
+
+
 def validate_config(cfg: Mapping[str, Any]) -> None:
     """Validate against the JSON schema and cross-field rules; raise :class:`ConfigError`.
 
@@ -92,6 +118,12 @@ def validate_config(cfg: Mapping[str, Any]) -> None:
     for err in errors:
         if err.validator == "additionalProperties":
             lines.append(f"  - '{_key_path(err)}': {err.message} (unknown key)")
+        elif err.validator == "unevaluatedProperties":
+            unknown = _unknown_keys(err, validator.schema)
+            if unknown:   # else only a sibling error (reported on its own) left the known keys unevaluated
+                were = "was" if len(unknown) == 1 else "were"
+                lines.append(f"  - '{_key_path(err)}': Properties are not allowed ({', '.join(map(repr, unknown))} "
+                             f"{were} unexpected) (unknown key)")
         else:
             lines.append(f"  - '{_key_path(err)}': {err.message}")
     if not lines:
@@ -248,6 +280,10 @@ def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
 FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
 TRAINING_ONLY_KEYS = ("validation",)
 """method keys that only a training job reads (its validation curve): not in the cells' hash"""
+# ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
+# (value_functions.build.training_hash leaves them out); here, not in madpinn.observation, so that
+# the workflow reads them without importing torch
+DEPLOYMENT_ONLY_KEYS = ("carrot_margin", "neighbour_goal")
 
 
 def study_sim(cfg: Mapping[str, Any], study: str | None = None) -> dict:
@@ -281,3 +317,72 @@ def write_if_changed(path: str | Path, text: str) -> Path:
     if path.is_file() and path.read_text() == text:
         return path
     return atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+OUTPUT_PATH_KEYS = ("paths.results", "paths.figures")
+"""the directories the workflow writes (checked before any job, dry runs included)"""
+
+
+def unwritable_reason(path: str | Path) -> str | None:
+    """Why directory ``path`` could not be created or written, or None when it can, found without
+    writing anything (a dry run's check): the path or its nearest existing ancestor must be a
+    directory this process may write (``os.access``: permissions, read-only mounts, immutable
+    directories) on a file system with storage (``/proc``, ``/sys`` have none)."""
+    import os
+
+    path = Path(path).absolute()
+    node = path
+    while not node.exists() and node != node.parent:
+        node = node.parent
+    if not node.is_dir():
+        return f"{node} is not a directory"
+    if not os.access(node, os.W_OK | os.X_OK):
+        return f"{node} is not writable" + (" (read-only file system)" if os.statvfs(node).f_flag & os.ST_RDONLY else "")
+    if os.statvfs(node).f_blocks == 0:
+        return f"{node} is on a file system without storage (e.g. /proc, /sys)"
+    return None
+
+
+def check_output_paths(cfg: Mapping[str, Any]) -> None:
+    """:class:`ConfigError` naming each key of :data:`OUTPUT_PATH_KEYS` whose directory cannot be
+    written (:func:`unwritable_reason`); relative paths are taken from the working directory."""
+    lines = []
+    for key in OUTPUT_PATH_KEYS:
+        value = lookup_key(cfg, key)
+        reason = unwritable_reason(value) if value is not None else None
+        if reason:
+            lines.append(f"  - '{key}': {value!r} cannot be written: {reason}")
+    if lines:
+        raise ConfigError("invalid configuration:\n" + "\n".join(lines))
+
+
+def check_cell(cfg: Mapping[str, Any], n_agents: int, seed: int, study: str | None = None, run: str | None = None,
+               arena: str | None = None, pattern: str | None = None) -> None:
+    """The checks :func:`validate_config` makes of configured cells, for one cell named by a
+    workflow target instead (an evaluation cell: ``study``, ``run``; an oracle file: ``arena``,
+    ``pattern``): the study, run and arena exist and ``n_agents`` fit in the arena (the scenario
+    sampler's bound, :func:`madpinn.scenarios.max_agents`, or the pattern's layout). Raises
+    :class:`TargetError` (a :class:`ConfigError`)."""
+    from madpinn.scenarios import UNIFORM, Arena, ScenarioInfeasibleError, generate_scenario, max_agents
+
+    if study is not None:
+        if study not in cfg["studies"]:
+            raise TargetError(f"unknown study '{study}' (this configuration's studies: {', '.join(sorted(cfg['studies']))})")
+        arena, pattern = cfg["studies"][study]["arena"], study_pattern(cfg["studies"][study])
+    if run is not None:
+        try:
+            method_config(cfg, run)
+        except ConfigError as exc:
+            raise TargetError(str(exc)) from exc
+    if arena not in cfg["arenas"]:
+        raise TargetError(f"unknown arena '{arena}' (this configuration's arenas: {', '.join(sorted(cfg['arenas']))})")
+    r = float(cfg["agents"]["collision_radius"])
+    limit = max_agents(float(cfg["arenas"][arena]["half_width"]), r)
+    if pattern in (None, UNIFORM) and not 1 <= n_agents <= limit:
+        raise TargetError(f"{n_agents} agents do not fit in arena '{arena}' with separation 2r = {2 * r:g} m (1 to "
+                          f"{limit}: the scenario sampler's coverage limit)")
+    if pattern not in (None, UNIFORM):   # as _infeasible_patterns: the pattern's first scenario
+        try:
+            generate_scenario(Arena.from_config(cfg, arena), n_agents, seed, 0, r, pattern)
+        except (ScenarioInfeasibleError, ValueError) as exc:   # ValueError: an unknown pattern
+            raise TargetError(str(exc)) from exc

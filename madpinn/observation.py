@@ -32,8 +32,6 @@ EGO_DIM = 4
 NEIGHBOUR_DIM = 6
 PHANTOM = -1
 NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
-# ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
-DEPLOYMENT_ONLY_KEYS = ("carrot_margin", "neighbour_goal")
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,7 @@ def subprocess_env(extra: dict | None = None) -> dict:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
     env.pop("MLFLOW_TRACKING_URI", None)
+    env["MADPINN_LOG"] = "full"   # the workflow tests read Snakemake's per-job lines (madpinn/run_log.py)
     env.update(extra or {})
     return env
 

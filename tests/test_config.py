@@ -203,3 +203,66 @@ def test_paper_scale_overlay_trains_at_the_papers_budget_apart_from_the_default_
         assert not v["fine_tune"] and training_hash(cfg, kind) != training_hash(paper_cfg, kind)
     assert cfg["paths"]["results"] != paper_cfg["paths"]["results"] and cfg["experiment"] != paper_cfg["experiment"]
     assert cfg["studies"] == paper_cfg["studies"]
+
+
+@pytest.mark.parametrize("kind", ["vhat", "vs"])
+def test_bad_value_under_a_value_function_names_only_that_key(kind):
+    """Issue 35 item 4: a bad value inside ``value_functions.<kind>`` (its keys come through
+    ``allOf`` + ``unevaluatedProperties``) used to also call every valid key of the block
+    unexpected; now only the offending key is named, and a real unknown key alone."""
+    base = load_yaml(REPO / "config.yaml")
+    with pytest.raises(ConfigError) as exc:
+        validate_config(deep_merge(base, {"value_functions": {kind: {"iterations": 0}}}))
+    lines = str(exc.value).splitlines()[1:]
+    assert lines == [f"  - 'value_functions.{kind}.iterations': 0 is less than the minimum of 1"], lines
+    with pytest.raises(ConfigError) as exc:
+        validate_config(deep_merge(base, {"value_functions": {kind: {"iterations": 0, "iteratoins": 5}}}))
+    lines = str(exc.value).splitlines()[1:]
+    assert len(lines) == 2 and "'iteratoins' was unexpected" in lines[0] and "batch_size" not in str(exc.value), lines
+
+
+def test_unwritable_results_path_is_one_line_before_any_job_dry_run_too(tmp_path):
+    """Issue 35 item 3: ``paths.results: /proc/r`` passed the dry run and the real run ended in a
+    traceback from common.smk (onstart / start_tracking). Both now stop while parsing, with one line
+    naming the key, and write nothing."""
+    from conftest import SMOKE, run_snakemake
+
+    (tmp_path / "a_file").write_text("")
+    for results in ("/proc/r", "a_file/r"):
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(f"paths: {{results: {results}}}\ntracking: {{enabled: false}}\n")
+        for dry in (["-n"], []):
+            before = sorted(p.name for p in tmp_path.iterdir())
+            proc = run_snakemake(tmp_path, *dry, "-j1", "all", configfiles=(SMOKE, bad), check=False)
+            lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+            assert proc.returncode != 0 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+            assert len(lines) == 1 and "'paths.results'" in lines[0] and "cannot be written" in lines[0], lines
+            assert sorted(p.name for p in tmp_path.iterdir() if p.name != ".snakemake") == \
+                [n for n in before if n != ".snakemake"]
+    from madpinn.config import unwritable_reason
+
+    assert "is not a directory" in unwritable_reason(tmp_path / "a_file" / "r")
+    assert unwritable_reason(tmp_path / "new" / "r") is None
+
+
+def test_explicit_targets_outside_the_configuration_stop_the_dry_run_in_one_line(tmp_path):
+    """Issue 35 item 8: targets named by path skipped the config checks: an unknown study gave a
+    KeyError traceback, 99 agents in the small arena (at most 69) passed the dry run. Each now stops
+    while the DAG is built, dry runs included, with one line."""
+    from conftest import SMOKE, run_snakemake
+
+    targets = {"results/smoke/eval/double_integrator/nosuch/nominal/n3_seed0.parquet": "unknown study 'nosuch'",
+               "results/smoke/eval/double_integrator/main/nominal/n99_seed0.parquet": "99 agents do not fit in arena 'small'",
+               "results/smoke/oracle/small/n99_seed0_s5.parquet": "99 agents do not fit in arena 'small'"}
+    for target, words in targets.items():
+        proc = run_snakemake(tmp_path, "-n", "-j1", target, check=False)
+        lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+        assert proc.returncode != 0 and "Traceback" not in proc.stderr and "KeyError" not in proc.stderr, proc.stderr[-3000:]
+        assert len(lines) == 1 and words in lines[0] and "fix:" in lines[0], proc.stderr[-3000:]
+    from madpinn.config import TargetError, check_cell
+
+    cfg = load_config([REPO / "config.yaml", SMOKE])
+    check_cell(cfg, 69, 0, study="main", run="nominal")   # the limit itself, and a pattern's cell, pass
+    check_cell(cfg, 8, 0, arena="small", pattern="circle_swap")
+    with pytest.raises(TargetError, match="1 to 69"):
+        check_cell(cfg, 70, 0, arena="small")

@@ -16,7 +16,7 @@ from madpinn.observation import ObservationSpec, build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
 from madpinn.policies.neighbours import make_selector
-from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, predict_index, warm_search
+from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index, warm_search
 from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.value_functions import CheckpointError
@@ -355,3 +355,55 @@ def test_filtered_variant_keeps_far_controls_and_enforces_the_cbvf_rows(tmp_path
     s = evaluate(cfg, "main", "madpinn-filtered", 3, 0, tmp_path / "f.parquet", models=models_of(cfg), progress=False,
                  track=False)
     assert 0.0 <= s["policy_stats"]["filter_active_fraction"] <= 1.0 and "z_star_mean" in s["policy_stats"]
+
+
+SHIPPED_VHAT = REPO / "models" / "vhat.pt"
+
+
+def _crossings(values, margin=1e-4):
+    """Per row: number of grid crossings ``V̂(z_{i−1}) > 0 ≥ V̂(z_i)`` (i ≥ 1; z_0 counts as > 0), and
+    whether every grid value is at least ``margin`` from 0 (signs another CPU cannot flip)."""
+    pos = values > 0
+    pos[:, 0] = True
+    n = (pos[:, :-1] & ~pos[:, 1:]).sum(1)
+    return n, (values[:, 1:].abs() > margin).all(1)
+
+
+@pytest.mark.parametrize("model", ["tiny", "shipped"])
+@pytest.mark.parametrize("spread", [0, 1, 3, 40])
+def test_newton_search_returns_the_warm_answer_where_the_crossing_is_unique(model, spread):
+    """Newton-stepped search vs the deployed warm search (and the cold bisection) from the same
+    predictions: the same feasibility flag on every row; the same index, z* and control gradient
+    wherever V̂ crosses 0 once on the grid — monotone or not —; a verified crossing on every
+    feasible row (where V̂ crosses several times, possibly another one); fewer network rows."""
+    if model == "shipped":
+        if not SHIPPED_VHAT.is_file():
+            pytest.skip("shipped models/vhat.pt not present")
+        from madpinn.value_functions import load_vhat
+
+        vhat = load_vhat(SHIPPED_VHAT)
+    else:
+        vhat, _ = tiny_models()
+    grid = ZGrid(vhat.z_max, bisection_steps(1e-3))
+    obs = torch.cat([observations(300, seed=11), observations(100, seed=12, overlap=True)])
+    _, values = dense_grid_values(vhat, obs, grid.steps)
+    cold = cold_search(vhat, obs, grid)
+    offset = torch.randint(-spread, spread + 1, cold.index.shape, generator=torch.Generator().manual_seed(spread))
+    pred = cold.index + offset
+    warm = warm_search(vhat, obs, grid, pred)
+    new = newton_search(vhat, obs, grid, pred)
+    count, clear = _crossings(values)
+    sure = values[:, -1].abs() > 1e-4
+    assert torch.equal(new.feasible[sure], warm.feasible[sure]) and torch.equal(new.feasible[sure], cold.feasible[sure])
+    unique = (count == 1) & clear & cold.feasible
+    mono = _monotone_with_margin(values, cold.feasible) & cold.feasible
+    assert unique.sum() >= 20 and (unique & ~mono).sum() >= 1   # unique crossings where V̂ is not monotone too
+    assert torch.equal(new.index[unique], warm.index[unique]) and torch.equal(new.index[unique], cold.index[unique])
+    assert torch.equal(new.z[unique], cold.z[unique])
+    assert torch.allclose(new.grad[unique], cold.grad[unique], rtol=1e-5, atol=1e-5)
+    ok = new.feasible.nonzero().squeeze(1)
+    i = new.index[ok]
+    assert torch.all(values[ok, i] <= 1e-4) and torch.all((i == 1) | (values[ok, i - 1] > -1e-4))
+    assert torch.all(new.z[~new.feasible] == vhat.z_max)
+    if 1 <= spread <= 3:  # predictions off by a few cells, as in closed loop (exact ones cost about the same)
+        assert new.value_rows + new.grad_rows < warm.value_rows + warm.grad_rows

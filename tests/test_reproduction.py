@@ -65,6 +65,8 @@ def test_single_seed_table_has_no_spread_and_says_what_rows_are(small_run):
     assert md.startswith("| Update period k (steps) | Cost ÷T (time-avg.) | Cumulative cost ∫ (m·s) |")
     assert "Oracle (lone-agent lower bound)" in md
     assert "one seed" in files[2].read_text()
+    page = files[3].read_text()                                   # the page the Snakemake report shows
+    assert files[3].suffix == ".html" and "<th>Update period k (steps)</th>" in page and page.count("<tr>") == md.count("\n") - 1
 
 
 def test_rows_follow_the_config_order_whatever_the_input_order(small_run):
@@ -120,6 +122,8 @@ def test_reproduction_report_against_a_small_run(small_run):
     assert prov["cells"]["count"] == n_cells and prov["cells"]["time_h"] > 0 and prov["cells"]["devices"] == ["cpu"]
     md = (out / "reproduction.md").read_text()
     assert "## table_update_ablation" in md and "Oracle (lone-agent lower bound)" in md and "sha256" in md
+    page = (out / "reproduction.html").read_text()
+    assert "<h2>table_update_ablation</h2>" in page and "<li>" in page and "&lt;" not in md and "<table>" in page
     # the look-ahead (not in the paper) is named with the run that uses it; the paper's deployment is not
     deploy = prov["deployment"]
     assert deploy["madpinn"]["look_ahead"] == cfg["methods"]["madpinn"]["look_ahead"] == 0.0
@@ -158,7 +162,7 @@ def test_figures_from_the_small_run(small_run):
     files = plot_cost_safety(results["main"], cfg, tmp / "f" / "fig_cost_safety", oracle)
     assert all(f.stat().st_size > 1000 for f in files)
     traj = [p.with_name(p.stem + "_traj.npz") for p in results["main"] if p.stem.endswith("seed0")]
-    files = plot_trajectories(traj, ["Ours", "Nominal"], tmp / "f" / "fig_trajectories")
+    files = plot_trajectories(traj, [p.parent.name for p in traj], tmp / "f" / "fig_trajectories")
     assert all(f.stat().st_size > 1000 for f in files)
     plt.close("all")
 

@@ -1,4 +1,5 @@
 import json
+import logging
 import os
 import signal
 import time
@@ -111,6 +112,16 @@ def test_live_run_has_real_status_duration_and_step_curve(paper_cfg, tmp_path, m
     net = mlflow.pytorch.load_model(f"runs:/{run.run_id}/net")
     assert isinstance(net, torch.nn.Linear)
     assert c.get_run(run.run_id).data.params["a.b"] == "2"
+    # an MLflow 3 logged model, output of the run, loadable by its id found by name
+    exp = c.get_experiment_by_name(s.experiment).experiment_id
+    models = c.search_logged_models([exp], filter_string="name = 'net'")
+    assert [m.source_run_id for m in models] == [run.run_id]
+    assert [o.model_id for o in c.get_run(run.run_id).outputs.model_outputs] == [models[0].model_id]
+    assert isinstance(mlflow.pytorch.load_model(f"models:/{models[0].model_id}"), torch.nn.Linear)
+    # a rerun of the job replaces its run and its logged model
+    with job_run(s, job_key="train/x", rule="train_x") as again:
+        again.finish(models={"net": torch.nn.Linear(2, 1)})
+    assert [m.source_run_id for m in c.search_logged_models([exp], filter_string="name = 'net'")] == [again.run_id]
 
 
 def test_failed_and_killed_jobs_close_their_runs_with_that_status(paper_cfg, tmp_path, monkeypatch):
@@ -148,10 +159,10 @@ def test_rerun_leaves_exactly_one_run_counting_deleted_and_manual_runs_apart(pap
 
 def test_store_failure_mid_job_keeps_results_and_is_logged_exactly_once_later(paper_cfg, tmp_path, monkeypatch):
     good = _settings(paper_cfg, tmp_path, monkeypatch)
-    init_store(good)
+    (tmp_path / "mlflow").write_text("")   # the store is down: a file where its directory goes
     down = replace(good, uri="http://127.0.0.1:9")
     out = tmp_path / "model.csv"
-    with job_run(down, job_key="train/y", rule="train_y", params={"p": 1}) as run:
+    with job_run(good, job_key="train/y", rule="train_y", params={"p": 1}) as run:
         for step in range(3):
             run.log_metrics({"loss": 3.0 - step}, step=step)
             time.sleep(0.01)
@@ -160,8 +171,10 @@ def test_store_failure_mid_job_keeps_results_and_is_logged_exactly_once_later(pa
     assert out.is_file() and run.run_id is None
     pending = pending_path(good, "train/y", "workflow")
     rec = json.loads(pending.read_text())
-    assert rec["status"] == "FINISHED" and len(rec["metrics"]) == 4
-    assert flush_pending(good) == {"logged": 1, "dropped": 0, "failed": 0}
+    assert rec["status"] == "FINISHED" and len(rec["metrics"]) == 4 and rec["uri"] == good.uri
+    (tmp_path / "mlflow").unlink()          # the store is back
+    init_store(good)
+    assert flush_pending(good) == {"logged": 1, "dropped": 0, "failed": 0, "kept": 0}
     assert not pending.exists() and flush_pending(good)["logged"] == 0   # exactly once
     (r,) = _all_runs(good, "train/y")
     c = MlflowClient(good.uri)
@@ -194,3 +207,79 @@ def test_check_store_is_read_only(paper_cfg, tmp_path, monkeypatch):
                 check_store(replace(s, uri=f"sqlite:///{ro / 'sub' / 'mlflow.db'}"))
     finally:
         ro.chmod(0o700)
+
+
+def test_experiment_is_tagged_as_model_training(paper_cfg, tmp_path, monkeypatch):
+    """The experiment says it is model training (mlflow.experimentKind=custom_model_development,
+    not GenAI); an older experiment without the tag gets it at the next start."""
+    from madpinn.tracking.mlflow_store import EXPERIMENT_KIND, EXPERIMENT_KIND_TAG
+
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    settings = TrackingSettings.from_config(_cfg(paper_cfg, tmp_path))
+    info = init_store(settings)
+    c = MlflowClient(settings.uri)
+    assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND
+    c.delete_experiment_tag(info["experiment_id"], EXPERIMENT_KIND_TAG)
+    init_store(settings)
+    assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND
+
+
+def test_models_are_saved_without_the_pickle_warning(paper_cfg, tmp_path, monkeypatch):
+    seen = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            seen.append(record.getMessage())
+
+    logger = logging.getLogger("mlflow.pytorch")       # mlflow's loggers do not propagate to root
+    handler = Keep(level=logging.WARNING)
+    logger.addHandler(handler)
+    try:
+        s = _settings(paper_cfg, tmp_path, monkeypatch)
+        with job_run(s, job_key="train/y", rule="train_y") as run:
+            run.finish(models={"net": torch.nn.Linear(2, 1)})
+        import mlflow.pytorch
+
+        mlflow.pytorch.save_model(torch.nn.Linear(2, 1), str(tmp_path / "direct"), serialization_format="pickle")
+    finally:
+        logger.removeHandler(handler)
+    assert len([m for m in seen if "Pickle" in m]) == 1               # the direct call's only
+    assert logger.filters == []                                       # silenced for our call only
+
+
+def test_pending_run_is_logged_into_its_own_store_never_into_another(paper_cfg, tmp_path, monkeypatch):
+    """Issue 35 item 7: a run kept pending while its store was unreachable was logged into whatever
+    store the next start used (the local SQLite one). The record remembers its store: another
+    store's start keeps it pending; it is logged into its own store once that is reachable."""
+    local = _settings(paper_cfg, tmp_path, monkeypatch)
+    init_store(local)
+    (tmp_path / "server").write_text("")   # its store is unreachable (a file where its directory goes)
+    server = replace(local, uri=f"sqlite:///{tmp_path / 'server' / 'mlflow.db'}")
+    with job_run(server, job_key="train/z", rule="train_z") as run:
+        run.finish(metrics={"final": 1.0})
+    pending = pending_path(local, "train/z", "workflow")
+    assert run.run_id is None and pending.exists()
+    assert flush_pending(local) == {"logged": 0, "dropped": 0, "failed": 0, "kept": 1}
+    assert pending.exists() and _all_runs(local, "train/z") == []
+    (tmp_path / "server").unlink()          # its store is back
+    init_store(server)
+    assert flush_pending(local) == {"logged": 1, "dropped": 0, "failed": 0, "kept": 0}
+    assert not pending.exists() and _all_runs(local, "train/z") == []
+    (r,) = _all_runs(server, "train/z")
+    assert r.data.metrics["final"] == 1.0
+
+
+def test_replaced_runs_leave_no_empty_artifact_directories(paper_cfg, tmp_path, monkeypatch):
+    """Issue 35 item 6: a purged run's artifact directories stayed behind, empty (22 after three
+    crashes and a rerun); now only the active runs' directories remain."""
+    art = tmp_path / "a.json"
+    art.write_text("{}")
+    wf = _settings(paper_cfg, tmp_path, monkeypatch)
+    for _ in range(3):
+        log_job(wf, "evaluate/x", "evaluate", {}, artifacts=[art])
+        log_job(wf, "table/y", "table", {})   # a run without artifacts
+    runs = _all_runs(wf)
+    assert len(runs) == 2 and all(r.info.lifecycle_stage == "active" for r in runs)
+    root = tmp_path / "mlflow" / "artifacts" / wf.experiment
+    assert [d for d in root.rglob("*") if d.is_dir() and not any(d.iterdir())] == []
+    assert {d.name for d in root.iterdir()} <= {r.info.run_id for r in runs}

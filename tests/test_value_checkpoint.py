@@ -53,7 +53,7 @@ def test_missing_truncated_garbage_and_mismatched_files(files, tmp_path):
     with pytest.raises(CheckpointError, match="corrupted or truncated"):
         load_vhat(tmp_path / "trunc.pt")
     (tmp_path / "garbage.pt").write_bytes(b"not a checkpoint at all")
-    with pytest.raises(CheckpointError, match="corrupted or truncated"):
+    with pytest.raises(CheckpointError, match="not a torch checkpoint"):
         load_vs(tmp_path / "garbage.pt")
     with pytest.raises(CheckpointError, match="'vs' value function, expected 'vhat'"):
         load_vhat(vs_path)
@@ -73,3 +73,53 @@ def test_bad_shapes_are_clear_errors(files):
         vhat.value(torch.zeros(4, 16), torch.zeros(3))
     with pytest.raises(ValueError, match="expected state"):
         load_vs(files[1]).value(torch.zeros(4, 3))
+
+
+class _Runs:   # a pickle that would run a shell command if it were ever unpickled unsafely
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        import os
+
+        return (os.system, (f"touch {self.marker}",))
+
+
+def test_refused_checkpoints_say_what_happened_without_torchs_unsafe_advice(files, tmp_path):
+    """Issue 35 item 5: a blocked pickle is not "corrupted or truncated"; no message repeats torch's
+    advice that weights_only=False "will likely succeed", nor names a snakemake command on the
+    user's own file; nothing in the file runs."""
+    from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError, load_actor
+
+    marker = tmp_path / "ran"
+    torch.save({"x": _Runs(marker)}, tmp_path / "evil.pt")
+    data = files[0].read_bytes()
+    (tmp_path / "trunc.pt").write_bytes(data[: len(data) // 2])
+    cases = {"evil.pt": "pickled Python objects (posix.system)", "trunc.pt": "corrupted or truncated"}
+    for name, words in cases.items():
+        for load, error in ((load_vhat, CheckpointError), (load_actor, MarlCheckpointError)):
+            with pytest.raises(error) as exc:
+                load(tmp_path / name)
+            msg = str(exc.value)
+            assert words in msg and "\n" not in msg, msg
+            for advice in ("weights_only=False", "likely succeed", "snakemake", "trusted source"):
+                assert advice not in msg, msg
+    assert not marker.exists()
+
+
+def test_resume_from_a_file_that_is_not_a_resume_checkpoint_refuses_and_keeps_it(files, tmp_path):
+    """Issue 35 item 5: ``train-value --checkpoint BAD`` used to overwrite the user's file (an
+    unreadable file, another kind's model, a finished model); now it stops and leaves it as it was."""
+    from madpinn.value_functions.train import TrainSettings, train
+
+    vh_path, vs_path = files
+    bad = tmp_path / "mine.pt"
+    bad.write_bytes(b"not a checkpoint at all")
+    problem = EpigraphProblem(EpigraphSystem(ObservationSpec(), horizon=0.2, z_max=21.45))
+    s = TrainSettings(iterations=2, batch_size=16, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.0, checkpoint_every=1,
+                      output_scale=1.5, network=NET, seed=0)
+    for path, words in ((bad, "not a torch checkpoint"), (vs_path, "'vs' value function"), (vh_path, "finished vhat model")):
+        before = path.read_bytes()
+        with pytest.raises(CheckpointError, match=words) as exc:
+            train(problem, s, path, "h", progress=False, stop_after=1)
+        assert "left untouched" in str(exc.value) and path.read_bytes() == before

@@ -3,6 +3,7 @@
 import json
 
 import pytest
+import torch
 import yaml
 
 from conftest import REPO, SMOKE, run_snakemake
@@ -54,6 +55,13 @@ def test_shipped_overlay_installs_instead_of_training(tmp_path):
     assert "install_shipped_model" in out and "train_vs" not in out and "train_vhat" in out
     run_snakemake(tmp_path, "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
     assert sha256(tmp_path / "results/smoke/models/vs.pt") == sha256(tmp_path / "models/vs.pt")
+    from mlflow.tracking import MlflowClient                     # the install job is an MLflow run too
+
+    c = MlflowClient(f"sqlite:///{tmp_path / 'mlflow' / 'mlflow.db'}")
+    runs = c.search_runs([c.get_experiment_by_name("madpinn-smoke").experiment_id])
+    install_runs = [r for r in runs if r.data.tags.get("madpinn.rule") == "install_shipped_model"]
+    assert [r.data.tags["madpinn.job"] for r in install_runs] == ["install/vs"]
+    assert install_runs[0].info.status == "FINISHED"
     # re-shipping another model rewrites manifest.json: vs's install (and so every cached cell that
     # uses V_s) stays done; a changed sha256 of vs's own entry reruns it
     manifest = tmp_path / "models" / "manifest.json"
@@ -62,8 +70,10 @@ def test_shipped_overlay_installs_instead_of_training(tmp_path):
     manifest.write_text(json.dumps(data))
     proc = run_snakemake(tmp_path, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
     assert "Nothing to be done" in proc.stdout + proc.stderr
-    data["models"]["vs"]["sha256"] = "1" * 64
-    manifest.write_text(json.dumps(data))
+    payload = torch.load(tiny_model_dir() / "vs.pt", weights_only=True)   # vs re-shipped: other bytes, same training
+    payload["meta"]["note"] = "re-shipped"
+    torch.save(payload, tmp_path / "vs2.pt")
+    assert main(["ship-models", "--model", f"vs={tmp_path / 'vs2.pt'}", "--out-dir", str(tmp_path / "models")]) == 0
     proc = run_snakemake(tmp_path, "-n", "-j1", "results/smoke/models/vs.pt", configfiles=(SMOKE, overlay))
     assert "install_shipped_model" in proc.stdout + proc.stderr
 
@@ -126,4 +136,70 @@ def test_shipped_policy_replaces_its_training_or_stops_the_workflow_when_trained
     proc = run_snakemake(tmp_path, "-j2", "all", configfiles=(SMOKE, overlay), check=False)
     assert proc.returncode != 0
     assert "shipped policy 'defmarl_n3'" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "results").exists()
+
+
+def test_shipping_knows_the_checkpoint_formats():
+    from madpinn.marl import checkpoint
+    from madpinn.value_functions import model, shipping
+
+    assert (shipping.VALUE_FORMAT, shipping.MARL_FORMAT) == (model.FORMAT, checkpoint.FORMAT)
+
+
+def _snapshot(directory):
+    return {p.name: p.read_bytes() for p in sorted(directory.iterdir())}
+
+
+def test_ship_models_checks_the_new_file_before_writing_anything(tmp_path, capsys):
+    """Issue 35 item 1: ``ship-models`` copied the new file into models/ before reading it, so a
+    truncated file replaced the shipped model and left the manifest stale. Every bad file (truncated,
+    another kind, a blocked pickle, a MARL policy without its training configuration) is now refused
+    with one line, and models/ with its manifest stays byte-identical."""
+    models = tmp_path / "models"
+    assert main(["ship-models", "--model", f"vs={tiny_model_dir() / 'vs.pt'}", f"vhat={tiny_model_dir() / 'vhat.pt'}",
+                 "--out-dir", str(models)]) == 0
+    before = _snapshot(models)
+    data = (models / "vhat.pt").read_bytes()
+    (tmp_path / "t.pt").write_bytes(data[:len(data) // 2])
+    torch.save({"x": __import__("pathlib").PurePosixPath("a")}, tmp_path / "pickle.pt")
+    cases = {f"vhat={tmp_path / 't.pt'}": "corrupted or truncated",
+             f"vhat={models / 'vs.pt'}": "holds a 'vs' model, expected a 'vhat' model",
+             f"vs={REPO / 'models' / 'defmarl_n3.pt'}": "holds a 'defmarl' model",
+             f"vs={tmp_path / 'pickle.pt'}": "pickled Python objects",
+             f"defmarl_n3={REPO / 'models' / 'defmarl_n3.pt'}": "pass --config"}
+    capsys.readouterr()
+    for model, words in cases.items():
+        assert main(["ship-models", "--model", model, "--out-dir", str(models)]) != 0
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("madpinn: ") and words in lines[0], lines
+        assert _snapshot(models) == before, model
+
+
+@pytest.mark.parametrize("fault", ["truncated", "swapped", "swapped with the manifest"])
+def test_corrupted_or_swapped_shipped_model_stops_a_dry_run_in_one_line(tmp_path, fault):
+    """Issue 35 item 2: the check before any job compared only the manifest's training hash, so a
+    truncated or swapped models/*.pt passed the dry run and failed mid-run with a traceback. Every
+    shipped file's kind (read with weights_only=True) and sha256 are checked now, dry runs included."""
+    models = tmp_path / "models"
+    assert main(["ship-models", "--model", f"vs={tiny_model_dir() / 'vs.pt'}", f"vhat={tiny_model_dir() / 'vhat.pt'}",
+                 "--out-dir", str(models)]) == 0
+    vhat, vs = (models / "vhat.pt").read_bytes(), (models / "vs.pt").read_bytes()
+    if fault == "truncated":
+        (models / "vhat.pt").write_bytes(vhat[:len(vhat) // 2])
+    else:
+        (models / "vhat.pt").write_bytes(vs)
+        (models / "vs.pt").write_bytes(vhat)
+    if fault == "swapped with the manifest":   # sha256 then matches: only the kind check sees it
+        manifest = json.loads((models / "manifest.json").read_text())
+        for key in ("sha256", "bytes"):
+            m = manifest["models"]
+            m["vhat"][key], m["vs"][key] = m["vs"][key], m["vhat"][key]
+        (models / "manifest.json").write_text(json.dumps(manifest))
+    overlay = tmp_path / "shipped.yaml"
+    overlay.write_text("shipped_models: {enabled: true, dir: models, names: [vhat, vs]}\n")
+    proc = run_snakemake(tmp_path, "-n", "-j1", "all", configfiles=(SMOKE, overlay), check=False)
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert len(lines) == 1 and "models/vhat.pt" in lines[0] and "fix:" in lines[0], proc.stderr[-3000:]
+    assert ("corrupted or truncated" if fault == "truncated" else "holds a 'vs' model") in lines[0]
     assert not (tmp_path / "results").exists()

@@ -64,6 +64,18 @@ def test_training_setting_reruns_that_training_and_its_downstream_only(done):
                     "fig_cost_safety": 1, "fig_trajectories": 1, "reproduction_report": 1, "all": 1}, jobs
 
 
+def test_deployment_and_validation_settings_rerun_no_training(done):
+    """With the trained V̂ and V_s in place: a deployment knob reruns the cells, never a training; a
+    validation setting reruns its check alone; a training setting does retrain."""
+    jobs = _dry(done, {"observation": {"carrot_margin": 0.35}})
+    assert not TRAININGS & set(jobs) and jobs.get("evaluate") == 9, jobs
+    assert _dry(done, {"value_functions": {"vhat": {"validation": {"samples": 1024}}}}) == {"validate_vhat": 1, "all": 1}
+    assert _dry(done, {"value_functions": {"vhat": {"validation": {"scenario": {"samples": 32}}}}}) == {
+        "verify_vhat": 1, "all": 1}
+    assert _dry(done, {"value_functions": {"vs": {"validation": {"rollout_samples": 500}}}}) == {"validate_vs": 1, "all": 1}
+    assert "train_vhat" in _dry(done, {"value_functions": {"vhat": {"iterations": 31}}})
+
+
 def test_unrelated_changes_rerun_nothing(done):
     # a study the targets do not build from
     assert _dry(done, {"studies": {"main": {"scenarios": 3}}},
@@ -113,9 +125,12 @@ def test_report_or_oracle_code_change_reruns_no_evaluation_cell(done):
         assert "reproduction_report" in jobs and "evaluate" not in jobs and not (TRAININGS & set(jobs)), (rel, jobs)
 
 
-def test_figure_code_change_reruns_tables_and_figures_only(done):
+def test_figure_code_change_reruns_figures_only(done):
+    # the tables' command does not import the figures (its import closure, madpinn/provenance.py)
     jobs = _edit_and_dry(done, "figures/style.py")
-    assert set(jobs) == TABLES | {"fig_cost_safety", "fig_trajectories", "all"}, jobs
+    assert set(jobs) == {"fig_cost_safety", "fig_trajectories", "all"}, jobs
+    jobs = _edit_and_dry(done, "evaluation/tables.py")   # read by the tables, the figures and the report
+    assert set(jobs) == TABLES | {"fig_cost_safety", "fig_trajectories", "reproduction_report", "all"}, jobs
 
 
 def test_dry_run_writes_nothing(done):
@@ -137,11 +152,11 @@ def test_report_holds_every_table_and_figure_with_captions(done):
     with zipfile.ZipFile(done / "report.zip") as z:
         names = z.namelist()
         html = "".join(z.read(n).decode("utf-8", "replace") for n in names if n.endswith((".html", ".js")))
-    for stem in TABLES:
-        assert any(n.endswith(f"{stem}.csv") for n in names), stem
+    for stem in TABLES:   # each table is a page of the report (its .html; csv/md/tex beside it on disk)
+        assert any(n.endswith(f"{stem}.html") for n in names), stem
     for stem in FIGURES:
         assert any(n.endswith(f"{stem}.png") for n in names), stem
-    for category in ("Tables", "Figures", "Value functions"):
+    for category in ("Paper vs ours", "Paper tables", "Paper figures", "Value-function checks"):
         assert category in html
     assert "99.33" in html and "Table IV" in html  # captions carry the paper's values
 

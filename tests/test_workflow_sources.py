@@ -1,183 +1,186 @@
-"""The workflow's source triggers cover what each job family runs.
+"""The workflow's source triggers cover what each job runs, and no more than that.
 
-``SOURCES`` in ``workflow/rules/common.smk`` lists the parts of the package whose edit reruns a
-job family (issue 17). A module a family's jobs import but the list misses would let an edit
-change results silently; listing too much reruns hours of cells for nothing (evaluation cells do
-not list the tables, the report or the oracle). Checked on the source: the static import closure of
-each family's entry modules (every import, function-level ones included, so a superset of what
-runs; ``TYPE_CHECKING`` imports left out), minus the glue that changes no result.
+Every rule's ``source`` param is ``source_hash("<command>", *methods)`` of
+``workflow/rules/common.smk``: the files of the import closure of the command's handler
+(:mod:`madpinn.provenance`), with the policy module of each method it runs. A module a job runs
+but its closure misses would let an edit change results silently; a closure too wide reruns hours
+of cells for nothing (evaluation cells do not hash the tables, the report or the oracle; the MARL
+trainings do not hash the simulation).
 """
 
 from __future__ import annotations
 
-import ast
-from pathlib import Path
+import re
+import subprocess
+import sys
 
 import pytest
 
 from conftest import REPO
+from madpinn.commands import COMMAND_MODULES, handler_entry
+from madpinn.provenance import PACKAGE, closure, imports, plugin_module, registry, source_files, source_hash
 
-PACKAGE = REPO / "madpinn"
-GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
-        "madpinn.atomic")
-
-
-def _literal(name: str):
-    """The dict literal ``name = {...}`` of workflow/rules/common.smk; a name inside it (such as
-    ``VF_INFERENCE``, unpacked in place) is that file's list literal of the same name."""
-    text = (REPO / "workflow" / "rules" / "common.smk").read_text()
-    start = text.index(f"\n{name} = {{") + len(f"\n{name} = ")
-    expr = ast.parse(text[start:text.index("\n}\n", start) + 2], mode="eval")
-    lists = {n.id: _list_literal(text, n.id) for n in ast.walk(expr) if isinstance(n, ast.Name)}
-    return eval(compile(expr, "common.smk", "eval"), {"__builtins__": {}}, lists)   # literals and those lists only
+RULES = REPO / "workflow" / "rules"
 
 
-def _list_literal(text: str, name: str) -> list:
-    start = text.index(f"\n{name} = [") + len(f"\n{name} = ")
-    return ast.literal_eval(text[start:text.index("]\n", start) + 1])
+def _files(command: str, *methods: str) -> set[str]:
+    """Package-relative files a rule running ``command`` (and ``methods``' policies) hashes."""
+    entries = [handler_entry(command)] + [plugin_module("madpinn.policies.base", m) for m in methods]
+    return {str(f.relative_to(PACKAGE)) for f in source_files(entries)}
 
 
-def _sources() -> dict[str, list[str]]:
-    return _literal("SOURCES")
-
-
-def _path(module: str) -> Path | None:
-    p = PACKAGE.joinpath(*module.split(".")[1:])
-    if (p / "__init__.py").is_file():
-        return p / "__init__.py"
-    return p.with_suffix(".py") if p.with_suffix(".py").is_file() else None
-
-
-def _runtime_nodes(tree):
-    """Every node except those under ``if TYPE_CHECKING:`` (annotations only, never run)."""
-    todo = [tree]
-    while todo:
-        node = todo.pop()
-        yield node
-        for child in ast.iter_child_nodes(node):
-            if isinstance(child, ast.If) and getattr(child.test, "id", None) == "TYPE_CHECKING":
-                todo += child.orelse
-            else:
-                todo.append(child)
-
-
-def _imports(module: str) -> set[str]:
-    """Static imports of ``module``, plus the targets of a lazy package's ``_HOMES`` (PEP 562
-    ``__getattr__``: ``madpinn.value_functions`` resolves ``load_vs`` from its ``model`` module)."""
-    out = set()
-    for node in _runtime_nodes(ast.parse(_path(module).read_text())):
-        names = []
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
-        elif (isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "_HOMES"
-              and isinstance(node.value, ast.Dict)):
-            names = list(ast.literal_eval(node.value).values())
-        for name in names:
-            if name.startswith("madpinn") and _path(name):
-                parts = name.split(".")
-                out |= {".".join(parts[:i]) for i in range(2, len(parts) + 1)}
-    return out
-
-
-def _closure(entries) -> set[str]:
-    """Modules reachable from ``entries``; glue reached on the way is not followed further (the
-    config check's own imports, for instance, change no result)."""
-    seen, todo = set(), list(entries)
-    while todo:
-        m = todo.pop()
-        if m not in seen and _path(m):
-            seen.add(m)
-            if m in entries or not m.startswith(GLUE):
-                todo += _imports(m)
-    return seen
-
-
-def _package_modules(sub: str) -> list[str]:
-    root = PACKAGE / sub
-    return [".".join(("madpinn",) + f.relative_to(PACKAGE).with_suffix("").parts).removesuffix(".__init__")
-            for f in sorted(root.rglob("*.py"))]
-
-
-# each family's entry modules (registries import policies and backends by name: whole packages).
-# Not here: "marl" — its closure reaches the MuJoCo backend only through SimSettings' lazy import of
-# MujocoSettings, which the trainers (double-integrator physics) never run; listing the simulation
-# for them would retrain both baselines on every backend edit.
-ENTRIES = {
-    "evaluate": ["madpinn.commands.evaluate", "madpinn.evaluation.cell", "madpinn.policies", "madpinn.policies.base",
-                 *_package_modules("simulation")],
-    "gap": ["madpinn.commands.gap", "madpinn.evaluation.gap", *_package_modules("policies"),
-            *_package_modules("simulation")],
-    "oracle": ["madpinn.evaluation.oracle"],
-    "tables": ["madpinn.evaluation.tables", *_package_modules("figures")],
-    "report": ["madpinn.evaluation.reproduction"],
-    "value": _package_modules("value_functions"),
-    "render": ["madpinn.commands.mujoco", *_package_modules("simulation")],
+# Modules each job runs (imported at module level or lazily inside the functions it calls): the
+# closure must keep every one of them. Dropping one from what a job hashes fails here.
+RUNS = {
+    ("train-value",): ["value_functions/train.py", "value_functions/build.py", "value_functions/problems.py",
+                       "value_functions/siren.py", "value_functions/sampling.py", "dynamics/epigraph.py",
+                       "dynamics/pair.py", "dynamics/system.py", "observation.py", "device.py"],
+    ("verify-vhat",): ["value_functions/verification.py", "value_functions/model.py", "dynamics/epigraph.py"],
+    ("solve-vs-grid",): ["value_functions/grid_reference.py", "dynamics/pair.py"],
+    ("train-safemarl-nominal",): ["marl/trainer.py", "marl/env.py", "marl/ppo.py", "marl/networks.py",
+                                  "scenarios.py", "settings.py", "observation.py"],
+    ("train-defmarl",): ["marl/defmarl/trainer.py", "marl/defmarl/epigraph.py", "marl/trainer.py", "marl/env.py"],
+    ("evaluate", "nominal"): ["evaluation/cell.py", "evaluation/metrics.py", "policies/base.py", "policies/nominal.py",
+                              "simulation/backend.py", "simulation/simulator.py", "simulation/recorder.py",
+                              "simulation/mujoco/backend.py", "scenarios.py", "conflicts.py", "settings.py"],
+    ("evaluate", "madpinn"): ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py",
+                              "policies/z_search.py", "policies/safety_filter.py", "value_functions/model.py",
+                              "value_functions/siren.py", "dynamics/epigraph.py"],
+    ("evaluate", "safemarl"): ["policies/safemarl.py", "policies/safety_filter.py", "marl/deploy.py",
+                               "value_functions/model.py"],
+    ("evaluate", "defmarl"): ["policies/defmarl.py", "marl/defmarl/deploy.py"],
+    ("evaluate", "mppi"): ["policies/mppi.py"],
+    ("oracle",): ["evaluation/oracle.py", "scenarios.py", "conflicts.py"],
+    ("table",): ["evaluation/tables.py", "evaluation/metrics.py"],
+    ("figure",): ["figures/cost_safety.py", "figures/trajectories.py", "figures/style.py", "evaluation/tables.py"],
+    ("reproduction",): ["evaluation/reproduction.py", "evaluation/paper_values.yaml", "evaluation/tables.py"],
+    ("render-clip",): ["simulation/mujoco/render.py", "simulation/mujoco/model.py"],
+    ("gap-decomposition", "madpinn"): ["evaluation/gap.py", "evaluation/collisions.py", "evaluation/cell.py",
+                                       "policies/madpinn.py", "value_functions/model.py", "simulation/mujoco/backend.py"],
 }
 
 
-def _covered(path: Path, listed) -> bool:
-    """``path`` is one of the listed files or lies under one of the listed directories."""
-    return any(path == p or p in path.parents for p in listed)
+@pytest.mark.parametrize("job", sorted(RUNS), ids="-".join)
+def test_every_module_a_job_runs_is_hashed(job):
+    missing = sorted(set(RUNS[job]) - _files(*job))
+    assert not missing, f"source_hash{job} misses {missing}"
 
 
-@pytest.mark.parametrize("family", sorted(ENTRIES))
-def test_every_module_a_family_runs_is_listed(family):
-    listed = [PACKAGE / part for part in _sources()[family]]
-    missing = []
-    for module in sorted(_closure(ENTRIES[family])):
-        if module == "madpinn" or module.startswith(GLUE):
-            continue
-        path = _path(module)
-        if not _covered(path, listed):
-            missing.append(str(path.relative_to(PACKAGE)))
-    assert not missing, f"SOURCES['{family}'] misses {missing}"
+@pytest.mark.parametrize("method", sorted(registry("madpinn.policies.base")))
+def test_every_policy_module_is_hashed_into_its_methods_cells(method):
+    """Each registered method's policy module (imported by name per run) is in its cells' hash."""
+    module = plugin_module("madpinn.policies.base", method)
+    assert f"policies/{module.rsplit('.', 1)[1]}.py" in _files("evaluate", method)
 
 
-def test_evaluation_cells_do_not_rerun_for_tables_report_or_oracle_edits():
-    listed = {PACKAGE / part for part in _sources()["evaluate"]}
-    for module in ("evaluation/tables.py", "evaluation/reproduction.py", "evaluation/oracle.py"):
-        assert not _covered(PACKAGE / module, listed), module
+def test_lazy_imports_and_named_modules_are_followed():
+    """A function-level import, a module named by a string (the optional MuJoCo backend) and a lazy
+    package's ``_HOMES`` are part of the closure; ``if TYPE_CHECKING:`` imports are not."""
+    assert "madpinn.evaluation.oracle:write_bounds" in imports("madpinn.commands.outputs:_oracle")   # in the handler
+    assert "madpinn.simulation.mujoco" in closure(["madpinn.simulation.backend:make_backend"])   # by name
+    assert "madpinn.value_functions.model" in closure(["madpinn.value_functions"])   # PEP 562 _HOMES
+    assert "madpinn.simulation.recorder" not in closure(["madpinn.evaluation.metrics"])   # TYPE_CHECKING only
 
 
-def _policy_modules() -> dict[str, str]:
-    """``_MODULES`` of madpinn/policies/base.py: method -> its module (imported by name at run time)."""
-    tree = ast.parse((PACKAGE / "policies" / "base.py").read_text())
-    node = next(n for n in tree.body if isinstance(n, ast.Assign) and getattr(n.targets[0], "id", "") == "_MODULES")
-    return ast.literal_eval(node.value)
+def test_a_name_imported_from_a_module_follows_that_definition_only():
+    """``from madpinn.settings import AgentLimits`` runs settings' module-level code and AgentLimits,
+    not SimSettings' lazy import of the MuJoCo settings: the MARL trainings (double-integrator
+    physics) do not rerun for a backend edit; the whole module does reach it."""
+    assert "madpinn.simulation.mujoco.settings" not in closure(["madpinn.settings:AgentLimits"])
+    assert "madpinn.simulation.mujoco.settings" in closure(["madpinn.settings:SimSettings"])
+    assert "madpinn.simulation.mujoco.settings" in closure(["madpinn.settings"])
+    for command in ("train-safemarl-nominal", "train-defmarl"):
+        assert not any(f.startswith("simulation/") for f in _files(command)), command
 
 
-@pytest.mark.parametrize("method", sorted(_policy_modules()))
-def test_every_module_a_method_runs_is_listed_for_its_cells(method):
-    """An evaluation cell of ``method`` hashes SOURCES['evaluate'] + METHOD_SOURCES[method]; every
-    module its policy imports must be among them."""
-    methods = _literal("METHOD_SOURCES")
-    assert method in methods, f"METHOD_SOURCES has no entry for '{method}' (its cells would hash every policy)"
-    listed = [PACKAGE / part for part in _sources()["evaluate"] + methods[method]]
-    missing = [str(_path(m).relative_to(PACKAGE)) for m in sorted(_closure([_policy_modules()[method]]))
-               if m != "madpinn" and not m.startswith(GLUE) and not _covered(_path(m), listed)]
-    assert not missing, f"METHOD_SOURCES['{method}'] misses {missing}"
-
-
-def test_value_function_training_edits_do_not_rerun_evaluation_cells():
-    """MAD-PINN and SafeMARL cells hash the value-function modules they run (loading and
-    evaluating a trained network), not its training, grid reference or verification: those reach
-    a cell through the trained model file, its input."""
-    methods = _literal("METHOD_SOURCES")
-    for method in ("madpinn", "safemarl"):
-        listed = [PACKAGE / p for p in _sources()["evaluate"] + methods[method]]
-        for module in ("train.py", "grid_reference.py", "verification.py", "figures.py", "shipping.py"):
-            assert not _covered(PACKAGE / "value_functions" / module, listed), (method, module)
-        assert _covered(PACKAGE / "value_functions" / "model.py", listed), method
+def test_evaluation_cells_do_not_rerun_for_tables_report_oracle_or_training_edits():
+    """Cells hash the value-function modules they run (loading and evaluating a trained network), not
+    its training, grid reference or verification: those reach a cell through the model file."""
+    for method in registry("madpinn.policies.base"):
+        files = _files("evaluate", method)
+        for module in ("evaluation/tables.py", "evaluation/reproduction.py", "evaluation/oracle.py",
+                       "evaluation/paper_values.yaml", "figures/style.py", "value_functions/train.py",
+                       "value_functions/grid_reference.py", "value_functions/verification.py",
+                       "value_functions/shipping.py"):
+            assert module not in files, (method, module)
 
 
 def test_editing_one_method_does_not_rerun_another_methods_cells():
-    """The MAD-PINN policy's modules are not hashed into the baselines' cells, and vice versa."""
-    methods = _literal("METHOD_SOURCES")
-    common = [PACKAGE / part for part in _sources()["evaluate"]]
-    for module in ("policies/madpinn.py", "policies/look_ahead.py", "policies/z_search.py"):
-        for other in ("mppi", "nominal", "safemarl", "defmarl"):
-            assert not _covered(PACKAGE / module, common + [PACKAGE / p for p in methods[other]]), (module, other)
-    for other in ("madpinn", "nominal", "safemarl", "defmarl"):
-        assert not _covered(PACKAGE / "policies/mppi.py", common + [PACKAGE / p for p in methods[other]]), other
+    """A cell hashes its own method's policy module, never another method's (nor MAD-PINN's helpers)."""
+    methods = registry("madpinn.policies.base")
+    for method in methods:
+        files = _files("evaluate", method)
+        others = {f"policies/{m.rsplit('.', 1)[1]}.py" for k, m in methods.items() if k != method}
+        if method != "madpinn":
+            others |= {"policies/look_ahead.py", "policies/z_search.py", "policies/neighbours.py"}
+        assert not others & files, (method, sorted(others & files))
+
+
+def test_glue_is_not_hashed():
+    for command in ("evaluate", "train-value", "table"):
+        assert not any(f.startswith(("commands/", "tracking/")) or f in ("config.py", "provenance.py")
+                       for f in _files(command)), command
+
+
+def test_the_source_hash_follows_the_files():
+    """Editing a hashed file changes the hash; the hash is stable otherwise."""
+    entries = ["madpinn.commands.outputs:_oracle"]
+    before = source_hash(*entries)
+    assert source_hash(*entries) == before
+    path = PACKAGE / "evaluation" / "oracle.py"
+    text = path.read_text()
+    try:
+        path.write_text(text + "\n# edited by test_workflow_sources\n")
+        assert source_hash(*entries) != before
+    finally:
+        path.write_text(text)
+
+
+def test_every_rule_hashes_the_command_it_runs():
+    """A rule's ``source=source_hash("<command>", ...)`` names the command of its ``shell:`` line."""
+    checked = 0
+    for smk in sorted(RULES.glob("*.smk")):
+        text = smk.read_text()
+        for block in re.split(r"\n\s*rule\b", text)[1:]:
+            shell = re.search(r"python -m madpinn ([a-z-]+)", block)
+            source = re.search(r"source=(\w+)(?:\(\"([a-z-]+)\")?", block)
+            if shell is None or source is None:
+                continue
+            command = "evaluate" if source.group(1) == "eval_source_hash" else source.group(2)
+            assert command == shell.group(1), (smk.name, shell.group(1), source.group(0))
+            checked += 1
+    assert checked >= 15, checked
+
+
+# runs `python -m madpinn ARGS`, then prints the package modules loaded (sys.modules: also those
+# imported by name through importlib, which `-X importtime` does not show)
+_LOADED = ("import atexit, sys; atexit.register(lambda: print('LOADED', *sorted(m for m in sys.modules "
+           "if m.startswith('madpinn')), file=sys.stderr)); from madpinn.commands import main; "
+           "sys.exit(main(sys.argv[1:]))")
+
+
+def test_the_closure_covers_what_a_real_job_imports(tmp_path):
+    """A real tiny evaluation cell (nominal policy, smoke config): every package module loaded by the
+    time it ends is hashed into its cells, except the glue and what the command line's parser loads."""
+    from madpinn.provenance import is_glue
+
+    out = tmp_path / "cell.parquet"
+    proc = subprocess.run(
+        [sys.executable, "-c", _LOADED, "evaluate", "--config", str(REPO / "config.yaml"),
+         str(REPO / "workflow" / "configs" / "smoke.yaml"), "--study", "main", "--run", "nominal",
+         "--n-agents", "3", "--seed", "0", "--backend", "double_integrator", "--out", str(out), "--no-track",
+         "--no-progress"], capture_output=True, text=True, cwd=tmp_path, timeout=600, env=_env())
+    assert proc.returncode == 0 and out.is_file(), proc.stderr[-3000:]
+    loaded = {m for m in re.search(r"^LOADED (.*)$", proc.stderr, re.M).group(1).split() if not is_glue(m)}
+    hashed = closure([handler_entry("evaluate"), plugin_module("madpinn.policies.base", "nominal")])
+    # the command line imports every command module to build its parser: their module-level imports
+    # (e.g. value_functions.build for the choices of train-value) define names, run no job code
+    parser = closure([f"{m}:" for m in COMMAND_MODULES])
+    assert {"madpinn.evaluation.cell", "madpinn.policies.nominal", "madpinn.simulation.simulator"} <= loaded, loaded
+    assert not loaded - hashed - parser, sorted(loaded - hashed - parser)
+
+
+def _env():
+    from conftest import subprocess_env
+
+    return subprocess_env({"MADPINN_TRACKING_SOURCE": "manual"})

@@ -12,6 +12,7 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 
 from madpinn.commands.errors import debug_requested, run_reporting
@@ -45,3 +46,20 @@ def main(argv: list[str] | None = None) -> int:
     debug = debug_requested(argv)
     args = build_parser().parse_args([a for a in argv if a != "--debug"])
     return run_reporting(lambda: args.func(args), debug)
+
+
+def handler_entry(command: str) -> str:
+    """``module:function`` of the handler that ``python -m madpinn <command>`` runs: the entry of
+    the job's code for :func:`madpinn.provenance.source_hash` (the workflow's ``source`` params)."""
+    handlers = _handlers()
+    if command not in handlers:
+        raise ValueError(f"unknown command '{command}' (have {sorted(handlers)})")
+    return handlers[command]
+
+
+@functools.lru_cache(maxsize=1)
+def _handlers() -> dict[str, str]:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {name: f"{p.get_default('func').__module__}:{p.get_default('func').__qualname__}"
+            for name, p in sub.choices.items()}

@@ -1,12 +1,14 @@
 """Expected errors -> one line naming the problem and the fix (issue 18 item 7).
 
 Every expected failure of a job (bad config, infeasible scenario, missing or mismatched
-checkpoint, diverged training or physics, tracking store, unknown study or run) is printed as
+checkpoint, shipped model, diverged training or physics, tracking store, unknown study or run) is
+printed as
 
     madpinn: <problem> — fix: <what to do>
 
 with a non-zero exit code; ``--debug`` or ``MADPINN_DEBUG=1`` re-raises it with its traceback.
-Anything else is a bug and keeps its traceback.
+Anything else is a bug and keeps its traceback. The workflow's checks before any job (Snakefile,
+``workflow/rules/*.smk``) stop through :func:`stop_workflow`: the same table, the same line.
 """
 
 from __future__ import annotations
@@ -19,18 +21,23 @@ from typing import Callable
 def _expected() -> list[tuple[type[BaseException], str, int]]:
     """(exception type, fix, exit code), most specific first. Imported lazily: the CLI's
     start-up stays light."""
-    from madpinn.config import ConfigError
+    from madpinn.config import ConfigError, TargetError
     from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
     from madpinn.scenarios import ScenarioInfeasibleError
     from madpinn.simulation.mujoco.backend import PhysicsDivergedError
     from madpinn.tracking import TrackingError
     from madpinn.value_functions.model import CheckpointError as ValueCheckpointError
+    from madpinn.value_functions.shipping import ShippedModelError
     from madpinn.value_functions.train import TrainingDiverged
 
     retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
     return [
+        (TargetError, "ask for an output of a configured study, arena and agent count (snakemake -n all lists them)", 2),
         (ConfigError, "correct the named key(s) (schema: workflow/schemas/config.schema.yaml)", 2),
         (ScenarioInfeasibleError, "use fewer agents or a larger arena (arenas.<name>.half_width) for this study", 3),
+        (ShippedModelError, "ship a checkpoint of that model written by madpinn (python -m madpinn ship-models --model "
+                            "NAME=PATH) or restore models/ from git (git checkout -- models), or drop the name from "
+                            "shipped_models.names to train it", 4),
         (ValueCheckpointError, retrain, 4),
         (MarlCheckpointError, retrain, 4),
         (PhysicsDivergedError, "lower sim.dt or sim.mujoco.timestep, or check the controller gains (sim.mujoco)", 5),
@@ -52,15 +59,34 @@ def one_line(exc: BaseException) -> str:
     return "; ".join(parts) or type(exc).__name__
 
 
+def expected_line(exc: BaseException) -> str | None:
+    """``madpinn: <problem> — fix: <what to do>`` for an expected error, None for any other (a bug)."""
+    for kind, fix, _ in _expected():
+        if isinstance(exc, kind):
+            return f"madpinn: {one_line(exc)} — fix: {fix}"
+    return None
+
+
+def stop_workflow(exc: BaseException) -> None:
+    """The workflow's checks before any job (Snakefile, ``workflow/rules/*.smk``): an expected
+    error stops the run with its one line (as a command prints it) and exit code 1; anything else
+    re-raises with its traceback."""
+    line = expected_line(exc)
+    if line is None or debug_requested([]):   # MADPINN_DEBUG=1 (snakemake has its own --debug)
+        raise exc
+    sys.stderr.write(f"\n{line}\n\n")
+    raise SystemExit(1)
+
+
 def run_reporting(func: Callable[[], int], debug: bool) -> int:
     """Run ``func``; turn an expected error into one line on stderr and its exit code."""
     try:
         return int(func() or 0)
     except Exception as exc:  # noqa: BLE001 - filtered below; unexpected errors re-raise
-        for kind, fix, code in _expected():
+        for kind, _, code in _expected():
             if isinstance(exc, kind):
                 if debug:
                     raise
-                print(f"madpinn: {one_line(exc)} — fix: {fix}", file=sys.stderr)
+                print(expected_line(exc), file=sys.stderr)
                 return code
         raise

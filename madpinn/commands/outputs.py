@@ -53,7 +53,8 @@ def _oracle(args) -> int:
     if pattern != UNIFORM:
         wildcards["pattern"] = pattern
         where = f"{args.arena}/{pattern}"
-    record = JobRecord(job_key=f"oracle/{where}/n{args.n_agents}/seed{args.seed}/s{args.scenarios}", rule="oracle",
+    record = JobRecord(job_key=f"oracle/{where}/n{args.n_agents}/seed{args.seed}/s{args.scenarios}",
+                       rule="oracle" if pattern == UNIFORM else "oracle_pattern",   # the workflow rule that runs it
                        wildcards=wildcards, params={"scenarios": args.scenarios, "steps": cfg["oracle"]["steps"]})
     with job(cfg, record, not args.no_track) as run:
         out = write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["agents"]["collision_radius"],

@@ -9,7 +9,8 @@
 - ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states);
 - ``ship-models`` / ``install-shipped``: ``models/`` + ``manifest.json``; sha256-checked install.
 
-Every job but the last two runs in one live MLflow run (:mod:`madpinn.commands.finish`).
+Every job runs in one live MLflow run (:mod:`madpinn.commands.finish`), ``install-shipped`` when
+given ``--config`` (as the workflow does); ``ship-models``, a maintainer's command, has none.
 """
 
 from __future__ import annotations
@@ -57,12 +58,18 @@ def _train(args) -> int:
 
     cfg = config_of(args)
     kind = args.kind
-    vcfg = cfg["value_functions"][kind]
+    vcfg = _training_settings(cfg, kind)
     record = JobRecord(job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
                        params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
                                "config_hash": training_hash(cfg, kind)})
     with job(cfg, record, not args.no_track) as run:
         return _train_job(cfg, kind, args, run, record)
+
+
+def _training_settings(cfg: dict, kind: str) -> dict:
+    """``value_functions.<kind>`` without its ``validation`` section: what the training reads (the
+    validation jobs read the rest; a validation setting never reruns a training)."""
+    return {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
 
 
 EXIT_PAUSED = 75   # EX_TEMPFAIL: --time-limit reached, checkpoint kept; run the same command again
@@ -89,7 +96,7 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
 
     device, dtype = _setup(cfg, args.threads)
     problem = problem_from_config(cfg, kind)
-    vcfg = cfg["value_functions"][kind]
+    vcfg = _training_settings(cfg, kind)
     settings = TrainSettings.from_config(vcfg, cfg["value_functions"]["seed"])
     models = parse_models(args.model)
     if "init" in models:   # the workflow resolves value_functions.<kind>.init_from and passes it in
@@ -116,9 +123,8 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
             "init_from": settings.init_from, "batch_offset": info["batch_offset"],
             "final_loss": float(np.mean(history[-100:])), "settings": {**vcfg, "seed": settings.seed}}
     model = model_from_payload(model_payload(problem, net, settings.output_scale, meta), device=device, dtype=dtype)
-    val = vcfg.get("validation", {})
-    samples = int(val.get("samples", val.get("rollout_samples", 65536)))
-    meta["residual"] = residual_stats(problem, model, samples, settings.seed)
+    # held-out residual over one training batch of fresh states (validate-vhat: the validation's count)
+    meta["residual"] = residual_stats(problem, model, settings.batch_size, settings.seed)
     save_atomic(model_payload(problem, net, settings.output_scale, meta), out)
     stem = out.with_suffix("")
     loss_csv = stem.with_name(stem.name + "_loss.csv")
@@ -254,48 +260,54 @@ def _pairs(items: list[str] | None, what: str) -> dict[str, list[str]]:
 
 
 def _ship_models(args) -> int:
-    from madpinn.value_functions.shipping import ship
-
+    """Every file and report is read and checked before ``models/`` is touched: a bad file stops
+    the command with one line and leaves ``models/`` and its manifest byte-identical."""
     from madpinn.config import ConfigError
+    from madpinn.value_functions.shipping import ship
 
     models = {k: str(p) for k, p in parse_models(args.model).items()}
     if not models:
         raise ConfigError("pass at least one --model NAME=PATH")
-    manifest = ship(models, args.out_dir, _pairs(args.validation, "--validation"), device=args.device)
-    manifest = _fill_provenance(args, models, manifest)
-    print(json.dumps({k: {f: e[f] for f in ("sha256", "bytes", "iterations", "samples")}
+    manifest = ship(models, args.out_dir, _pairs(args.validation, "--validation"), device=args.device,
+                    defaults=_provenance(args, models))
+    print(json.dumps({k: {f: e.get(f) for f in ("sha256", "bytes", "iterations", "samples")}
                       for k, e in manifest["models"].items()}, indent=2))
     return 0
 
 
-def _fill_provenance(args, models: dict, manifest: dict) -> dict:
-    """Record what a checkpoint does not carry itself (the MARL policies store neither): the
-    training hash of ``--config`` (:func:`madpinn.marl_hash.marl_training_hash`, which the shipped
-    overlay checks) and ``--git-commit`` (the training job's commit, e.g. from its MLflow run)."""
-    from madpinn.atomic import atomic_write
+def _provenance(args, models: dict) -> dict:
+    """What a checkpoint does not carry itself (the MARL policies store neither), read before
+    anything is written: the training hash of ``--config`` (:func:`madpinn.marl_hash.marl_training_hash`,
+    which the shipped overlay checks) and ``--git-commit`` (the training job's commit, e.g. from
+    its MLflow run). Name -> entry fields used where the checkpoint's own are missing."""
     from madpinn.config import ConfigError, load_config
     from madpinn.marl_hash import is_marl_model, marl_training_hash
-    from madpinn.value_functions.shipping import MANIFEST
+    from madpinn.value_functions.shipping import describe_checkpoint, read_model_file
 
     cfg = load_config(args.config) if args.config else None
-    for name in models:
-        entry = manifest["models"][name]
-        if entry.get("training_config_hash") is None and is_marl_model(name):
+    defaults = {}
+    for name, path in models.items():
+        fields = {"git_commit": args.git_commit} if args.git_commit else {}
+        if is_marl_model(name) and describe_checkpoint(read_model_file(path, name))["training_config_hash"] is None:
             if cfg is None:
                 raise ConfigError(f"{name}: the checkpoint records no training hash; pass --config (the training configuration)")
-            entry["training_config_hash"] = marl_training_hash(cfg, name)
-        if entry.get("git_commit") is None and args.git_commit:
-            entry["git_commit"] = args.git_commit
-    text = json.dumps(manifest, indent=2, sort_keys=True) + "\n"
-    atomic_write(Path(args.out_dir) / MANIFEST, lambda tmp: tmp.write_text(text))
-    return manifest
+            fields["training_config_hash"] = marl_training_hash(cfg, name)
+        defaults[name] = fields
+    return defaults
 
 
 def _install_shipped(args) -> int:
     from madpinn.value_functions.shipping import install
 
-    print(install(args.dir, args.name, args.out))
-    return 0
+    if not args.config:                       # by hand, without a config: no MLflow run
+        print(install(args.dir, args.name, args.out))
+        return 0
+    cfg = config_of(args)
+    record = JobRecord(job_key=f"install/{args.name}", rule="install_shipped_model", wildcards={"name": args.name},
+                       params={"dir": args.dir})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = [install(args.dir, args.name, args.out)]
+        return finish(run, record, echo=list(record.artifacts))
 
 
 def register(sub) -> None:
@@ -364,4 +376,7 @@ def register(sub) -> None:
     p.add_argument("--dir", default="models", help="shipped-models directory with manifest.json")
     p.add_argument("--name", required=True, help="model name in the manifest (vs, vhat, safemarl_nominal, ...)")
     p.add_argument("--out", required=True, help="destination, e.g. results/models/vs.pt")
+    p.add_argument("--config", nargs="+", default=None,
+                   help="config file(s): the job is logged as an MLflow run (the workflow passes it)")
+    p.add_argument("--no-track", action="store_true", help="do not log to MLflow")
     p.set_defaults(func=_install_shipped)

@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from madpinn.separation import safe_at
+
 if TYPE_CHECKING:   # annotations only: tables and figures run without importing torch
     from madpinn.simulation.recorder import EpisodeResult
 
@@ -71,8 +73,6 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
 def safety_curve(df: pd.DataFrame, radii) -> pd.DataFrame:
     """Safety rate and safe-scenario share at each radius ``radii`` (m) from the scenario rows'
     ``agent_min_separation``: one row per radius, means over the rows of ``df``."""
-    from madpinn.simulation.recorder import safe_at
-
     if "agent_min_separation" not in df:
         raise ValueError("these results hold no per-agent minimum separations (written before they were recorded)")
     rows = []

@@ -14,7 +14,9 @@ files hold, beside the paper's value:
 Every method keeps its own collision terms at r here (the shipped models were built for r), so the
 ``2r`` columns measure the metric alone; the cost columns are the time-averaged cost over all
 agents (collided ones included), the quantity whose trend the paper's failure rows show.
-The last rows give the mean |ours − paper| safety over the cells each column holds.
+Rows follow the paper's tables and the config's run order; a run the paper row lists under
+``also`` (our labelled extensions, e.g. ``madpinn-lookahead``) is shown but marked ``extension``,
+and the closing mean |ours − paper| safety is taken over the paper's own rows only.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import pandas as pd
 
 from madpinn.config import ConfigError, study_sim
 from madpinn.evaluation.reproduction import paper_row_of, paper_values
-from madpinn.evaluation.tables import label_of, load_results, per_seed, to_markdown
+from madpinn.evaluation.tables import label_of, load_results, per_seed, run_order, to_markdown
 
 CONTACTS_SUFFIX = "_contacts"
 READINGS = {   # column -> (contacts study?, seed figure)
@@ -69,10 +71,16 @@ def readings_table(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
     if not seeds:
         raise ValueError(f"no results of the studies {sorted(table_of)} (or their {CONTACTS_SUFFIX} readings)")
     seeds = pd.concat(seeds, ignore_index=True)
+    order = run_order(df, cfg)
+    tables = list(dict.fromkeys(table_of[b] for b in table_of))   # paper order, as given
+    seeds["_t"], seeds["_r"] = seeds["table"].map(tables.index), seeds["run"].map(order)
+    seeds = seeds.sort_values(["_t", "_r", "n_agents"], kind="stable")
     rows = []
     for (table, run, n), g in seeds.groupby(["table", "run", "n_agents"], sort=False):
-        p = paper_row_of(paper.get(table, {}).get("runs", {})).get(run, {}).get("n", {}).get(int(n), {})
+        ref = paper.get(table, {}).get("runs", {})
+        p = paper_row_of(ref).get(run, {}).get("n", {}).get(int(n), {})
         row = {"table": table, "run": run, "label": label_of(cfg, run), "n_agents": int(n),
+               "extension": run not in ref and bool(p),
                "paper_safety": p.get("safety", np.nan), "paper_cost": p.get("cost", np.nan)}
         for col, (contacts, metric) in READINGS.items():
             sel = g[g["contacts"] == contacts]
@@ -81,15 +89,18 @@ def readings_table(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
             sel = g[g["contacts"] == contacts]
             row[col] = float(sel["cost_all_time_avg"].mean()) if len(sel) else np.nan
         row["n_seeds"] = int(g["seed"].nunique())
+        row["seeds"] = " ".join(str(int(x)) for x in sorted(g["seed"].unique()))
         rows.append(row)
     return pd.DataFrame(rows)
 
 
 def mean_gap(table: pd.DataFrame) -> dict[str, float]:
-    """Mean |ours − paper| safety (fraction) per reading over the cells with a paper value and ours."""
+    """Mean |ours − paper| safety (fraction) per reading over the paper's own rows (not the
+    extensions compared with them) that have a paper value and ours."""
     out = {}
+    own = table[~table["extension"]]
     for col in READINGS:
-        both = table[["paper_safety", col]].dropna()
+        both = own[["paper_safety", col]].dropna()
         out[col] = float((both[col] - both["paper_safety"]).abs().mean()) if len(both) else float("nan")
     return out
 
@@ -100,14 +111,15 @@ def format_readings(table: pd.DataFrame) -> pd.DataFrame:
     cost = lambda x: "–" if pd.isna(x) else f"{x:.2f}"   # noqa: E731
     rows = []
     for _, r in table.iterrows():
-        row = {"Table": r["table"].removeprefix("table_").replace("_", " "), "Method": r["label"],
+        row = {"Table": r["table"].removeprefix("table_").replace("_", " "),
+               "Method": r["label"] + (" (extension, vs the paper's row)" if r["extension"] else ""),
                "N": int(r["n_agents"]), "Paper safety": pct(r["paper_safety"])}
         row.update({col: pct(r[col]) for col in READINGS})
         row["Paper cost"] = cost(r["paper_cost"])
         row.update({col: cost(r[col]) for col in COSTS})
         rows.append(row)
     gap = mean_gap(table)
-    cells = int(table["paper_safety"].notna().sum())
+    cells = int((table["paper_safety"].notna() & ~table["extension"]).sum())
     summary = {"Table": "mean |ours − paper|", "Method": f"over {cells} paper cells", "N": "", "Paper safety": ""}
     summary.update({col: "–" if np.isnan(v) else f"{100 * v:.1f} pp" for col, v in gap.items()})
     summary.update({"Paper cost": "", **{col: "" for col in COSTS}})
@@ -116,17 +128,22 @@ def format_readings(table: pd.DataFrame) -> pd.DataFrame:
 
 def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapping[str, str],
                    out_dir: str | Path, name: str = "table_collision_readings") -> list[Path]:
-    """Write ``<name>.csv`` (numbers) and ``<name>.md`` (display, with the reading definitions)."""
+    """Write ``<name>.csv`` (numbers), ``<name>.md`` and ``<name>.html`` (display, with the reading
+    definitions; the HTML page is what the Snakemake report shows)."""
+    from madpinn.evaluation.html import markdown_page
+
     table = readings_table(result_paths, cfg, table_of)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
     table.to_csv(csv, index=False)
-    seeds = sorted({int(s) for st in cfg["studies"].values() for s in st["seeds"]})
+    seeds = sorted({int(x) for row in table["seeds"] for x in row.split()})
     md.write_text(
         "Safety rate per paper cell under each collision reading (SPEC §1; madpinn/evaluation/readings.py).\n"
         "r · pass: d ≤ r, agents pass through; 2r · pass: discs of radius r touching (d ≤ 2r), same episodes;\n"
         "r / 2r · contact: the same counts with contact physics (sim.contacts). Every method keeps its\n"
         f"collision terms at r. Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
         + to_markdown(format_readings(table)))
-    return [csv, md]
+    page = out_dir / f"{name}.html"
+    page.write_text(markdown_page(md.read_text(), name))
+    return [csv, md, page]

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Iterable, Mapping
 
@@ -146,6 +147,17 @@ def _ordered(table: dict, paper_runs: list[str]) -> dict:
     return {r: dict(sorted(table[r].items(), key=lambda kv: int(kv[0]))) for r in runs}
 
 
+def paper_table_numbers(path: str | Path = PAPER_VALUES) -> dict[str, str]:
+    """``{table name: the paper's table number}`` ("I" … "IV"), read from each table's
+    ``tex_lines`` ("357-375 (Table I, rows 365-369)")."""
+    numbers = {}
+    for name, t in paper_values(path).items():
+        m = re.search(r"Table ([IVX]+)\b", t["tex_lines"])
+        if m:
+            numbers[name] = m.group(1)
+    return numbers
+
+
 def paper_values_source() -> str:
     return yaml.safe_load(PAPER_VALUES.read_text())["source"]
 
@@ -244,11 +256,16 @@ def to_markdown(report: dict) -> str:
 
 
 def write_report(out_dir: str | Path, tables: Mapping[str, Iterable[str | Path]], cfg: dict, **kwargs) -> list[Path]:
-    """Write ``reproduction.json`` and ``reproduction.md`` into ``out_dir``; kwargs: :func:`build_report`."""
+    """Write ``reproduction.json``, ``reproduction.md`` and ``reproduction.html`` (the page the
+    Snakemake report shows) into ``out_dir``; kwargs: :func:`build_report`."""
+    from madpinn.evaluation.html import markdown_page
+
     report = build_report(tables, cfg, **kwargs)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     js, md = out_dir / "reproduction.json", out_dir / "reproduction.md"
     js.write_text(json.dumps(report, indent=2, ensure_ascii=False))
     md.write_text(to_markdown(report))
-    return [js, md]
+    page = out_dir / "reproduction.html"
+    page.write_text(markdown_page(md.read_text(), "Reproduction report"))
+    return [js, md, page]

@@ -202,16 +202,21 @@ def table_data(result_paths: Iterable[str | Path], cfg: dict, oracle_paths: Iter
 
 def write_table(name: str, kind: str, result_paths: Iterable[str | Path], cfg: dict, out_dir: str | Path,
                 oracle_paths: Iterable[str | Path] = ()) -> list[Path]:
+    """Write ``<name>.csv`` (numbers), ``.md``, ``.tex`` and ``.html`` (display; the HTML page is
+    what the Snakemake report shows) into ``out_dir``; returns the four paths in that order."""
+    from madpinn.evaluation.html import markdown_page
+
     agg = table_data(result_paths, cfg, oracle_paths)
     table = format_table(agg, kind, ROW_HEADERS.get(name, "Method"))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    csv, md, tex = (out_dir / f"{name}.{ext}" for ext in ("csv", "md", "tex"))
+    csv, md, tex, page = (out_dir / f"{name}.{ext}" for ext in ("csv", "md", "tex", "html"))
     agg.to_csv(csv, index=False)
     md.write_text(to_markdown(table))
+    page.write_text(markdown_page(to_markdown(table), name))
     seeds = int(agg["n_seeds"].max())
     spread = "mean ± std over seeds" if seeds > 1 else "one seed"
     caption = (f"{name.replace('_', ' ')} ({spread}; {cfg['experiment']}). Costs over collision-free agents: "
                f"Cost ÷T = cumulative cost ∫‖p−g‖dt + ‖p(T)−g‖ divided by the episode length T")
     tex.write_text(to_latex(table, caption))
-    return [csv, md, tex]
+    return [csv, md, tex, page]

@@ -8,7 +8,7 @@ from pathlib import Path
 import torch
 
 from madpinn.atomic import save_torch
-from madpinn.hints import build_hint
+from madpinn.hints import build_hint, unreadable_reason
 from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
 
@@ -79,7 +79,7 @@ def load_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> dic
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any unpickling failure means an unusable file
-        raise CheckpointError(f"cannot read MARL checkpoint {path} (corrupted or not a torch file): {exc}; delete it, then {build_hint(path)}") from exc
+        raise CheckpointError(f"cannot read MARL checkpoint {path}: {unreadable_reason(exc)}") from exc
     if not isinstance(ck, dict) or ck.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a {FORMAT} checkpoint")
     if ck.get("version") != VERSION:

@@ -39,7 +39,7 @@ from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
 from madpinn.policies.neighbours import STRATEGIES, make_selector
 from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
-from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, predict_index, warm_search
+from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index, warm_search
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.symmetry import symmetrize
 
@@ -55,7 +55,9 @@ class MadPinnSettings:
     safety_filter: CBVF filter parameters (None: the paper's policy, unfiltered);
     look_ahead: τ (s) of the actuator-lag compensation: V̂ sees each agent's own state predicted
     τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
-    the measured state)."""
+    the measured state); z_newton: the warm search takes a Newton step on ∂V̂/∂z
+    (:func:`newton_search`, fewer V̂ rows; may return another verified crossing where V̂ is not
+    monotone in z, so not the default and not read from the config yet, issue 37)."""
 
     strategy: str = "value"
     update_every: int | None = 5
@@ -65,6 +67,7 @@ class MadPinnSettings:
     symmetry: str = "none"
     safety_filter: CBVFSettings | None = None
     look_ahead: float = 0.0
+    z_newton: bool = False
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -169,7 +172,8 @@ class MadPinnPolicy:
         obs = obs.reshape(S * N, -1)
         grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
         if self.settings.warm_start and self._k_last is not None and self._k_last.shape[0] == obs.shape[0]:
-            r = warm_search(self.vhat, obs, grid, predict_index(self._k_last, self._k_before, grid.cells))
+            search = newton_search if self.settings.z_newton else warm_search
+            r = search(self.vhat, obs, grid, predict_index(self._k_last, self._k_before, grid.cells))
         else:
             r = cold_search(self.vhat, obs, grid)
             self._k_last = None

@@ -13,7 +13,19 @@ Per agent i, every policy step:
 4. If the QP is infeasible, or the smallest V_s is below ``threshold``, the V_s-optimal (safest)
    control against the most critical neighbour: ``u_max·sign(∂V_s/∂v)`` per axis.
 
-Without neighbours in the sensing radius the nominal control passes unchanged. Used by SafeMARL
+Without neighbours in the sensing radius the nominal control passes unchanged.
+
+Two settings give the authors' filter design (Layered-Safe-MARL, Choi, Aloor, Li et al. 2025;
+run ``safemarl-layered``, docs/marl.md), together with ``critical_neighbours = 1``:
+
+- ``neighbour_control = "joint"``: each row is agent i's share of the pair's *joint* QP
+  ``min ‖u_i − û_i‖² + ‖u_j − û_j‖²  s.t.  a·(u_i − u_j) ≥ b`` around both nominal controls
+  (û_j: the neighbour's nominal control, computed by every agent before filtering). Its unboxed
+  solution moves each agent by half the correction, so agent i's row becomes
+  ``a·u_i ≥ (b + a·(û_i + û_j))/2``; it is then solved with the box like any other row (the
+  authors solve the joint QP unboxed and clip afterwards). ``"zero"``: ``u_j = 0`` as above.
+- ``coordination_range``: the filter acts only when the nearest neighbour is within this
+  distance (m); otherwise the nominal control passes (``None``: the sensing radius). Used by SafeMARL
 (:mod:`madpinn.policies.safemarl`, nominal = MARL actor) and by the ``safety_filter`` option of
 MAD-PINN (:mod:`madpinn.policies.madpinn`, nominal = the MAD-PINN policy; not in the paper).
 """
@@ -43,9 +55,17 @@ class CBVFFilter:
     """Batched per-agent CBVF safety filter on a pairwise value ``vs`` with ``value(x [B,4]) -> [B]``
     and ``value_and_grad(x [B,4]) -> (V [B], dV/dx [B,4])``."""
 
-    def __init__(self, vs, u_max: float, gamma: float, critical: int, candidates: int, threshold: float, sensing_radius: float):
+    NEIGHBOUR_CONTROLS = ("zero", "joint")
+
+    def __init__(self, vs, u_max: float, gamma: float, critical: int, candidates: int, threshold: float, sensing_radius: float,
+                 neighbour_control: str = "zero", coordination_range: float | None = None):
         if critical > candidates:
             raise ValueError(f"critical_neighbours ({critical}) must not exceed candidates ({candidates})")
+        if neighbour_control not in self.NEIGHBOUR_CONTROLS:
+            raise ValueError(f"neighbour_control must be one of {self.NEIGHBOUR_CONTROLS}, got {neighbour_control!r}")
+        if coordination_range is not None and not 0.0 < coordination_range <= sensing_radius:
+            raise ValueError(f"coordination_range ({coordination_range} m) must be in (0, sensing radius {sensing_radius} m]: "
+                             "agents cannot coordinate with neighbours they do not sense")
         self.vs = vs
         self.u_max = float(u_max)
         self.gamma = float(gamma)
@@ -53,15 +73,22 @@ class CBVFFilter:
         self.candidates = int(candidates)
         self.threshold = float(threshold)
         self.sensing_radius = float(sensing_radius)
+        self.neighbour_control = neighbour_control
+        self.coordination_range = None if coordination_range is None else float(coordination_range)
         self.stats = FilterStats()
 
-    def constraint_rows(self, state: torch.Tensor):
-        """-> ``a [S, N, k, 2]``, ``b [S, N, k]``, ``active [S, N, k]``, ``V [S, N, k]``, ``dV/dv [S, N, k, 2]``,
-        rows sorted by increasing V_s (most critical first)."""
+    def constraint_rows(self, state: torch.Tensor, u_nom: torch.Tensor | None = None):
+        """state ``[S, N, 4]`` (and, for ``neighbour_control = "joint"``, the clipped nominal controls
+        ``u_nom [S, N, 2]`` of all agents) -> ``a [S, N, k, 2]``, ``b [S, N, k]``, ``active [S, N, k]``,
+        ``V [S, N, k]``, ``dV/dv [S, N, k, 2]``, rows sorted by increasing V_s (most critical first);
+        ``active`` is False for empty slots and for every row of an agent gated by ``coordination_range``."""
         S, N, _ = state.shape
         idx = nearest_neighbours(state, self.candidates, radius=self.sensing_radius)  # [S, N, C]
         real = idx >= 0
         x_rel = state.unsqueeze(2) - gather_agents(state, idx.clamp_min(0))  # [S, N, C, 4]
+        if self.coordination_range is not None:  # gate on the nearest neighbour's distance
+            dist = x_rel[..., 0:2].norm(dim=-1).masked_fill(~real, float("inf"))
+            real = real & (dist.amin(-1, keepdim=True) <= self.coordination_range)
         C = idx.shape[-1]
         v_all = self.vs.value(x_rel.reshape(-1, 4), t=0.0).reshape(S, N, C)
         v_all = v_all.masked_fill(~real, float("inf"))
@@ -74,6 +101,12 @@ class CBVFFilter:
         dV = dV.reshape(S, N, k, 4).to(state.dtype)
         a = dV[..., 2:4]
         b = -self.gamma * V - (dV[..., 0:2] * x_k[..., 2:4]).sum(-1)
+        if self.neighbour_control == "joint":
+            if u_nom is None:
+                raise ValueError("neighbour_control 'joint' needs the nominal controls u_nom [S, N, 2] of all agents")
+            j = torch.gather(idx.clamp_min(0), 2, order)  # [S, N, k] neighbour indices
+            u_j = gather_agents(u_nom, j).to(state.dtype)  # [S, N, k, 2]
+            b = 0.5 * (b + (a * (u_nom.unsqueeze(2).to(state.dtype) + u_j)).sum(-1))
         return a, b, active, V, a
 
     def __call__(self, state: torch.Tensor, u_nom: torch.Tensor) -> torch.Tensor:
@@ -82,7 +115,7 @@ class CBVFFilter:
         u_nom = u_nom.clamp(-self.u_max, self.u_max)
         if N < 2:
             return u_nom
-        a, b, active, V, grad_v = self.constraint_rows(state)
+        a, b, active, V, grad_v = self.constraint_rows(state, u_nom)
         k = a.shape[2]
         u, feasible = solve_box_qp(u_nom.reshape(-1, 2), a.reshape(-1, k, 2), b.reshape(-1, k), self.u_max, active.reshape(-1, k))
         u, feasible = u.reshape(S, N, 2), feasible.reshape(S, N)
@@ -123,14 +156,22 @@ class CBVFSettings:
     """nearest neighbours inside the sensing radius whose V_s is evaluated"""
     threshold: float
     """V_s below it (m): the V_s-optimal (safest) control instead of the QP"""
+    neighbour_control: str
+    """the neighbour's control in each row: ``zero`` (u_j = 0, agent i corrects alone) or ``joint``
+    (agent i's share of the pair's joint QP around both nominal controls, Layered-Safe-MARL)"""
+    coordination_range: float | None
+    """m; filter only when the nearest neighbour is this close (None: the sensing radius)"""
 
     @classmethod
     def from_config(cls, block: Mapping) -> "CBVFSettings":
+        rng = block["coordination_range"]
         return cls(gamma=float(block["cbvf_gamma"]), critical_neighbours=int(block["critical_neighbours"]),
-                   candidates=int(block["candidates"]), threshold=float(block["threshold"]))
+                   candidates=int(block["candidates"]), threshold=float(block["threshold"]),
+                   neighbour_control=str(block["neighbour_control"]), coordination_range=None if rng is None else float(rng))
 
 
 def make_cbvf_filter(vs, params: CBVFSettings, u_max: float, sensing_radius: float) -> CBVFFilter:
     """A :class:`CBVFFilter` on ``vs`` from its settings."""
     return CBVFFilter(vs, u_max=u_max, gamma=params.gamma, critical=params.critical_neighbours,
-                      candidates=params.candidates, threshold=params.threshold, sensing_radius=sensing_radius)
+                      candidates=params.candidates, threshold=params.threshold, sensing_radius=sensing_radius,
+                      neighbour_control=params.neighbour_control, coordination_range=params.coordination_range)

@@ -62,6 +62,9 @@ class DoubleIntegratorBackend:
 
     def step(self) -> torch.Tensor:
         moved = self.dynamics.step(self.state, self._accel, self.dt)
+        if self.freeze_radius is None:
+            self.state = moved
+            return moved
         self.state = torch.where(self.frozen[..., None], self.state, moved)
         self._freeze_new()
         return self.state

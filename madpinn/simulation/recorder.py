@@ -11,6 +11,7 @@ import numpy as np
 import torch
 
 from madpinn.observation import pairwise_distances
+from madpinn.separation import safe_at
 
 
 @dataclass
@@ -43,13 +44,6 @@ class EpisodeResult:
     def safe_at(self, radius: float) -> np.ndarray:
         """``[S, N]`` bool: agents that never came within ``radius`` (m) of another agent."""
         return safe_at(self.min_separation, radius)
-
-
-def safe_at(min_separation: np.ndarray, radius: float) -> np.ndarray:
-    """Agents whose minimum separation stayed above ``radius`` (m), compared in the separations'
-    own dtype, as the recorder compares them during the episode."""
-    sep = np.asarray(min_separation)
-    return ~(sep <= np.asarray(radius, dtype=sep.dtype))
 
 
 class EpisodeRecorder:

@@ -22,6 +22,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import shutil
 import signal
 import sys
@@ -73,7 +75,7 @@ class JobRun:
             **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, **(tags or {}),
         }
         self.record = RunRecord(job_key=job_key, source=settings.source, tags=tags, start_ms=now_ms(),
-                                params=flatten(params or {}))
+                                params=flatten(params or {}), uri=settings.uri)
         self._client = None
         self._unsent: list = []
         self._last_flush = time.monotonic()
@@ -172,8 +174,13 @@ class JobRun:
             tmp = Path(tempfile.mkdtemp(prefix="madpinn-model-"))
             self._tmp_models.append(tmp)
             try:
-                mlflow.pytorch.save_model(module, str(tmp / name), serialization_format="pickle",
-                                         pip_requirements=[f"torch=={torch.__version__}"])
+                # pickle on purpose: the safe "pt2" format needs an example input to export the
+                # graph, which the MARL actors' structured observations do not give. Its warning
+                # (unpickling runs code) concerns loading; the result files are the source of truth
+                # and load with weights_only=True. Silenced for this call only.
+                with _quiet_pickle_warning():
+                    mlflow.pytorch.save_model(module, str(tmp / name), serialization_format="pickle",
+                                             pip_requirements=[f"torch=={torch.__version__}"])
                 saved[name] = str(tmp / name)
             except Exception as exc:  # noqa: BLE001 - the result files hold the model anyway
                 print(f"WARNING: model '{name}' of job '{self.record.job_key}' not saved as an MLflow model: {exc}",
@@ -246,3 +253,19 @@ def log_job(cfg, job_key: str, rule: str, wildcards: Mapping[str, object], param
                 run.log_metrics({name: v}, step=i)
         run.finish(metrics=metrics, artifacts=artifacts, models=models)
     return run.run_id
+
+
+class _PickleWarningFilter(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "Pickle or CloudPickle" not in record.getMessage()
+
+
+@contextlib.contextmanager
+def _quiet_pickle_warning():
+    """Drop mlflow.pytorch's pickle-format warning (only that message) inside the block."""
+    logger, f = logging.getLogger("mlflow.pytorch"), _PickleWarningFilter()
+    logger.addFilter(f)
+    try:
+        yield
+    finally:
+        logger.removeFilter(f)

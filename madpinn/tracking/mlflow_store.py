@@ -93,13 +93,24 @@ def _artifact_location(settings: TrackingSettings) -> str | None:
     return (db.parent / "artifacts" / settings.experiment).as_uri() if db else None   # a server decides itself
 
 
+# The experiment's kind for MLflow 3: model training (runs, metric curves, models), not GenAI traces.
+# The 3.17 UI itself opens in the mode of its per-browser toggle (GenAI by default) or of the URL's
+# `?workflowType=machine_learning` (README, MLflow section); the tag is what the API reports.
+EXPERIMENT_KIND_TAG, EXPERIMENT_KIND = "mlflow.experimentKind", "custom_model_development"
+
+
 def experiment_id(c, settings: TrackingSettings) -> str:
+    """The configuration's experiment (restored when deleted, created when missing), tagged as
+    model training for MLflow 3's UI."""
     exp = c.get_experiment_by_name(settings.experiment)
     if exp is not None:
         if exp.lifecycle_stage == "deleted":
             c.restore_experiment(exp.experiment_id)
+        if exp.tags.get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:
+            c.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG, EXPERIMENT_KIND)
         return exp.experiment_id
-    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings))
+    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings),
+                               tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND})
 
 
 def init_store(settings: TrackingSettings) -> dict:
@@ -135,6 +146,9 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
     store = _get_store(settings.uri)
     hard = hasattr(store, "_hard_delete_run")
     for run in runs:
+        for model in c.search_logged_models([run.info.experiment_id],
+                                            filter_string=f"source_run_id = '{run.info.run_id}'"):
+            c.delete_logged_model(model.model_id)          # the replaced run's models go with it
         if run.info.lifecycle_stage != "deleted":
             c.delete_run(run.info.run_id)
         if hard:
@@ -142,7 +156,28 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
                 get_artifact_repository(run.info.artifact_uri).delete_artifacts()
             except Exception:  # noqa: BLE001 - no artifacts, or already gone (as mlflow gc)
                 pass
+            _remove_empty_run_dir(run.info.artifact_uri, run.info.run_id)
             store._hard_delete_run(run.info.run_id)
+
+
+def _remove_empty_run_dir(artifact_uri: str, run_id: str) -> None:
+    """A purged run's local artifact directories ``…/<run_id>/artifacts`` and ``…/<run_id>``, once
+    empty (``delete_artifacts`` empties them but leaves them: one empty directory per replaced run)."""
+    from urllib.parse import unquote, urlparse
+
+    parsed = urlparse(artifact_uri)
+    if parsed.scheme not in ("", "file"):
+        return
+    artifacts = Path(unquote(parsed.path))
+    for d in (artifacts, artifacts.parent):
+        if d.name not in ("artifacts", run_id) or run_id not in d.parts:
+            return
+        try:
+            d.rmdir()   # only when empty
+        except FileNotFoundError:
+            continue
+        except OSError:
+            return
 
 
 def git_commit() -> str:

@@ -2,9 +2,9 @@
 as a pending-run file when the store fails during the job.
 
 A pending file ``<results>/tracking/pending/<source>__<job>.json`` (model directories beside it)
-holds everything the job logged, with the original timestamps. :func:`flush_pending` — called
-at every workflow start with a reachable store (``onstart`` in ``workflow/rules/tracking.smk``)
-— logs each one as the job's run and removes the file. Exactly once: a replay replaces every
+holds everything the job logged, with the original timestamps, and the store it was meant for.
+:func:`flush_pending` — called at every workflow start with a reachable store (``start_tracking``
+in ``workflow/rules/common.smk``) — logs each one as the job's run into that store and removes the file. Exactly once: a replay replaces every
 other run of the job (same key and source), so a replay interrupted before its file is removed
 is replaced by the next one; a pending record older than a run already in the store is dropped.
 """
@@ -20,7 +20,7 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from madpinn.tracking.mlflow_store import client, experiment_id, job_runs, purge_runs
+from madpinn.tracking.mlflow_store import TrackingError, check_store, client, experiment_id, job_runs, purge_runs
 from madpinn.tracking.settings import TrackingSettings
 
 PARAMS_PER_BATCH = 100     # MLflow's log_batch limits
@@ -44,6 +44,7 @@ class RunRecord:
     status: str = "RUNNING"
     end_ms: int | None = None
     run_id: str | None = None                            # the live run, if one was created
+    uri: str | None = None                               # the store it belongs to (None: records from before)
 
     def add_metrics(self, metrics: dict, step: int, ts: int | None = None) -> list:
         ts = now_ms() if ts is None else ts
@@ -81,8 +82,24 @@ def log_files(c, run_id: str, artifacts, models: dict) -> list[str]:
         else:
             missing.append(str(path))
     for name, local in models.items():
-        c.log_artifacts(run_id, str(local), artifact_path=name)
+        c.log_artifacts(run_id, str(local), artifact_path=name)   # runs:/<run id>/<name>
+        log_logged_model(c, run_id, name, local)
     return missing
+
+
+def log_logged_model(c, run_id: str, name: str, local: str | Path) -> str:
+    """The saved model directory ``local`` as an MLflow 3 logged model named ``name``, an output
+    of run ``run_id`` (the experiment's Models tab and the run page list it; load with
+    ``mlflow.pytorch.load_model(f"models:/{model_id}")``, the id from
+    ``mlflow.search_logged_models(filter_string="name = '<name>'")``); returns its id."""
+    from mlflow.entities import LoggedModelOutput, LoggedModelStatus
+
+    exp_id = c.get_run(run_id).info.experiment_id
+    model = c.create_logged_model(exp_id, name=name, source_run_id=run_id, model_type="pytorch")
+    c.log_model_artifacts(model.model_id, str(local))
+    c.finalize_logged_model(model.model_id, LoggedModelStatus.READY)
+    c.log_outputs(run_id, [LoggedModelOutput(model.model_id, step=0)])
+    return model.model_id
 
 
 def _stem(job_key: str, source: str) -> str:
@@ -144,9 +161,15 @@ def replay(settings: TrackingSettings, record: RunRecord) -> str | None:
 
 
 def flush_pending(settings: TrackingSettings) -> dict:
-    """Log every pending run (oldest first); return ``{logged, dropped, failed}`` counts.
-    A failing record stays pending and is reported on stderr."""
-    counts = {"logged": 0, "dropped": 0, "failed": 0}
+    """Log every pending run (oldest first) into the store it was recorded for; return
+    ``{logged, dropped, failed, kept}`` counts. A record of another store than ``settings.uri``
+    (e.g. a server that was down, while this start uses another URI) is logged into its own store
+    when that one is reachable, else kept pending (``kept``): never into a different store. A
+    failing record stays pending and is reported on stderr."""
+    from dataclasses import replace
+
+    counts = {"logged": 0, "dropped": 0, "failed": 0, "kept": 0}
+    reachable: dict[str, bool] = {}
     if not settings.enabled or not settings.pending_dir.is_dir():
         return counts
     files = sorted(settings.pending_dir.glob("*.json"), key=lambda p: p.stat().st_mtime)
@@ -155,10 +178,23 @@ def flush_pending(settings: TrackingSettings) -> dict:
             record = RunRecord(**json.loads(path.read_text()))
             if record.tags.get("madpinn.experiment_config", settings.experiment) != settings.experiment:
                 continue   # another configuration's run: flushed by its own workflow
-            logged = replay(settings, record)
+            target = settings if record.uri in (None, settings.uri) else replace(settings, uri=record.uri)
+            if target is not settings and record.uri not in reachable:   # each other store checked once
+                try:
+                    check_store(target)
+                    reachable[record.uri] = True
+                except TrackingError:
+                    reachable[record.uri] = False
+            if target is not settings and not reachable[record.uri]:
+                counts["kept"] += 1
+                print(f"WARNING: pending MLflow run {path} belongs to {record.uri}, which is unreachable; kept "
+                      f"pending (not logged to {settings.uri})", file=sys.stderr)
+                continue
+            logged = replay(target, record)
         except Exception as exc:  # noqa: BLE001
             counts["failed"] += 1
-            print(f"WARNING: pending MLflow run {path} could not be logged to {settings.uri}: {exc}", file=sys.stderr)
+            print(f"WARNING: pending MLflow run {path} could not be logged to {record.uri or settings.uri}: {exc}",
+                  file=sys.stderr)
             continue
         counts["logged" if logged else "dropped"] += 1
         remove_pending(settings, record.job_key, record.source)

@@ -27,7 +27,7 @@ def problem_from_config(cfg: dict, kind: str):
 
 def training_hash(cfg: dict, kind: str) -> str:
     """Hash of everything the trained weights depend on (not validation settings)."""
-    from madpinn.observation import DEPLOYMENT_ONLY_KEYS
+    from madpinn.config import DEPLOYMENT_ONLY_KEYS
 
     vcfg = {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
     if not vcfg.get("velocity_saturation", True):   # off = the dynamics every earlier model was trained with: same hash

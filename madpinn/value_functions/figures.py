@@ -44,27 +44,46 @@ def loss_curve(history, title: str, path: Path) -> Path:
     return path
 
 
+HEATMAP_CLIP_PERCENTILE = 95.0   # colour scale of the V̂ heatmap: up to this percentile of the feasible values
+
+
 def value_heatmap(axis, z_star, feasible, stem: Path) -> list[Path]:
-    """Paper figure: V_d = z* over the ego position; infeasible (V̂(0, o, z_max) > 0) in grey."""
+    """:func:`draw_value_heatmap`, saved as ``.pdf`` and ``.png`` at ``stem``."""
+    return _save(draw_value_heatmap(axis, z_star, feasible), stem)
+
+
+def draw_value_heatmap(axis, z_star, feasible):
+    """Paper figure: V_d = z* over the ego position (``axis`` [P] m, ``z_star``, ``feasible`` [P, P]);
+    infeasible (V̂(0, o, z_max) > 0) in grey. The colour scale ends at the
+    ``HEATMAP_CLIP_PERCENTILE``-th percentile of the feasible values, so the few large values on
+    the rims of the infeasible regions do not flatten the gradient toward the goal: larger values
+    take the top colour (the colour bar's arrow says so); thin contours every step of the scale."""
     ax_np = axis.numpy()
-    z = np.where(feasible.numpy(), z_star.numpy(), np.nan)
-    fig, ax = plt.subplots(figsize=(4.6, 4))
-    im = ax.pcolormesh(ax_np, ax_np, z, cmap="coolwarm", shading="auto", rasterized=True)
-    unsafe = np.ma.masked_where(feasible.numpy(), np.ones(z.shape))
+    ok = feasible.numpy()
+    z = np.where(ok, z_star.numpy(), np.nan)
+    lo, hi = float(np.nanmin(z)), float(np.nanpercentile(z, HEATMAP_CLIP_PERCENTILE))
+    zmax = float(np.nanmax(z))
+    fig, ax = plt.subplots(figsize=(5.0, 4.2))
+    im = ax.pcolormesh(ax_np, ax_np, z, cmap="viridis", vmin=lo, vmax=hi, shading="auto", rasterized=True)
+    levels = matplotlib.ticker.MaxNLocator(8).tick_values(lo, hi)
+    ax.contour(ax_np, ax_np, z, levels=levels, colors="white", linewidths=0.5, alpha=0.6)
+    unsafe = np.ma.masked_where(ok, np.ones(z.shape))
     ax.pcolormesh(ax_np, ax_np, unsafe, cmap=matplotlib.colors.ListedColormap(["0.35"]), shading="auto", rasterized=True)
-    ax.contour(ax_np, ax_np, feasible.numpy().astype(float), levels=[0.5], colors="k", linewidths=0.8)
-    fig.colorbar(im, ax=ax, label=r"$V_d = z^*$ (cost)")
+    ax.contour(ax_np, ax_np, ok.astype(float), levels=[0.5], colors="k", linewidths=0.8)
+    cb = fig.colorbar(im, ax=ax, extend="max" if zmax > hi else "neither")
+    cb.set_label(rf"$V_d = z^*$ (cost); scale clipped at the {HEATMAP_CLIP_PERCENTILE:g}th percentile"
+                 "\n" + rf"({hi:.2f}; larger values, up to {zmax:.1f}, in the top colour)", fontsize=8)
     for (x, y), (gx, gy) in zip(HEATMAP["neighbours"], HEATMAP["neighbour_goals"]):
         ax.plot(x, y, "ko", ms=5)
         ax.annotate("", xy=(x + 0.25 * HEATMAP["neighbour_velocity"][0], y), xytext=(x, y),
                     arrowprops={"arrowstyle": "->", "color": "k"})
-    ax.plot(*HEATMAP["ego_goal"], "g*", ms=12, label="ego goal")
+    ax.plot(*HEATMAP["ego_goal"], "*", color="white", mec="k", ms=13, label="ego goal")
     ax.set_xlabel("ego x (m)")
     ax.set_ylabel("ego y (m)")
     ax.set_aspect("equal")
-    ax.set_title(r"learned value, ego $v=[1,0]$; grey: $\hat V(0,o,z_{max})>0$", fontsize=8)
+    ax.set_title(r"learned value, ego $v=[1,0]$ m/s; grey: $\hat V(0,o,z_{max})>0$", fontsize=8)
     ax.legend(loc="lower right", fontsize=7)
-    return _save(fig, stem)
+    return fig
 
 
 def vs_slices_figure(axis, values, velocities, collision_radius: float, stem: Path) -> list[Path]:
@@ -97,6 +116,11 @@ def validation_figure(model, kind: str, half_width: float, slice_velocities, ste
 
 
 def vs_grid_figure(solution, vs, velocity, stem: Path) -> list[Path]:
+    """:func:`draw_vs_grid`, saved as ``.pdf`` and ``.png`` at ``stem``."""
+    return _save(draw_vs_grid(solution, vs, velocity), stem)
+
+
+def draw_vs_grid(solution, vs, velocity):
     """Zero level sets of the grid reference (black) and of the PINN V_s (red, dashed) on the
     relative-position plane at the relative velocity nearest ``velocity`` (m/s), one panel per time."""
     import torch
@@ -107,7 +131,7 @@ def vs_grid_figure(solution, vs, velocity, stem: Path) -> list[Path]:
     x = np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, solution.v_axis[iv[0]]),
                   np.full(xx.size, solution.v_axis[iv[1]])], -1)
     k = len(solution.times)
-    fig, axes = plt.subplots(1, k, figsize=(3.0 * k, 3.1), squeeze=False)
+    fig, axes = plt.subplots(1, k, figsize=(2.9 * k, 3.2), squeeze=False, sharex=True, sharey=True)
     for ax, t, ref in zip(axes[0], solution.times, solution.values):
         pred = vs.value(torch.as_tensor(x, dtype=torch.float64), t=float(t)).double().cpu().numpy().reshape(yy.shape)
         ax.contour(p, p, ref[:, :, iv[0], iv[1]].T, levels=[0.0], colors="k")
@@ -115,7 +139,11 @@ def vs_grid_figure(solution, vs, velocity, stem: Path) -> list[Path]:
         ax.set_title(f"t = {t:g} s")
         ax.set_aspect("equal")
         ax.set_xlabel("p_x (m)")
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(4, symmetric=True))
+        ax.yaxis.set_major_locator(matplotlib.ticker.MaxNLocator(4, symmetric=True))
+        ax.tick_params(axis="x", labelsize=8)   # neighbouring panels' end labels must not meet
     axes[0][0].set_ylabel("p_y (m)")
+    fig.tight_layout(w_pad=1.5, rect=(0, 0, 1, 0.93))
     fig.suptitle(f"V_s = 0: grid (black) vs PINN (red), v = ({solution.v_axis[iv[0]]:.2f}, {solution.v_axis[iv[1]]:.2f}) m/s",
                  fontsize=9)
-    return _save(fig, stem)
+    return fig

@@ -15,7 +15,7 @@ from pathlib import Path
 import torch
 
 from madpinn.atomic import save_torch
-from madpinn.hints import build_hint
+from madpinn.hints import build_hint, unreadable_reason
 from madpinn.value_functions.problems import PROBLEMS, PINNProblem, as_time, assemble
 from madpinn.value_functions.siren import Siren
 
@@ -154,8 +154,7 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict:
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # noqa: BLE001 - truncated zip, garbage, pickled objects, ...
-        raise CheckpointError(f"value-function checkpoint {path} is corrupted or truncated ({type(exc).__name__}: {exc}); "
-                              f"delete it, then {build_hint(path)}") from exc
+        raise CheckpointError(f"value-function checkpoint {path} was refused: {unreadable_reason(exc)}") from exc
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a madpinn value-function checkpoint")
     if data.get("version") != VERSION:

@@ -177,21 +177,27 @@ def train(
     start, history, wall, offset = 0, [], 0.0, 0
     checkpoint = Path(checkpoint)
     if checkpoint.is_file():
+        # An unreadable file, another kind's or a finished model is refused, never overwritten: this
+        # trainer only ever writes complete resume checkpoints (atomically), so such a file is not its own.
+        keep = "; it was left untouched: pass another checkpoint path, or delete it to train from scratch"
         try:
             data = read_checkpoint(checkpoint, problem.kind)
-            train_state = data["meta"].get("train_state")
-            if train_state and train_state["config_hash"] == config_hash:
-                net.load_state_dict(data["state_dict"])
-                opt.load_state_dict(train_state["optimizer"])
-                start = int(train_state["iteration"])
-                history = train_state["history"].tolist()
-                wall = float(train_state["wall_s"])
-                offset = int(train_state.get("batch_offset", 0))
-                print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
-            else:
-                print(f"{problem.kind}: ignoring {checkpoint} (different configuration)")
         except CheckpointError as exc:
-            print(f"{problem.kind}: ignoring unusable checkpoint: {exc}")
+            raise CheckpointError(f"cannot resume from {checkpoint}: {exc}{keep}") from exc
+        train_state = data["meta"].get("train_state")
+        if not train_state:
+            raise CheckpointError(f"resume checkpoint {checkpoint} is a finished {problem.kind} model, not a resume "
+                                  f"checkpoint (it has no training state){keep}")
+        if train_state["config_hash"] == config_hash:
+            net.load_state_dict(data["state_dict"])
+            opt.load_state_dict(train_state["optimizer"])
+            start = int(train_state["iteration"])
+            history = train_state["history"].tolist()
+            wall = float(train_state["wall_s"])
+            offset = int(train_state.get("batch_offset", 0))
+            print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
+        else:
+            print(f"{problem.kind}: ignoring {checkpoint} (different configuration)")
     if settings.init_from and start == 0:
         offset = load_initial_weights(problem, settings, net)
         print(f"{problem.kind}: fine-tuning from {settings.init_from} (batches from index {offset})")

@@ -1,12 +1,16 @@
 # Shared paths, target lists and helpers. Later rule files register what their methods need.
 import fcntl
-import hashlib
 import os
 
 import yaml
 
-from madpinn.config import ConfigError, config_hash, job_config, method_config, study_pattern, subtree_hash, write_if_changed
+from madpinn.config import ConfigError, study_pattern, write_if_changed
+from madpinn.evaluation.reproduction import paper_table_numbers
+from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
+from madpinn.provenance import plugin_module, registry
+from madpinn.provenance import settings_hash as package_settings_hash
+from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
@@ -40,16 +44,45 @@ OUTPUT_CACHE = os.environ.setdefault(
     "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
 )
 
-# Trained files a run's policy loads: run name (`method-variant`, looked up first) or method ->
-# function(wildcards) -> {name: path}, written with the training rules' outputs
-# (`rules.train_vs.output.model`); each rule file of a method registers its own. The evaluate
-# rule depends on these files and passes them as `--model NAME=PATH`.
-METHOD_MODELS = {}
+# --- what the rule files add, registered in one place and read lazily (when `all`, the evaluate
+# rule and the report build their inputs), so that the order of the includes does not matter ---
+#   targets = final outputs `all` builds besides the evaluation cells and the tables;
+#   models = run name (`method-variant`, looked up first) or method -> function(wildcards) -> {name: path}
+#     of the trained files its policy loads (the evaluate rule depends on them and passes them as
+#     `--model NAME=PATH`);
+#   tables = table name -> (study, kind), each with its own rule (register_table).
+REGISTERED = {"targets": [], "models": {}, "tables": {}}
 
-# table name -> (study, kind); a table is built when its study is configured.
-TABLES = {
-    "table_safety_scaling": ("main", "safety_by_n"),
-    "table_ours_scaling": ("scaling", "summary"),
+
+def register_targets(*paths):
+    """Final outputs a rule file adds to `all`."""
+    REGISTERED["targets"].extend(str(p) for p in paths)
+
+
+def register_models(run, models):
+    """The trained files run ``run`` (a method, or `method-variant`) loads: ``models(wildcards)`` ->
+    {name: path}, written with the training rules' outputs (`rules.train_vs.output.model`)."""
+    REGISTERED["models"][run] = models
+
+
+def register_table(name, study, kind):
+    """A table built from ``study``'s cells when the study is configured: its rule ``name``
+    (`snakemake -j2 <name>`), a target of `all` and a table of the reproduction report."""
+    REGISTERED["tables"][name] = (study, kind)
+    if study in config["studies"]:
+        table_rule(name, study, kind)
+
+
+# Sections of the Snakemake report in reading order (the report sorts their names): the comparison
+# with the paper and the paper's tables first. Items inside a section are ordered by their first
+# label ("Table I", "Fig. 2", ...).
+PAPER_TABLE_NUMBERS = paper_table_numbers()   # table name -> the paper's number (I … IV): report order
+REPORT_SECTIONS = {
+    "reproduction": "1 · Paper vs ours",
+    "paper_tables": "2 · Paper tables (I–IV)",
+    "paper_figures": "3 · Paper figures",
+    "our_tables": "4 · Our tables (not in the paper)",
+    "value_functions": "5 · Value-function checks",
 }
 
 wildcard_constraints:
@@ -73,8 +106,17 @@ def run_models(wildcards):
     """{name: path} of the trained files run ``wildcards.run`` loads (full run name first, then method).
     Plain strings: a ``rules.X.output`` reference would pin the file's producer to rule X, and the
     shipped overlay (workflow/configs/shipped.yaml) provides it by its install rule instead."""
-    models = METHOD_MODELS.get(wildcards.run, METHOD_MODELS.get(wildcards.run.split("-")[0]))
+    registered = REGISTERED["models"]
+    models = registered.get(wildcards.run, registered.get(wildcards.run.split("-")[0]))
     return {k: str(v) for k, v in models(wildcards).items()} if models else {}
+
+
+def cell_models(wildcards):
+    """The evaluate rule's input function (:func:`run_models` of a cell), so the first thing
+    Snakemake asks of a cell: a cell outside the configuration stops here with one line, before
+    any param reads its study."""
+    checked_cell(wildcards)
+    return run_models(wildcards)
 
 
 def model_args(wildcards):
@@ -86,12 +128,24 @@ def model_args(wildcards):
 def cell_key(wildcards):
     """The job's wildcards as a param: the output cache hashes a rule's code and params, not its
     wildcards, so without it every cell of one (study, run) would share one cache entry."""
+    checked_cell(wildcards)
     return dict(wildcards.items())
 
 
-def job_hash(wildcards):
-    """Hash of the config an evaluation cell depends on (``madpinn.config.job_config``) and dtype."""
-    return config_hash({**job_config(config, wildcards.study, wildcards.run), "dtype": config["dtype"]})
+def checked_cell(wildcards):
+    """Stop with one line (dry runs too) when an evaluation cell or oracle file asked for by path is
+    outside this configuration: unknown study, run or arena, or more agents than the arena holds
+    (madpinn.config.check_cell: the checks validate_config makes of the configured cells)."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.config import TargetError, check_cell
+
+    w = dict(wildcards.items())
+    try:
+        check_cell(config, int(w["n"]), int(w["seed"]), study=w.get("study"), run=w.get("run"), arena=w.get("arena"),
+                   pattern=w.get("pattern"))
+    except TargetError as exc:
+        where = (f"{w['study']}/{w['run']}" if "study" in w else f"{w['arena']}/{w.get('pattern', 'uniform')}")
+        stop_workflow(TargetError(f"target {where} n{w['n']}_seed{w['seed']}: {exc}"))
 
 
 def _cell_size(wildcards):
@@ -119,105 +173,82 @@ def eval_runtime(wildcards):
     return 10 + int(2 * 200e-6 * _cell_size(wildcards) / 60)
 
 
-def table_targets():
-    return [
-        f"{FIGURES}/{name}.{ext}"
-        for name, (study, _) in TABLES.items()
-        if study in config["studies"]
-        for ext in ("csv", "md", "tex")
-    ]
+def configured_tables():
+    """Registered tables whose study is configured: name -> study."""
+    return {name: study for name, (study, _) in REGISTERED["tables"].items() if study in config["studies"]}
 
 
-def all_targets():
+def report_studies():
+    """The studies of the configured tables (the reproduction report's)."""
+    return sorted(set(configured_tables().values()))
+
+
+def reading_tables():
+    """Configured tables whose study also has a `<study>_contacts` collision reading (issue 38,
+    readings.smk): name -> base study."""
+    from madpinn.evaluation.readings import CONTACTS_SUFFIX
+
+    return {n: s for n, s in configured_tables().items() if f"{s}{CONTACTS_SUFFIX}" in config["studies"]}
+
+
+def reading_studies():
+    """The base studies of :func:`reading_tables` and their contact readings."""
+    from madpinn.evaluation.readings import CONTACTS_SUFFIX
+
+    return sorted({st for s in reading_tables().values() for st in (s, f"{s}{CONTACTS_SUFFIX}")})
+
+
+def all_targets(wildcards=None):
+    """Every final output: the evaluation cells, the tables and the registered targets (an input
+    function of `all`: called after every rule file has registered its part)."""
     evals = [p for study in config["studies"] for p in study_results(study)]
-    return evals + table_targets()
+    tables = [f"{FIGURES}/{name}.{ext}" for name in configured_tables() for ext in ("csv", "md", "tex")]
+    return evals + tables + REGISTERED["targets"]
 
 
-# Rule files included later may extend this list (figures, validation outputs).
-EXTRA_TARGETS = []
+# --- what each job depends on: the config it reads and the package code it runs (params -> rerun-triggers) ---
+# A rule's `settings` param hashes the part of the config its command's jobs read, said once by the
+# package (madpinn.provenance.READS: a trained model's own training hash, an evaluation cell's
+# job_config, the subtrees a check or an output reads): a change of exactly that reruns the job and
+# everything downstream; a deployment knob or a validation setting never reruns a training.
+
+def settings_hash(command, *wildcard_names, **job):
+    """The `settings` param of the jobs of `python -m madpinn <command>`, with job arguments ``job``
+    (a callable one is called when the job is built) and, by name, arguments taken from each job's
+    wildcards (with either, the param is a function)."""
+    if wildcard_names or any(callable(v) for v in job.values()):
+        return lambda wildcards: package_settings_hash(
+            config, command, **{k: v() if callable(v) else v for k, v in job.items()},
+            **{n: getattr(wildcards, n) for n in wildcard_names})
+    return package_settings_hash(config, command, **job)
 
 
-# --- what each job depends on: config subtrees and package sources (params -> rerun-triggers) ---
-
-def settings_hash(*keys, extra=None):
-    """Hash of the config subtrees a job reads (dotted keys) plus ``extra``; a rule's ``params``
-    carries it, so that a change of exactly those settings reruns the job and its dependents."""
-    return subtree_hash(config, keys, extra)
-
-
-PACKAGE = Path(workflow.basedir) / "madpinn"
-
-# Parts of the package (sub-packages or modules under madpinn/) that each job family runs. Editing
-# a file there reruns the family's jobs (through their `source` param) and everything downstream;
-# the glue (commands, config, tracking, hints, checksums) changes no result and reruns
-# nothing. Evaluation cells list their modules of `evaluation/` one by one, so that editing the
-# tables, the report or the oracle does not rerun hours of cells (tests/test_workflow_sources.py
-# checks every module a family's entry imports is listed).
-SOURCES = {
-    "value": ["dynamics", "value_functions", "observation.py", "device.py", "settings.py", "atomic.py"],
-    "marl": ["dynamics", "marl", "observation.py", "scenarios.py", "device.py", "settings.py", "atomic.py"],
-    "evaluate": ["dynamics", "policies/__init__.py", "policies/base.py", "simulation", "evaluation/__init__.py",
-                 "evaluation/cell.py", "evaluation/metrics.py", "observation.py", "scenarios.py", "conflicts.py",
-                 "device.py", "settings.py"],
-    "gap": ["dynamics", "value_functions", "marl", "policies", "simulation", "evaluation/__init__.py",
-            "evaluation/cell.py", "evaluation/metrics.py", "evaluation/collisions.py", "evaluation/gap.py",
-            "observation.py", "scenarios.py", "conflicts.py", "device.py", "settings.py"],
-    "tables": ["evaluation", "figures", "scenarios.py", "conflicts.py"],
-    "report": ["evaluation", "scenarios.py", "conflicts.py"],
-    "oracle": ["evaluation/oracle.py", "scenarios.py", "conflicts.py"],
-    "render": ["simulation", "dynamics", "observation.py", "settings.py"],
-}
-# Each method's own modules, on top of SOURCES["evaluate"] for its evaluation cells: editing the
-# MAD-PINN policy reruns the MAD-PINN cells, not MPPI's or the baselines' (tests/test_workflow_sources.py
-# checks each method module's imports are covered). A method missing here gets the safe superset.
-# Of value_functions/, a cell runs only loading and inference (VF_INFERENCE); training, the grid
-# reference and the verification reach it through the trained model file, its input.
-VF_INFERENCE = ["value_functions/__init__.py", "value_functions/model.py", "value_functions/problems.py",
-                "value_functions/siren.py", "value_functions/symmetry.py", "value_functions/sampling.py",
-                "value_functions/validation.py"]
-METHOD_SOURCES = {
-    "nominal": ["policies/nominal.py"],
-    "madpinn": ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py", "policies/z_search.py",
-                "policies/safety_filter.py", "policies/cbvf_qp.py", *VF_INFERENCE],
-    "mppi": ["policies/mppi.py"],
-    "safemarl": ["policies/safemarl.py", "policies/safety_filter.py", "policies/cbvf_qp.py", *VF_INFERENCE, "marl"],
-    "defmarl": ["policies/defmarl.py", "marl"],
-}
-ANY_METHOD_SOURCES = ["policies", "value_functions", "marl"]
+# A rule's `source` param hashes the package code its command runs, computed from the import graph
+# (madpinn/provenance.py: the static closure of the command's handler, lazy imports included):
+# editing a module a job imports reruns the job and everything downstream, nothing else. The glue
+# (commands, config, tracking, checksums) changes no result and reruns nothing. Policies are loaded
+# by name (the registry `_MODULES` of madpinn/policies/base.py), so a cell hashes its own method's
+# policy module on top of the evaluate command: editing the MAD-PINN policy reruns the MAD-PINN
+# cells, not MPPI's or the baselines' (tests/test_workflow_sources.py).
+POLICY_REGISTRY = "madpinn.policies.base"
 _SOURCE_HASHES = {}
 
 
+def source_hash(command, *methods):
+    """sha256 (12 hex) of the package files `python -m madpinn <command>` runs, with the policy
+    modules of ``methods`` (a method the registry lacks: every policy)."""
+    key = (command, *methods)
+    if key not in _SOURCE_HASHES:
+        policies = [plugin_module(POLICY_REGISTRY, m) for m in methods]
+        if None in policies:
+            policies = list(registry(POLICY_REGISTRY).values())
+        _SOURCE_HASHES[key] = package_source_hash(handler_entry(command), *policies)
+    return _SOURCE_HASHES[key]
+
+
 def eval_source_hash(wildcards):
-    """An evaluation cell's source param: the shared evaluation code and its method's own modules."""
-    method = wildcards.run.partition("-")[0]
-    return f"{source_hash('evaluate')}-{source_hash(f'method:{method}')}"
-
-
-SOURCE_SUFFIXES = (".py", ".yaml", ".yml", ".json", ".csv", ".xml")   # code and package data (not caches or editor files)
-
-
-def _is_source(path):
-    """A file of the package that a job runs or reads (``SOURCE_SUFFIXES``)."""
-    return path.is_file() and path.suffix in SOURCE_SUFFIXES and "__pycache__" not in path.parts
-
-
-def source_hash(family):
-    """sha256 (12 hex) over the path and bytes of every file of ``SOURCES[family]`` (or, for
-    ``method:<m>``, of ``METHOD_SOURCES[m]``): the .py files and the package data beside them
-    (e.g. evaluation/paper_values.yaml), never caches (read only)."""
-    if family not in _SOURCE_HASHES:
-        if family.startswith("method:"):
-            parts = METHOD_SOURCES.get(family.removeprefix("method:"), ANY_METHOD_SOURCES)
-        else:
-            parts = SOURCES[family]
-        h = hashlib.sha256()
-        for part in parts:
-            root = PACKAGE / part
-            files = sorted(f for f in root.rglob("*") if _is_source(f)) if root.is_dir() else [root]
-            for f in files:
-                h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
-        _SOURCE_HASHES[family] = h.hexdigest()[:12]
-    return _SOURCE_HASHES[family]
+    """An evaluation cell's source param: the evaluate command and its run's method's policy."""
+    return source_hash("evaluate", wildcards.run.partition("-")[0])
 
 
 # --- one real run at a time; recovery after kill -9 with the plain command ---
@@ -297,11 +328,6 @@ def init_arg(kind):
     return [a for p in init_model(kind) for a in ("--model", f"init={p}")]
 
 
-def train_settings(kind):
-    """Everything the trained weights and their summary depend on (the job's params hash)."""
-    return settings_hash(f"value_functions.{kind}", "value_functions.seed", "agents", "observation", "dtype")
-
-
 def train_runtime(kind):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
     v = config["value_functions"][kind]
@@ -309,22 +335,57 @@ def train_runtime(kind):
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
 
-def defmarl_train_hash(wildcards):
-    return marl_training_hash(config, f"defmarl_{wildcards.variant}")
-
-
-def safemarl_train_hash():
-    return marl_training_hash(config, "safemarl_nominal")
-
-
 def traj_inputs(wildcards=None):
     st = config["studies"][TRAJ["study"]]
     return [eval_path(TRAJ["study"], run, TRAJ["n_agents"], TRAJ["seed"]).replace(".parquet", "_traj.npz") for run in st["runs"]]
 
 
-def run_labels(study):
-    """Labels the tables and figures print for a study's runs (part of their params hash)."""
-    return {run: method_config(config, run)[1].get("label", run) for run in config["studies"][study]["runs"]}
+# --- tables (register_table): one rule per table, defined where the table is registered ---
+
+def table_section(name):
+    """The report section of table ``name``: the paper's tables, or ours."""
+    return REPORT_SECTIONS["paper_tables" if name in PAPER_TABLE_NUMBERS else "our_tables"]
+
+
+def table_labels(name, study):
+    """The report labels of table ``name`` (items sort by the first: "Table I" … "Table IV")."""
+    return {"Item": f"Table {PAPER_TABLE_NUMBERS[name]}" if name in PAPER_TABLE_NUMBERS else name, "Study": study}
+
+
+def table_rule(name, study, kind):
+    """Define the rule ``name`` that builds table ``name`` (csv, md, tex, and html, the report's page)
+    of ``kind`` from ``study``."""
+
+    rule:
+        name:
+            name
+        input:
+            tracking=TRACKING,
+            results=study_results(study),
+            oracle=oracle_inputs(study),
+        output:
+            csv=f"{FIGURES}/{name}.csv",
+            md=f"{FIGURES}/{name}.md",
+            tex=f"{FIGURES}/{name}.tex",
+            html=report(f"{FIGURES}/{name}.html", caption=f"../report/{name}.rst", category=table_section(name),
+                        labels=table_labels(name, study)),
+        params:
+            config=RESOLVED,
+            name=name,
+            kind=kind,
+            settings=settings_hash("table", study=study),
+            source=source_hash("table"),
+            out_dir=out_dir_of("csv"),
+        resources:
+            mem_mb=1000,
+            runtime=10,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/{name}.log",
+        shell:
+            "python -m madpinn table --config {params.config:q} --name {params.name:q} --kind {params.kind:q}"
+            " --inputs {input.results:q} --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
 # --- oracle (oracle.smk) and reproduction report (report.smk) helpers ---
@@ -362,24 +423,16 @@ def shipped_sha256(wildcards):
 
 
 def check_shipped_models(shipped):
-    """Stop at parse time when a shipped model (V̂, V_s or a MARL policy) was trained for another
-    configuration than this one (madpinn.value_functions.shipping.check_training_hash)."""
+    """Stop before any job (dry runs included) when a shipped model (V̂, V_s or a MARL policy) is
+    missing, unreadable, of another kind (V̂ and V_s swapped), not the manifest's bytes (sha256), or
+    trained for another configuration than this one (madpinn.value_functions.shipping.check_shipped)."""
+    from madpinn.commands.errors import stop_workflow
     from madpinn.value_functions.build import KINDS, training_hash
-    from madpinn.value_functions.shipping import ShippedModelError, check_training_hash, read_manifest
+    from madpinn.value_functions.shipping import check_shipped
 
-    for name in shipped["names"]:
-        try:
-            if name in KINDS:
-                check_training_hash(shipped["dir"], name, training_hash(config, name))
-            elif is_marl_model(name):
-                entry = read_manifest(shipped["dir"])["models"].get(name)
-                expected = marl_training_hash(config, name)
-                if entry is not None and entry.get("training_config_hash") != expected:
-                    raise ShippedModelError(
-                        f"shipped policy '{name}' was trained for configuration hash {entry.get('training_config_hash')}, "
-                        f"this configuration's is {expected} (agents, observation, arenas, dtype or the method's "
-                        f"training settings changed since it was shipped); drop '{name}' from shipped_models.names "
-                        "to train it, or re-ship a policy trained with this configuration")
-        except (ShippedModelError, OSError, ValueError, ConfigError) as exc:
-            sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-            raise SystemExit(1)
+    try:
+        check_shipped(shipped["dir"], {name: training_hash(config, name) if name in KINDS
+                                       else marl_training_hash(config, name) if is_marl_model(name) else None
+                                       for name in shipped["names"]})
+    except Exception as exc:
+        stop_workflow(exc)

@@ -2,13 +2,12 @@
 # evaluation jobs of run defmarl-<variant> depend on that variant's model only.
 # CPU budget (paper config, 1 100 iterations, 1 thread): ~1 h per model on the 2-core CI-class machine
 # (docs/defmarl.md); smoke: seconds.
-# Helpers (defmarl_train_hash): common.smk.
 if "defmarl" in config["methods"]:
     DEFMARL_VARIANTS = sorted(config["methods"]["defmarl"]["variants"])
     for _v in DEFMARL_VARIANTS:
-        METHOD_MODELS[f"defmarl-{_v}"] = lambda wildcards: {
+        register_models(f"defmarl-{_v}", lambda wildcards: {
             "policy": expand(rules.train_defmarl.output.model, variant=wildcards.run.partition("-")[2])[0]
-        }
+        })
 
     rule train_defmarl:
         input:
@@ -21,8 +20,8 @@ if "defmarl" in config["methods"]:
             variant="|".join(DEFMARL_VARIANTS),
         params:
             config=RESOLVED,
-            train_hash=defmarl_train_hash,
-            source=source_hash("marl"),
+            settings=settings_hash("train-defmarl", "variant"),
+            source=source_hash("train-defmarl"),
         threads: 1
         resources:
             mem_mb=3000,

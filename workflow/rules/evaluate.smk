@@ -4,7 +4,7 @@
 # or training jobs) is already in paths.output_cache is restored from there instead of recomputed.
 rule evaluate:
     input:
-        unpack(run_models),
+        unpack(cell_models),
         tracking=TRACKING,
     output:
         parquet=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.parquet",
@@ -12,7 +12,7 @@ rule evaluate:
         traj=f"{RESULTS}/eval/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}_traj.npz",
     params:
         config=RESOLVED,
-        job_hash=job_hash,
+        settings=settings_hash("evaluate", "study", "run"),
         source=eval_source_hash,
         models=model_args,
         cell=cell_key,

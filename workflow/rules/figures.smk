@@ -11,12 +11,13 @@ if "main" in config["studies"]:
             results=study_results("main"),
             oracle=oracle_inputs("main"),
         output:
-            png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst", category="Figures"),
+            png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst",
+                       category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 2", "Shows": "cost vs safety"}),
             pdf=f"{FIGURES}/fig_cost_safety.pdf",
         params:
             config=RESOLVED,
-            settings=settings_hash("experiment", extra=run_labels("main")),
-            source=source_hash("tables"),
+            settings=settings_hash("figure", name="fig_cost_safety", study="main"),
+            source=source_hash("figure"),
             out_dir=out_dir_of("png"),
         resources:
             mem_mb=2000,
@@ -29,7 +30,7 @@ if "main" in config["studies"]:
             "python -m madpinn figure --config {params.config:q} --name fig_cost_safety --inputs {input.results:q}"
             " --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
-    EXTRA_TARGETS += expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS)
+    register_targets(*expand(f"{FIGURES}/fig_cost_safety.{{ext}}", ext=FIG_EXTS))
 
 
 rule fig_trajectories:
@@ -37,12 +38,13 @@ rule fig_trajectories:
         tracking=TRACKING,
         traj=traj_inputs(),
     output:
-        png=report(f"{FIGURES}/fig_trajectories.png", caption="../report/fig_trajectories.rst", category="Figures"),
+        png=report(f"{FIGURES}/fig_trajectories.png", caption="../report/fig_trajectories.rst",
+                   category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 3", "Shows": "trajectories"}),
         pdf=f"{FIGURES}/fig_trajectories.pdf",
     params:
         config=RESOLVED,
-        settings=settings_hash("experiment", "figures.trajectories", extra=run_labels(TRAJ["study"])),
-        source=source_hash("tables"),
+        settings=settings_hash("figure", name="fig_trajectories", study=TRAJ["study"]),
+        source=source_hash("figure"),
         out_dir=out_dir_of("png"),
     resources:
         mem_mb=2000,
@@ -56,4 +58,4 @@ rule fig_trajectories:
         " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS)
+register_targets(*expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS))

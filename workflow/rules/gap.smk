@@ -19,8 +19,8 @@ rule gap_decomposition:
         scenarios=GAP["scenarios"],
         sweep=["--margin-sweep", *map(str, GAP["margin_sweep"])] if GAP["margin_sweep"] else [],
         out_dir=out_dir_of("csv"),
-        settings=settings_hash("gap_decomposition", "agents", "observation", "sim", "arenas", "methods.madpinn", "dtype"),
-        source=source_hash("gap"),
+        settings=settings_hash("gap-decomposition"),
+        source=source_hash("gap-decomposition", "madpinn"),
     threads: 1
     resources:
         mem_mb=4000,

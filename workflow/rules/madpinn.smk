@@ -1,8 +1,8 @@
 # MAD-PINN policy (issue 4). Evaluation jobs of `madpinn[-variant]` run through rule `evaluate`
 # (evaluate.smk) and load the value functions trained by train.smk; the two ablation tables of
-# the paper are built by tables.smk from the ablation studies when those are configured.
+# the paper are built from the ablation studies when those are configured.
 if "madpinn" in config["methods"]:
-    METHOD_MODELS["madpinn"] = lambda wildcards: {"vhat": rules.train_vhat.output.model, "vs": rules.train_vs.output.model}
+    register_models("madpinn", lambda wildcards: {"vhat": rules.train_vhat.output.model, "vs": rules.train_vs.output.model})
 
-TABLES["table_neighbour_ablation"] = ("ablation_neighbours", "summary")
-TABLES["table_update_ablation"] = ("ablation_update", "summary")
+register_table("table_neighbour_ablation", "ablation_neighbours", "summary")
+register_table("table_update_ablation", "ablation_update", "summary")

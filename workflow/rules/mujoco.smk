@@ -13,8 +13,8 @@ if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
             f"{RESULTS}/clips/{{backend}}/{{study}}/{{run}}/n{{n}}_seed{{seed}}.json",
         params:
             config=RESOLVED,
-            settings=settings_hash("sim.mujoco", "arenas"),
-            source=source_hash("render"),
+            settings=settings_hash("render-clip"),
+            source=source_hash("render-clip"),
         resources:
             mem_mb=2000,
             runtime=15,
@@ -26,8 +26,8 @@ if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
             "python -m madpinn render-clip --config {params.config:q} --traj {input.traj:q} --out {output:q}"
             " --key {wildcards.backend:q}/{wildcards.study:q}/{wildcards.run:q}/n{wildcards.n}_seed{wildcards.seed} 2>&1 | tee {log:q}"
 
-    EXTRA_TARGETS += [
+    register_targets(*[
         f"{RESULTS}/clips/{BACKEND}/{study}/{run}/n{min(st['agent_counts'])}_seed{st['seeds'][0]}.json"
         for study, st in config["studies"].items()
         for run in st["runs"]
-    ]
+    ])

@@ -17,7 +17,7 @@ rule oracle:
         bounds=f"{ORACLE_DIR}/{{arena}}/n{{n}}_seed{{seed}}_s{{scenarios}}.parquet",
     params:
         config=RESOLVED,
-        settings=settings_hash("oracle", "agents", "arenas"),
+        settings=settings_hash("oracle", "arena"),
         source=source_hash("oracle"),
         cell=cell_key,
     cache: True
@@ -43,7 +43,7 @@ rule oracle_pattern:
         bounds=f"{ORACLE_DIR}/{{arena}}/{{pattern}}/n{{n}}_seed{{seed}}_s{{scenarios}}.parquet",
     params:
         config=RESOLVED,
-        settings=settings_hash("oracle", "agents", "arenas"),
+        settings=settings_hash("oracle", "arena"),
         source=source_hash("oracle"),
         cell=cell_key,
     cache: True

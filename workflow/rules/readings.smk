@@ -1,25 +1,27 @@
 # Collision readings (issue 38): every paper cell under each collision convention, from the base
 # studies (pass-through: safety at r and 2r) and their `<base>_contacts` studies (contact physics).
-# Defined when a contact study is configured (workflow/configs/collision_readings.yaml).
-# Included after report.smk (TABLES complete) and before tables.smk.
+# Defined when a contact study is configured (workflow/configs/collision_readings.yaml); its inputs
+# are functions of the registered tables, so the include order does not matter.
+# reading_tables / reading_studies: common.smk.
 from madpinn.evaluation.readings import CONTACTS_SUFFIX
 
-_READING_TABLES = {n: s for n, (s, _) in TABLES.items() if s in config["studies"] and f"{s}{CONTACTS_SUFFIX}" in config["studies"]}
-
-if _READING_TABLES:
+if any(s.endswith(CONTACTS_SUFFIX) for s in config["studies"]):
 
     rule collision_readings:
         input:
             tracking=TRACKING,
-            results=sorted({p for s in _READING_TABLES.values() for st in (s, f"{s}{CONTACTS_SUFFIX}") for p in study_results(st)}),
+            results=lambda w: sorted({p for s in reading_studies() for p in study_results(s)}),
         output:
-            csv=report(f"{FIGURES}/table_collision_readings.csv", caption="../report/table_collision_readings.rst", category="Tables"),
+            csv=f"{FIGURES}/table_collision_readings.csv",
             md=f"{FIGURES}/table_collision_readings.md",
+            html=report(f"{FIGURES}/table_collision_readings.html", caption="../report/table_collision_readings.rst",
+                        category=REPORT_SECTIONS["our_tables"],
+                        labels={"Item": "table_collision_readings", "Study": "base studies and their _contacts readings"}),
         params:
             config=RESOLVED,
-            tables=[f"{n}={s}" for n, s in _READING_TABLES.items()],
-            settings=settings_hash("experiment", extra={s: run_labels(s) for s in _READING_TABLES.values()}),
-            source=source_hash("report"),
+            tables=lambda w: [f"{n}={s}" for n, s in reading_tables().items()],
+            settings=settings_hash("collision-readings", studies=reading_studies),
+            source=source_hash("collision-readings"),
             out_dir=out_dir_of("csv"),
         resources:
             mem_mb=2000,
@@ -32,4 +34,4 @@ if _READING_TABLES:
             "python -m madpinn collision-readings --config {params.config:q} --tables {params.tables:q}"
             " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
-    EXTRA_TARGETS += [rules.collision_readings.output.csv, rules.collision_readings.output.md]
+    register_targets(rules.collision_readings.output.csv, rules.collision_readings.output.md)

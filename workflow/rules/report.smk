@@ -1,24 +1,26 @@
 # Reproduction report (issue 16): every paper table beside the paper's values, with provenance.
-# Included after every method's rule file (TABLES and METHOD_MODELS complete) and before tables.smk.
-_REPORT_TABLES = {name: study for name, (study, _) in TABLES.items() if study in config["studies"]}
-REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json"]
+# Its inputs are functions of the registered tables and models (report_studies, configured_tables:
+# common.smk), so it sees every rule file's registrations wherever it is included.
+REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json", f"{FIGURES}/reproduction.html"]
 
 
 # `snakemake -j2 reproduction_report`: every table with our mean ± std beside the paper's values.
 rule reproduction_report:
     input:
         tracking=TRACKING,
-        results=sorted({p for s in _REPORT_TABLES.values() for p in study_results(s)}),
-        oracle=sorted({p for s in _REPORT_TABLES.values() for p in oracle_inputs(s)}),
-        models=sorted({m for s in _REPORT_TABLES.values() for m in study_models(s)}),
+        results=lambda w: sorted({p for s in report_studies() for p in study_results(s)}),
+        oracle=lambda w: sorted({p for s in report_studies() for p in oracle_inputs(s)}),
+        models=lambda w: sorted({m for s in report_studies() for m in study_models(s)}),
     output:
         md=REPORT_OUTPUTS[0],
         json=REPORT_OUTPUTS[1],
+        html=report(REPORT_OUTPUTS[2], caption="../report/reproduction.rst", category=REPORT_SECTIONS["reproduction"],
+                    labels={"Item": "Reproduction report", "Covers": "every configured table beside the paper's"}),
     params:
         config=RESOLVED,
-        tables=[f"{n}={s}" for n, s in _REPORT_TABLES.items()],
-        settings=settings_hash("experiment", extra={s: run_labels(s) for s in _REPORT_TABLES.values()}),
-        source=source_hash("report"),
+        tables=lambda w: [f"{n}={s}" for n, s in configured_tables().items()],
+        settings=settings_hash("reproduction", studies=report_studies),
+        source=source_hash("reproduction"),
         out_dir=out_dir_of("md"),
     resources:
         mem_mb=2000,
@@ -32,4 +34,4 @@ rule reproduction_report:
         " --oracle {input.oracle:q} --models {input.models:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += REPORT_OUTPUTS
+register_targets(*REPORT_OUTPUTS)

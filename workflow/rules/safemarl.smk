@@ -3,8 +3,8 @@
 
 if "safemarl" in config["methods"]:
     # str(): a rules.X reference pins the producer to X; the shipped overlay's install rule may provide these
-    METHOD_MODELS["safemarl"] = lambda wildcards: {"nominal": str(rules.train_safemarl_nominal.output.model),
-                                                   "vs": str(rules.train_vs.output.model)}
+    register_models("safemarl", lambda wildcards: {"nominal": str(rules.train_safemarl_nominal.output.model),
+                                                   "vs": str(rules.train_vs.output.model)})
 
     rule train_safemarl_nominal:
         input:
@@ -15,8 +15,8 @@ if "safemarl" in config["methods"]:
             summary=f"{RESULTS}/models/safemarl_nominal.json",
         params:
             config=RESOLVED,
-            train_hash=safemarl_train_hash(),
-            source=source_hash("marl"),
+            settings=settings_hash("train-safemarl-nominal"),
+            source=source_hash("train-safemarl-nominal"),
         threads: 1
         resources:
             mem_mb=3000,
@@ -33,4 +33,4 @@ if "safemarl" in config["methods"]:
 
     # `all` trains the nominal policy when a study runs SafeMARL (filtered or not).
     if any(run.split("-")[0] == "safemarl" for st in config["studies"].values() for run in st["runs"]):
-        EXTRA_TARGETS.append(str(rules.train_safemarl_nominal.output.model))
+        register_targets(rules.train_safemarl_nominal.output.model)

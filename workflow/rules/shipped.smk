@@ -16,6 +16,7 @@ if SHIPPED.get("enabled") and SHIPPED.get("names"):
         wildcard_constraints:
             name="|".join(SHIPPED["names"]),
         params:
+            config=RESOLVED,
             dir=lambda w, input: os.path.dirname(input.model),   # = shipped_models.dir
             sha256=shipped_sha256,
         threads: 1
@@ -28,7 +29,8 @@ if SHIPPED.get("enabled") and SHIPPED.get("names"):
         log:
             f"{LOGS}/install_shipped_{{name}}.log",
         shell:
-            "python -m madpinn install-shipped --dir {params.dir:q} --name {wildcards.name:q} --out {output:q} 2>&1 | tee {log:q}"
+            "python -m madpinn install-shipped --config {params.config:q} --dir {params.dir:q} --name {wildcards.name:q}"
+            " --out {output:q} 2>&1 | tee {log:q}"
 
     # one ruleorder per shipped name (a ruleorder naming a rule this configuration lacks disables it)
     if "vs" in SHIPPED["names"]:

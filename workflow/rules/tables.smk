@@ -1,36 +1,6 @@
-# Paper tables, each its own target (e.g. `snakemake -j2 table_safety_scaling`).
-for _name, (_study, _kind) in TABLES.items():
-    if _study not in config["studies"]:
-        continue
-
-    rule:
-        name:
-            _name
-        input:
-            tracking=TRACKING,
-            results=study_results(_study),
-            oracle=oracle_inputs(_study),
-        output:
-            csv=report(f"{FIGURES}/{_name}.csv", caption=f"../report/{_name}.rst", category="Tables"),
-            md=f"{FIGURES}/{_name}.md",
-            tex=f"{FIGURES}/{_name}.tex",
-        params:
-            config=RESOLVED,
-            name=_name,
-            kind=_kind,
-            settings=settings_hash("experiment", extra=run_labels(_study)),
-            source=source_hash("tables"),
-            out_dir=out_dir_of("csv"),
-        resources:
-            mem_mb=1000,
-            runtime=10,
-        conda:
-            CONDA_ENV
-        log:
-            f"{LOGS}/{_name}.log",
-        shell:
-            "python -m madpinn table --config {params.config:q} --name {params.name:q} --kind {params.kind:q}"
-            " --inputs {input.results:q} --oracle {input.oracle:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
-
-
-ALL_TARGETS = all_targets() + EXTRA_TARGETS
+# Paper tables, each its own target (e.g. `snakemake -j2 table_safety_scaling`); the rule of each is
+# defined by register_table (common.smk), also for the tables other rule files register (the
+# ablations in madpinn.smk, the structured conflicts in conflicts.smk). The order of registration
+# is only the order in which the reproduction report lists the tables.
+register_table("table_safety_scaling", "main", "safety_by_n")
+register_table("table_ours_scaling", "scaling", "summary")

@@ -1,5 +1,5 @@
 # MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
-from madpinn.tracking import TrackingError, TrackingSettings, check_store
+from madpinn.tracking import TrackingSettings, check_store
 from madpinn.tracking.settings import SOURCE_ENV
 from snakemake_interface_executor_plugins.settings import ExecMode
 
@@ -11,9 +11,8 @@ TRACKING_SETTINGS = TrackingSettings.from_config(config)
 # Every start, dry runs included, stops here when the store is unreachable (read-only check).
 try:
     check_store(TRACKING_SETTINGS)
-except TrackingError as exc:
-    sys.stderr.write(f"\nmadpinn: {exc}\n\n")
-    raise SystemExit(1)
+except Exception as exc:
+    stop_workflow(exc)
 
 # The store is brought up to date at the end of the Snakefile, after every parse-time check.
 
@@ -22,8 +21,13 @@ except TrackingError as exc:
 # first writers race while creating a SQLite schema): at a real start by start_tracking (Snakefile);
 # tracking_init writes the marker of disabled tracking and stands for the store in dry runs. Jobs
 # take the marker as ancient(): a new store does not rerun finished jobs.
+# `snakemake --report` lists the outputs of every job of the DAG, and the marker has no Snakemake
+# metadata when start_tracking wrote it ("Missing metadata for file …/store.json"): the report needs
+# no store, so its DAG leaves the marker out (also when a run is followed by --report-after-run,
+# the run's own DAG keeps it).
+REPORT_ONLY = any(a == "--report" or a.startswith("--report=") for a in sys.argv[1:]) and "--report-after-run" not in sys.argv
 TRACKING_STORE = TRACKING
-TRACKING = ancient(TRACKING_STORE)
+TRACKING = [] if REPORT_ONLY else ancient(TRACKING_STORE)
 
 
 rule tracking_init:

@@ -1,6 +1,6 @@
 # Value functions (issue 3): train V̂ and V_s, validate them, and draw their figures.
 # Other rule files read the models as `rules.train_vhat.output.model` / `rules.train_vs.output.model`.
-# Helpers (init_model, init_arg, train_settings, train_runtime): common.smk.
+# Helpers (init_model, init_arg, train_runtime): common.smk.
 VF_THREADS = int(config["value_functions"]["threads"])
 
 
@@ -15,8 +15,8 @@ rule train_vhat:
     params:
         config=RESOLVED,
         init=init_arg("vhat"),
-        settings=train_settings("vhat"),
-        source=source_hash("value"),
+        settings=settings_hash("train-value", kind="vhat"),
+        source=source_hash("train-value"),
     threads: VF_THREADS
     resources:
         mem_mb=4000,
@@ -44,8 +44,8 @@ rule train_vs:
     params:
         config=RESOLVED,
         init=init_arg("vs"),
-        settings=train_settings("vs"),
-        source=source_hash("value"),
+        settings=settings_hash("train-value", kind="vs"),
+        source=source_hash("train-value"),
     threads: VF_THREADS
     resources:
         mem_mb=4000,
@@ -68,13 +68,14 @@ rule validate_vs:
         model=str(rules.train_vs.output.model),  # str(): see run_models (shipped overlay)
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
-        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst", category="Value functions"),
+        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst",
+                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_slices", "Shows": "V_s slices"}),
         pdf=f"{FIGURES}/fig_vs_slices.pdf",
     params:
         config=RESOLVED,
         stem=stem_of("png"),
-        settings=settings_hash("value_functions.vs.validation", "value_functions.seed", "dtype"),
-        source=source_hash("value"),
+        settings=settings_hash("validate-vs"),
+        source=source_hash("validate-vs"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -96,8 +97,8 @@ rule validate_vhat:
         report=f"{RESULTS}/validation/vhat_residuals.json",
     params:
         config=RESOLVED,
-        settings=settings_hash("value_functions.vhat.validation", "value_functions.seed", "dtype"),
-        source=source_hash("value"),
+        settings=settings_hash("validate-vhat"),
+        source=source_hash("validate-vhat"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -117,13 +118,13 @@ rule fig_value_heatmap:
         model=str(rules.train_vhat.output.model),  # str(): see run_models (shipped overlay)
     output:
         png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
-                   category="Value functions"),
+                   category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 4", "Shows": "value heatmap"}),
         pdf=f"{FIGURES}/fig_value_heatmap.pdf",
     params:
         config=RESOLVED,
         stem=stem_of("png"),
-        settings=settings_hash("arenas.small", "dtype"),
-        source=source_hash("value"),
+        settings=settings_hash("fig-value-heatmap"),
+        source=source_hash("fig-value-heatmap"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -137,8 +138,8 @@ rule fig_value_heatmap:
         " --threads {threads} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += [
+register_targets(
     f"{RESULTS}/validation/vs_rollouts.json",
     f"{RESULTS}/validation/vhat_residuals.json",
     *[f"{FIGURES}/{name}.{ext}" for name in ("fig_value_heatmap", "fig_vs_slices") for ext in ("pdf", "png")],
-]
+)

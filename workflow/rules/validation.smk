@@ -9,8 +9,8 @@ rule solve_vs_grid:
         solution=f"{RESULTS}/validation/vs_grid_solution.npz",
     params:
         config=RESOLVED,
-        settings=settings_hash("agents", "value_functions.vs.validation.grid"),
-        source=source_hash("value"),
+        settings=settings_hash("solve-vs-grid"),
+        source=source_hash("solve-vs-grid"),
     threads: 2
     resources:
         mem_mb=4000,
@@ -32,12 +32,14 @@ rule validate_vs_grid:
         grid=rules.solve_vs_grid.output.solution,
     output:
         report=f"{RESULTS}/validation/vs_grid.json",
-        png=f"{FIGURES}/fig_vs_grid.png",
+        png=report(f"{FIGURES}/fig_vs_grid.png", caption="../report/fig_vs_grid.rst",
+                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_grid", "Shows": "V_s vs grid"}),
         pdf=f"{FIGURES}/fig_vs_grid.pdf",
     params:
         config=RESOLVED,
         stem=stem_of("png"),
-        source=source_hash("value"),
+        settings=settings_hash("validate-vs-grid"),
+        source=source_hash("validate-vs-grid"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -51,10 +53,7 @@ rule validate_vs_grid:
         " --out {output.report:q} --fig-stem {params.stem:q} --threads {threads} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += [
-    f"{RESULTS}/validation/vs_grid.json",
-    *[f"{FIGURES}/fig_vs_grid.{ext}" for ext in ("pdf", "png")],
-]
+register_targets(f"{RESULTS}/validation/vs_grid.json", *[f"{FIGURES}/fig_vs_grid.{ext}" for ext in ("pdf", "png")])
 
 
 rule verify_vhat:
@@ -65,8 +64,8 @@ rule verify_vhat:
         report=f"{RESULTS}/validation/vhat_scenario.json",
     params:
         config=RESOLVED,
-        settings=settings_hash("value_functions.vhat.validation.scenario", "value_functions.seed", "dtype"),
-        source=source_hash("value"),
+        settings=settings_hash("verify-vhat"),
+        source=source_hash("verify-vhat"),
     threads: 1
     resources:
         mem_mb=2000,
@@ -80,4 +79,4 @@ rule verify_vhat:
         " --threads {threads} 2>&1 | tee {log:q}"
 
 
-EXTRA_TARGETS += [f"{RESULTS}/validation/vhat_scenario.json"]
+register_targets(f"{RESULTS}/validation/vhat_scenario.json")

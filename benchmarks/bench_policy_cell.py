@@ -1,0 +1,124 @@
+"""A 256-agent large-arena MAD-PINN cell, today's code paths vs issue 37's, back to back in one process.
+
+Real episodes (scenarios of a validation seed, default 100; ``sim.dt`` 2.5 ms, policy every step,
+value-based neighbours every 5 steps, ``z_tolerance`` 1e-3, shipped models, no look-ahead) on the
+**double-integrator backend** (MuJoCo was 3 % of a 256-agent cell's time in the profile of
+docs/performance.md; the policy is the same), episodes shortened to ``--episode-s`` (the protocol's
+are 6 s), torch one thread. Variants, each the same scenarios from the same starts:
+
+- ``old``: V_s on every in-domain pair in unpadded chunks, ``torch.topk`` selection (the code
+  before issue 37), warm-started z search (:func:`warm_search`);
+- ``neighbours``: bounded V_s scoring (:func:`pair_scores_bounded`, the ``value`` default now), warm search;
+- ``new``: bounded scoring and the Newton-stepped z search (``MadPinnSettings.z_newton``).
+
+Prints policy time (wall, as the evaluation cells' ``policy_us_per_agent_step``) and process CPU
+time per agent-step, V̂ rows per agent-step and, per scenario, collided agents, mean cost and
+minimum separation, and whether they are identical to ``old``'s. Last line:
+``madpinn_cell_speedup_at_256: Z`` (old episode process CPU time / new — the whole episode,
+simulation and collision checks included, and robust to other jobs on a shared machine, unlike
+wall time, which is printed too; the selector's one-off margin calibration, ≈ 1–2 s per job, is
+not in it).
+
+    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.observation import ObservationSpec
+from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
+from madpinn.policies.neighbours import in_domain, make_selector, select_lowest
+from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.simulation import run_episode
+from madpinn.simulation.backend import DoubleIntegratorBackend
+from madpinn.value_functions import load_vhat, load_vs
+
+SPEC = ObservationSpec()
+DT = 0.0025
+
+
+def old_selector(vs, n: int, chunk: int = 65536):
+    """The ``value`` selector before issue 37: every in-domain pair, unpadded chunks, ``topk``."""
+
+    def select(state):
+        S, N, _ = state.shape
+        mask = in_domain(state, vs.system.p_range, vs.system.v_range)
+        s_idx, i_idx, j_idx = mask.nonzero(as_tuple=True)
+        x = state[s_idx, i_idx] - state[s_idx, j_idx]
+        scores = torch.full((S, N, N), float("inf"), dtype=state.dtype, device=state.device)
+        if x.shape[0]:
+            scores[s_idx, i_idx, j_idx] = torch.cat([vs.value(x[i : i + chunk], 0.0).to(x.dtype)
+                                                     for i in range(0, x.shape[0], chunk)])
+        return select_lowest(scores, n)
+
+    return select
+
+
+def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
+    if variant == "old":
+        selector, settings = old_selector(vs, SPEC.n_neighbours), MadPinnSettings()
+    else:
+        selector = make_selector("value", SPEC.n_neighbours, vs=vs)   # includes the margin calibration
+        settings = MadPinnSettings(z_newton=variant == "new")
+    pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
+    backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
+    cpu = time.process_time()
+    result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
+    cpu = time.process_time() - cpu
+    agent_steps = steps * starts.shape[0] * starts.shape[1]
+    s = MadPinnPolicy.summarise_stats(pol.stats)
+    return {"result": result, "policy_us": 1e6 * stats["policy_s"] / agent_steps, "cpu_us": 1e6 * cpu / agent_steps,
+            "wall_s": stats["wall_s"],
+            "rows": s["vhat_evals_per_agent_step"], "hit": s["warm_hit_rate"]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--vhat", default="models/vhat.pt")
+    ap.add_argument("--vs", default="models/vs.pt")
+    ap.add_argument("--agents", type=int, default=256)
+    ap.add_argument("--scenarios", type=int, default=2)
+    ap.add_argument("--episode-s", type=float, default=1.0)
+    ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
+    args = ap.parse_args()
+    if args.seed < 100:
+        raise SystemExit(f"use a validation seed (≥ 100), not {args.seed}")
+    torch.set_num_threads(1)
+    vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
+    arena = Arena("large", 4.0, args.episode_s)
+    starts, goals = generate_scenarios(arena, args.agents, args.seed, args.scenarios, SPEC.collision_radius)
+    steps = int(round(args.episode_s / DT))
+    print(f"{args.agents} agents, large arena, {args.scenarios} scenarios of seed {args.seed}, {steps} steps "
+          f"({args.episode_s} s), double integrator, torch 1 thread", flush=True)
+    runs = {}
+    with torch.no_grad():
+        for variant in ("old", "neighbours", "new"):
+            r = runs[variant] = run(vhat, vs, variant, starts, goals, steps)
+            res = r["result"]
+            print(f"{variant:10s}: episode wall {r['wall_s']:6.1f} s, policy {r['policy_us']:7.1f} us/agent-step "
+                  f"(episode process CPU {r['cpu_us']:7.1f}), "
+                  f"V̂ rows/agent-step {r['rows']:.3f}, warm hits {r['hit']:.3f}", flush=True)
+            for s in range(args.scenarios):
+                print(f"    scenario {s}: collided agents {int(res.collided[s].sum())}, mean cost {res.cost[s].mean():.6f}, "
+                      f"min separation {res.min_separation[s].min():.6f} m", flush=True)
+    base = runs["old"]["result"]
+    for variant in ("neighbours", "new"):
+        res = runs[variant]["result"]
+        same = all(np.array_equal(getattr(res, f), getattr(base, f))
+                   for f in ("cost", "collided", "min_separation", "final_distance"))
+        print(f"{variant} vs old: per-scenario metrics identical: {same}; max |cost difference| "
+              f"{np.abs(res.cost - base.cost).max():.3e}, collided agents {int(res.collided.sum())} vs {int(base.collided.sum())}, "
+              f"speedup: episode process CPU {runs['old']['cpu_us'] / runs[variant]['cpu_us']:.2f}, episode wall "
+              f"{runs['old']['wall_s'] / runs[variant]['wall_s']:.2f}, policy wall "
+              f"{runs['old']['policy_us'] / runs[variant]['policy_us']:.2f}", flush=True)
+    print(f"madpinn_cell_speedup_at_256: {runs['old']['cpu_us'] / runs['new']['cpu_us']:.2f}")
+
+
+if __name__ == "__main__":
+    main()

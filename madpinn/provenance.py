@@ -1,0 +1,295 @@
+"""What a job depends on: the package code it runs and the part of the config it reads.
+
+The workflow's rules carry both in their params (``source``, ``settings``), so that editing a
+module a job imports, or changing a setting it reads, reruns that job (and what depends on it) and
+nothing else.
+
+**Code** (:func:`source_hash`): the static import closure of the job's entry, read on
+the source (``ast``; nothing is imported): every ``import`` of a module, function-level (lazy) ones
+included and ``if TYPE_CHECKING:`` blocks left out, and every package module named by a string
+constant (imported by name: ``importlib.import_module``, a package's PEP 562 ``_HOMES``). A
+superset of what runs, never less.
+
+Two refinements keep unrelated edits from rerunning hours of jobs:
+
+- An entry ``"module:function"`` (a command's handler) counts only the module-level imports of
+  ``module`` and those of ``function`` and of the module's functions and classes it names, so the
+  four commands of one command module hash their own code paths.
+- Plugin registries (a module-level dict ``_MODULES``: name -> module, one imported per job, e.g.
+  the policy of a run's method) are not followed; a job names the plugin it loads as an entry
+  (:func:`plugin_module`).
+
+:data:`GLUE` (the command layer, config parsing, tracking, checksums, atomic writes) changes no
+result: it is neither hashed nor followed beyond an entry.
+
+**Config** (:func:`job_settings`, :func:`settings_hash`): per command, the one package function
+that says what its jobs read: a trained model's own training hash
+(:func:`madpinn.value_functions.build.training_hash`, :func:`madpinn.marl_hash.marl_training_hash`:
+never validation or deployment-only settings), an evaluation cell's
+:func:`madpinn.config.job_config`, and for the checks and outputs the config subtrees they read.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+from functools import lru_cache
+from pathlib import Path
+from typing import Iterable, Mapping
+
+from madpinn.config import lookup_key
+
+PACKAGE = Path(__file__).resolve().parent
+GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
+        "madpinn.atomic", "madpinn.provenance")
+"""modules (and their sub-modules) that change no result"""
+REGISTRY = "_MODULES"
+"""name of a plugin registry: a module-level dict ``{name: module}``, one module imported per job"""
+_DEFS = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
+DATA_SUFFIXES = (".yaml", ".yml", ".json", ".csv", ".xml")
+"""package data a module may read by file name (e.g. ``evaluation/paper_values.yaml``)"""
+
+
+@lru_cache(maxsize=None)
+def module_path(module: str) -> Path | None:
+    """The file of package module ``module`` (dotted, ``madpinn.x.y``), or None when it is none
+    (cached: a process sees the package's layout once)."""
+    if not all(part.isidentifier() for part in module.split(".")) or module.split(".")[0] != "madpinn":
+        return None
+    p = PACKAGE.joinpath(*module.split(".")[1:])
+    if (p / "__init__.py").is_file():
+        return p / "__init__.py"
+    return p.with_suffix(".py") if p.with_suffix(".py").is_file() else None
+
+
+def is_glue(module: str) -> bool:
+    return any(module == g or module.startswith(g + ".") for g in GLUE)
+
+
+def _stat(path: Path) -> tuple[Path, int, int]:
+    st = path.stat()
+    return path, st.st_mtime_ns, st.st_size
+
+
+@lru_cache(maxsize=None)
+def _parse(path: Path, mtime_ns: int, size: int) -> ast.Module:
+    """The parsed module (cached while the file keeps its size and mtime)."""
+    return ast.parse(path.read_text(), filename=str(path))
+
+
+@lru_cache(maxsize=None)
+def _layout(path: Path, mtime_ns: int, size: int, module: str):
+    """The parts of a module, each with what it imports (:func:`_scan`) and the names it uses: the
+    code that runs at import (key None: its statements, the decorators, bases and defaults of its
+    definitions) and each definition by name; with the whole module's imports and strings."""
+    tree = _parse(path, mtime_ns, size)
+    defs = {n.name: n for n in tree.body if isinstance(n, _DEFS)}
+    base = [n for n in tree.body if not isinstance(n, _DEFS)]
+    for d in defs.values():
+        base += d.decorator_list + (d.bases + [k.value for k in d.keywords] if isinstance(d, ast.ClassDef)
+                                    else d.args.defaults + [x for x in d.args.kw_defaults if x is not None])
+    parts = {k: _scan([d], module) for k, d in defs.items()}
+    parts[None] = _scan(base, module)
+    return parts, set().union(*(e for e, _, _ in parts.values())), set().union(*(s for _, _, s in parts.values()))
+
+
+def _runtime_nodes(node: ast.AST):
+    """``node`` and every node below it except those under ``if TYPE_CHECKING:`` (never run) and
+    the values of a plugin registry (one is imported per job, named as an entry)."""
+    todo = [node]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.If) and getattr(node.test, "id", None) == "TYPE_CHECKING":
+            todo += node.orelse
+        elif not _is_registry(node):
+            yield node
+            todo += ast.iter_child_nodes(node)
+
+
+def _is_registry(node: ast.AST) -> bool:
+    """``_MODULES = {...}`` (or annotated)."""
+    targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+    return isinstance(getattr(node, "value", None), ast.Dict) and any(getattr(t, "id", None) == REGISTRY for t in targets)
+
+
+def _scan(nodes: Iterable[ast.AST], module: str) -> tuple[set[str], set[str], set[str]]:
+    """What ``nodes`` of ``module`` import, the names they use and their string constants. Imports:
+    ``m`` for a whole module (``import m``, ``from p import m``, ``from m import *``, a module named
+    by a string), ``m:name`` for a name taken from module ``m`` (``from m import name``), and ``p:``
+    for each package whose ``__init__`` the import runs."""
+    out, used, strings = set(), set(), set()
+    for top in nodes:
+        for node in _runtime_nodes(top):
+            if isinstance(node, ast.Name):
+                used.add(node.id)
+                continue
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    raise ValueError(f"{module}: relative import (line {node.lineno}); the package imports absolutely")
+                names = [node.module if a.name == "*" else f"{node.module}.{a.name}"
+                         if module_path(f"{node.module}.{a.name}") else f"{node.module}:{a.name}" for a in node.names]
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                names = [node.value]
+                strings.add(node.value)
+            else:
+                continue
+            for name in names:
+                m = name.partition(":")[0]
+                if module_path(m):
+                    parts = m.split(".")
+                    out |= {name} | {".".join(parts[:i]) + ":" for i in range(1, len(parts))}
+    return out, used, strings
+
+
+def imports(entry: str) -> set[str]:
+    """What ``entry`` imports (see :func:`_scan`): ``module`` (all of it), ``module:name`` (the
+    module-level code and the definition ``name``), ``module:`` (the module-level code only)."""
+    module, colon, name = entry.partition(":")
+    path = module_path(module)
+    if path is None:
+        raise ValueError(f"'{module}' is not a module of the madpinn package")
+    return _imports(*_stat(path), module, None if not colon else (name,) if name else ())
+
+
+@lru_cache(maxsize=None)
+def _imports(path: Path, mtime_ns: int, size: int, module: str, names: tuple[str, ...] | None) -> frozenset[str]:
+    """The imports of the code that runs when ``names`` of the module are used (None: all of it):
+    the code run at import and, transitively, the definitions it and ``names`` name."""
+    parts, whole, _ = _layout(path, mtime_ns, size, module)
+    if names is None:
+        return frozenset(whole)
+    out, used = set(parts[None][0]), parts[None][1]
+    seen, todo = set(), [*used, *names]
+    while todo:
+        name = todo.pop()
+        if name in parts and name is not None and name not in seen:
+            seen.add(name)
+            out |= parts[name][0]
+            todo += parts[name][1]
+    return frozenset(out)
+
+
+def closure(entries: Iterable[str]) -> set[str]:
+    """Modules that the entries (``module`` or ``module:function``) reach, the entries' own
+    modules and their packages included; glue reached on the way is not followed further."""
+    entries = list(entries)
+    seen, todo = set(), list(entries)
+    while todo:
+        e = todo.pop()
+        if e not in seen:
+            seen.add(e)
+            if e in entries or not is_glue(e.partition(":")[0]):
+                todo += imports(e)
+    return {e.partition(":")[0] for e in seen}
+
+
+def data_files(module: str) -> list[Path]:
+    """Package data beside ``module`` that it names by file name (a string constant)."""
+    path = module_path(module)
+    names = _layout(*_stat(path), module)[2]
+    return sorted(f for f in path.parent.iterdir() if f.suffix in DATA_SUFFIXES and f.name in names)
+
+
+def source_files(entries: Iterable[str]) -> list[Path]:
+    """Every file a job with these entries runs or reads: the closure less glue, with its data."""
+    modules = sorted(m for m in closure(entries) if not is_glue(m))
+    files = {module_path(m) for m in modules} | {f for m in modules for f in data_files(m)}
+    return sorted(files)
+
+
+def source_hash(*entries: str) -> str:
+    """sha256 (12 hex) over the package-relative path and bytes of :func:`source_files`."""
+    h = hashlib.sha256()
+    for f in source_files(entries):
+        h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
+    return h.hexdigest()[:12]
+
+
+def registry(module: str) -> dict[str, str]:
+    """The plugin registry (``_MODULES``) of ``module``: name -> module, read from the source."""
+    for node in _parse(*_stat(module_path(module))).body:
+        if _is_registry(node):
+            return ast.literal_eval(node.value)
+    raise ValueError(f"{module} has no {REGISTRY}")
+
+
+def plugin_module(module: str, name: str) -> str | None:
+    """The module registered under ``name`` in ``module``'s registry (None: not a plugin there)."""
+    return registry(module).get(name)
+
+
+# --- the config a job reads ---
+
+def _keys(*keys: str):
+    """A job that reads these config subtrees (dotted keys) and nothing else."""
+    return lambda cfg, **_: {k: lookup_key(cfg, k) for k in keys}
+
+
+def _labels(cfg: Mapping, *studies: str) -> dict:
+    """The labels tables, figures and the report print for the studies' runs."""
+    from madpinn.config import method_config
+
+    return {st: {run: method_config(cfg, run)[1].get("label", run) for run in cfg["studies"][st]["runs"]}
+            for st in studies}
+
+
+def _training(cfg: Mapping, kind: str) -> str:
+    from madpinn.value_functions.build import training_hash
+
+    return training_hash(cfg, kind)
+
+
+def _marl(cfg: Mapping, name: str) -> str:
+    from madpinn.marl_hash import marl_training_hash
+
+    return marl_training_hash(cfg, name)
+
+
+def _cell(cfg: Mapping, study: str, run: str) -> dict:
+    from madpinn.config import job_config
+
+    return {**job_config(cfg, study, run), "dtype": cfg["dtype"]}
+
+
+_VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
+READS = {
+    "train-value": lambda cfg, kind: _training(cfg, kind),
+    "train-safemarl-nominal": lambda cfg: _marl(cfg, "safemarl_nominal"),
+    "train-defmarl": lambda cfg, variant: _marl(cfg, f"defmarl_{variant}"),
+    "evaluate": _cell,
+    "validate-vs": _keys("value_functions.vs.validation", *_VF_RUN),
+    "validate-vhat": _keys("value_functions.vhat.validation.samples", *_VF_RUN),
+    "verify-vhat": _keys("value_functions.vhat.validation.scenario", *_VF_RUN),
+    "fig-value-heatmap": _keys("arenas.small.half_width", *_VF_RUN),
+    "solve-vs-grid": _keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
+                           "value_functions.vs.v_range", "value_functions.vs.validation.grid"),
+    "validate-vs-grid": _keys(*_VF_RUN),
+    "oracle": lambda cfg, arena: {"oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena]},
+    "table": lambda cfg, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study)},
+    "figure": lambda cfg, name, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study),
+                                        **({"trajectories": cfg["figures"]["trajectories"]}
+                                           if name == "fig_trajectories" else {})},
+    "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
+    "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
+    "render-clip": _keys("sim.mujoco", "arenas"),
+    "gap-decomposition": _keys("gap_decomposition", "agents", "observation", "sim", "arenas", "methods.madpinn",
+                               "dtype"),
+}
+"""command -> function(cfg, **job) -> what its jobs read (``job``: the job's wildcards)"""
+
+
+def job_settings(cfg: Mapping, command: str, **job) -> object:
+    """The part of the validated config that one job of ``python -m madpinn <command>`` reads
+    (``job``: e.g. ``kind``, ``study`` and ``run``, ``arena``)."""
+    if command not in READS:
+        raise ValueError(f"no config dependency declared for command '{command}' (madpinn.provenance.READS)")
+    return READS[command](cfg, **job)
+
+
+def settings_hash(cfg: Mapping, command: str, **job) -> str:
+    """Hash (12 hex) of :func:`job_settings`: the rules' ``settings`` param."""
+    from madpinn.config import config_hash
+
+    return config_hash(job_settings(cfg, command, **job))

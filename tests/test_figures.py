@@ -1,0 +1,157 @@
+"""Paper figures: every run visible in every panel, nothing cut at an edge, labels that say what
+is drawn (small frames and files of the same layout as the workflow's; fast)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from madpinn.evaluation.tables import ORACLE_RUN
+from madpinn.figures.cost_safety import ORACLE_LABEL, ZOOM_SAFETY_PCT, draw_cost_safety
+
+RUNS = {   # run -> (label, {N: (safety fraction, cost ÷ T)}): a crowd at 100 % as in the protocol
+    "madpinn": ("Ours (paper's deployment)", {3: (1.0, 0.284), 16: (0.980, 0.552)}),
+    "madpinn-lookahead": ("Ours + 75 ms look-ahead (not in paper)", {3: (1.0, 0.289), 16: (0.992, 0.562)}),
+    "safemarl": ("SafeMARL", {3: (1.0, 0.296), 16: (0.987, 0.573)}),
+    "mppi": ("MPPI", {3: (0.996, 0.38), 16: (0.775, 0.44)}),
+    "nominal": ("Nominal PD (no safety)", {3: (0.841, 0.293), 16: (0.339, 0.24)}),
+}
+
+
+def _agg():
+    rows = [dict(run=run, label=label, n_agents=n, safety_rate_mean=s, safety_rate_std=0.004,
+                 cost_time_avg_mean=c, cost_time_avg_std=0.003)
+            for run, (label, cells) in RUNS.items() for n, (s, c) in cells.items()]
+    rows += [dict(run=ORACLE_RUN, label=ORACLE_LABEL, n_agents=n, safety_rate_mean=np.nan, safety_rate_std=np.nan,
+                  cost_time_avg_mean=0.18, cost_time_avg_std=0.01) for n in (3, 16)]
+    return pd.DataFrame(rows)
+
+
+def _markers(ax):
+    """(label, x, y, size in points) of the run markers drawn in ``ax``."""
+    return [(l.get_label(), *l.get_xydata()[0], l.get_markersize()) for l in ax.get_lines()
+            if l.get_marker() not in (None, "None", "") and not l.get_label().startswith("_")]
+
+
+def test_cost_safety_shows_every_run_whole_and_zooms_into_the_crowd_at_100():
+    import matplotlib.pyplot as plt
+
+    fig = draw_cost_safety(_agg())
+    fig.canvas.draw()
+    axes = np.array(fig.axes).reshape(2, 2)                   # overview row, zoom row; N = 3, 16
+    for col, n in enumerate((3, 16)):
+        top, zoom = axes[0][col], axes[1][col]
+        assert top.get_title() == f"{n} agents"
+        assert {m[0] for m in _markers(top)} == {label for label, _ in RUNS.values()}
+        crowd = {label for label, cells in RUNS.values() if 100 * cells[n][0] >= ZOOM_SAFETY_PCT}
+        assert {m[0] for m in _markers(zoom)} == crowd
+        for ax in (top, zoom):                                 # each whole marker inside its axes
+            box = ax.get_window_extent()
+            for label, x, y, ms in _markers(ax):
+                px, py = ax.transData.transform((x, y))
+                r = ms / 2 * fig.dpi / 72
+                assert box.x0 <= px - r and px + r <= box.x1 and box.y0 <= py - r and py + r <= box.y1, (n, label)
+        # the zoom separates the three runs at 100 % that the overview stacks (3 agents: costs 0.284 … 0.296)
+        if n == 3:
+            ys = sorted(zoom.transData.transform((100.0, c))[1] for _, cells in RUNS.values()
+                        for s, c in [cells[3]] if s == 1.0)
+            ys_top = sorted(top.transData.transform((100.0, c))[1] for _, cells in RUNS.values()
+                            for s, c in [cells[3]] if s == 1.0)
+            assert ys[-1] - ys[0] > 2 * (ys_top[-1] - ys_top[0])
+    assert axes[0][0].get_ylabel().startswith("cost ÷ T")
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[-1] == ORACLE_LABEL and "Ours + 75 ms look-ahead (not in paper)" in labels
+    plt.close(fig)
+
+
+def test_cost_safety_without_a_run_above_the_zoom_has_one_row():
+    import matplotlib.pyplot as plt
+
+    agg = _agg()
+    agg = agg[(agg["run"] == "nominal") | (agg["run"] == ORACLE_RUN)]
+    fig = draw_cost_safety(agg)
+    assert len(fig.axes) == 2 and all(ax.get_title().endswith("agents") for ax in fig.axes)
+    plt.close(fig)
+
+
+@pytest.fixture(autouse=True)
+def _headless():
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
+def _traj_file(path, collide: bool):
+    """A trajectory file in the layout evaluation/cell.py writes: 3 agents on straight lines to their
+    goals over 1 s (agents 1 and 2 meet at the centre when ``collide``)."""
+    times = np.linspace(0.0, 1.0, 21)
+    start = np.array([[-0.8, 0.0], [0.8, 0.0], [0.0, -0.8]])
+    goals = np.array([[0.8, 0.0], [-0.8, 0.0] if collide else [0.8, 0.6], [0.0, 0.8]])
+    pos = start[None] + times[:, None, None] * (goals - start)[None]
+    first = np.array([200, 200, -1]) if collide else np.full(3, -1)
+    np.savez(path, times=times, positions=pos.astype(np.float32), goals=goals.astype(np.float32),
+             collided=first >= 0, first_collision_step=first, dt=0.0025, collision_radius=0.1, half_width=1.0)
+    return path
+
+
+def test_trajectories_one_panel_per_run_with_numbered_agents_and_goals(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from madpinn.figures import trajectories
+
+    paths = [_traj_file(tmp_path / "a.npz", True), _traj_file(tmp_path / "b.npz", False)]
+    files = trajectories.plot_trajectories(paths, ["Run A", "Run B"], tmp_path / "fig_trajectories")
+    fig = trajectories.draw_trajectories([np.load(p) for p in paths], ["Run A", "Run B"])
+    assert [f.suffix for f in files] == [".pdf", ".png"] and all(f.stat().st_size > 1000 for f in files)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in axes] == ["Run A\n2 of 3 agents collided", "Run B\nno collision"]
+    for ax in axes:   # every agent's number twice (start and goal)
+        assert sorted(t.get_text() for t in ax.texts) == ["1", "1", "2", "2", "3", "3"]
+    colours = trajectories.agent_colours(12)
+    assert len({tuple(c) for c in colours[:9]}) == 9
+    assert all(not (c[0] > 0.7 and c[1] < 0.3 and c[2] < 0.3) for c in colours)     # no red: red marks collisions
+    plt.close("all")
+
+
+def test_value_heatmap_scale_is_not_set_by_the_rims():
+    """A few large values (the rims of the infeasible regions) must not set the colour scale: it
+    ends at the HEATMAP_CLIP_PERCENTILE-th percentile, the arrow of the colour bar says more exists."""
+    import matplotlib.pyplot as plt
+    import torch
+
+    from madpinn.value_functions.figures import HEATMAP_CLIP_PERCENTILE, draw_value_heatmap
+
+    axis = torch.linspace(-1.0, 1.0, 41)
+    yy, xx = torch.meshgrid(axis, axis, indexing="ij")
+    z = 1.5 + ((xx + 0.5) ** 2 + yy ** 2).sqrt()             # low at the goal (-0.5, 0), ≤ 3.3
+    rim = ((xx + 0.3) ** 2 + (yy - 0.4) ** 2).sqrt()
+    feasible = rim > 0.12
+    z = torch.where(rim < 0.18, torch.full_like(z, 21.0), z)  # the rim: a few cells at 21
+    fig = draw_value_heatmap(axis, z, feasible)
+    mesh = fig.axes[0].collections[0]
+    expected = float(np.percentile(z[feasible].numpy(), HEATMAP_CLIP_PERCENTILE))
+    assert mesh.norm.vmax == pytest.approx(expected) and mesh.norm.vmax < 4.0
+    cbar = fig.axes[1]
+    assert "clipped" in cbar.get_ylabel() and "21.0" in cbar.get_ylabel()
+    plt.close(fig)
+
+
+def test_vs_grid_tick_labels_of_neighbouring_panels_do_not_meet():
+    import matplotlib.pyplot as plt
+    import torch
+
+    from conftest import REPO
+    from madpinn.dynamics.pair import PairSystem
+    from madpinn.value_functions import load_vs
+    from madpinn.value_functions.figures import draw_vs_grid
+    from madpinn.value_functions.grid_reference import solve_pair_grid
+
+    sol = solve_pair_grid(PairSystem(), 9, 1.0, 6.0, (0.0, 0.25, 0.5, 0.75), accuracy="low")
+    fig = draw_vs_grid(sol, load_vs(REPO / "models" / "vs.pt", dtype=torch.float64), (-3.0, 0.0))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [[t.get_window_extent(renderer) for t in ax.get_xticklabels() + ax.get_yticklabels() if t.get_text()]
+             for ax in fig.axes]
+    assert len(boxes) == 4
+    for left, right in zip(boxes, boxes[1:]):
+        assert max(b.x1 for b in left) < min(b.x0 for b in right)      # a gap between neighbours' labels
+    plt.close(fig)
