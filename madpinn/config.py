@@ -278,6 +278,8 @@ def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
 
 
 FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
+TRAINING_ONLY_KEYS = ("validation",)
+"""method keys that only a training job reads (its validation curve): not in the cells' hash"""
 # ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
 # (value_functions.build.training_hash leaves them out); here, not in madpinn.observation, so that
 # the workflow reads them without importing torch
@@ -303,7 +305,7 @@ def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
         "sim": study_sim(cfg, study),
         "observation": cfg["observation"],
         "method": method,
-        "method_config": mcfg,
+        "method_config": {k: v for k, v in mcfg.items() if k not in TRAINING_ONLY_KEYS},
     }
 
 

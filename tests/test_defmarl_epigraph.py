@@ -133,3 +133,20 @@ def test_root_finder_smallest_safe_z_and_fallbacks():
     assert torch.equal(zt, torch.tensor([[0.7, 0.7, 0.7], [2.0, 2.0, 2.0]]))
     with pytest.raises(ValueError):
         smallest_safe_z(vh, 6, 1.0, 0.0)
+
+
+def test_z_consensus_over_the_communication_graph():
+    """``graph``: max-consensus to its fixed point = the maximum over each connected component of
+    the agents within the radius (a chain relays it); ``global``: over all; ``none``: own z."""
+    from madpinn.marl.defmarl.root import agree, graph_budget
+
+    # two components: a chain 0-1-2 (0.8 m links, 0 and 2 are 1.6 m apart) and a pair 3-4
+    pos = torch.tensor([[[0.0, 0.0], [0.8, 0.0], [1.6, 0.0], [5.0, 5.0], [5.5, 5.0]]])
+    z = torch.tensor([[2.0, -1.0, -2.0, 0.5, -0.5]])
+    assert graph_budget(z, pos, 1.0).tolist() == [[2.0, 2.0, 2.0, 0.5, 0.5]]
+    assert agree(z, pos, 1.0, "global").tolist() == [[2.0] * 5]
+    assert agree(z, pos, 1.0, "none").tolist() == z.tolist()
+    assert graph_budget(z, pos, 10.0).tolist() == [[2.0] * 5]   # connected: the global maximum
+    assert graph_budget(z, pos, 0.1).tolist() == z.tolist()     # isolated agents keep their own
+    with pytest.raises(ValueError, match="consensus"):
+        agree(z, pos, 1.0, "mean")

@@ -89,8 +89,9 @@ def test_a_name_imported_from_a_module_follows_that_definition_only():
     assert "madpinn.simulation.mujoco.settings" not in closure(["madpinn.settings:AgentLimits"])
     assert "madpinn.simulation.mujoco.settings" in closure(["madpinn.settings:SimSettings"])
     assert "madpinn.simulation.mujoco.settings" in closure(["madpinn.settings"])
-    for command in ("train-safemarl-nominal", "train-defmarl"):
-        assert not any(f.startswith("simulation/") for f in _files(command)), command
+    # (train-defmarl runs evaluation cells for its validation curve, so it does reach the simulation)
+    assert not any(f.startswith("simulation/") for f in _files("train-safemarl-nominal"))
+    assert any(f.startswith("simulation/") for f in _files("train-defmarl"))
 
 
 def test_evaluation_cells_do_not_rerun_for_tables_report_oracle_or_training_edits():

@@ -4,21 +4,50 @@ they happen, then the files and the actor)."""
 
 from __future__ import annotations
 
+import tempfile
 import time
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, Protocol, Sequence
 
 from madpinn.commands.args import add_config_arg, add_job_args
 from madpinn.commands.finish import JobRecord, finish, job, write_json
 
 
+class Validation(Protocol):
+    """A validation learning curve (``train-defmarl``): every ``every`` iterations the command
+    evaluates the model file it is given and may end training at a plateau."""
+
+    every: int
+    stop_at_plateau: bool
+
+    def __call__(self, model: Path) -> dict: ...
+
+    def plateau(self, history: Sequence[dict]) -> bool: ...
+
+    def score(self, stats: Mapping) -> float | None:
+        """The validation figure the best model is selected on (None on rows without one)."""
+
+
 def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out: str | Path, *, desc: str, meta: Callable,
                      first: Sequence[str], last: Sequence[str], curves: Sequence[str], record: JobRecord,
-                     extra: dict | None = None, threads: int = 1, progress: bool = True, track: bool = True) -> dict:
+                     extra: dict | None = None, threads: int = 1, progress: bool = True, track: bool = True,
+                     checkpoint: str | Path | None = None, time_limit: float | None = None, init: str | Path | None = None,
+                     resume_hash: str | None = None, validation: Validation | None = None) -> dict | None:
     """Inside ``record``'s live MLflow run (curves logged every iteration as they happen): seed
     with ``tcfg.seed``, train the trainer ``build()`` returns, save it to ``out`` with
     ``meta(trainer, wall_s)``, write ``<out>_history.csv`` and ``<out>.json``, then log the files,
-    the summary and the actor (``mlflow.pytorch``); return the summary."""
+    the summary and the actor (``mlflow.pytorch``); return the summary.
+
+    Resumable training (``checkpoint``): the full trainer state is saved there (at every
+    validation and when stopping) and a later call resumes from it when its ``resume_hash``
+    matches (a different configuration is refused); ``time_limit`` (s) stops after the first
+    iteration that ends past it, keeps the checkpoint and the curve CSV and returns None — run
+    the same call again to go on. ``init``: start from a trained model without training state
+    (fresh optimizers, :meth:`PPOTrainer.skip_to` its iterations). ``validation``: every
+    ``validation.every`` iterations, its metrics and ``val_plateau`` join the iteration's curve
+    row; with ``validation.stop_at_plateau`` training ends (completed) at the plateau. The model
+    with the best ``validation.score`` so far is kept as ``<out>_best.pt`` (``val_best`` = 1 on
+    its curve row): selection on the validation seed, never on protocol seeds."""
     import pandas as pd
 
     from madpinn.device import seed_everything
@@ -26,18 +55,70 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
     from madpinn.marl.checkpoint import save_checkpoint
 
     out = Path(out)
-    with job(cfg, record, track) as run:
+    checkpoint = Path(checkpoint) if checkpoint is not None else None
+    curve_path = out.with_name(out.stem + "_history.csv")
+    with job(cfg, record, track) as run, tempfile.TemporaryDirectory() as tmp:
         seed_everything(int(tcfg["seed"]), threads)
         t0 = time.perf_counter()
         trainer = build()
-        history = trainer.train(progress=progress, desc=desc, on_iteration=live_curves(run, curves))
-        wall = time.perf_counter() - t0
-        save_checkpoint(out, trainer, meta=meta(trainer, wall))
-        summary = training_summary(history, wall, first, last, extra=extra)
-        curve_path = out.with_name(out.stem + "_history.csv")
+        wall_before = _start_state(trainer, checkpoint, init, resume_hash)
+        log = live_curves(run, curves)
+        for past in trainer.history:   # earlier pieces' curves: this run replaces theirs
+            log(past)
+
+        def wall() -> float:
+            return wall_before + time.perf_counter() - t0
+
+        def save_state() -> Path:
+            return save_checkpoint(checkpoint, trainer, meta=meta(trainer, wall()),
+                                   train_state={"config_hash": resume_hash, "wall_s": wall()})
+
+        best_path = out.with_name(out.stem + "_best.pt")
+
+        def best_so_far() -> float:
+            scores = [validation.score(h) for h in trainer.history[:-1]] if validation is not None else []
+            return max((x for x in scores if x is not None), default=float("-inf"))
+
+        def on_iteration(stats: dict) -> bool:
+            stop = False
+            if validation is not None and validation.every > 0 and trainer.iteration % validation.every == 0:
+                model = save_state() if checkpoint is not None else save_checkpoint(Path(tmp) / "model.pt", trainer, meta(trainer, wall()))
+                stats.update(validation(model))
+                stats["val_plateau"] = float(validation.plateau(trainer.history))
+                score = validation.score(stats)
+                stats["val_best"] = float(score is not None and score > best_so_far())
+                if stats["val_best"]:
+                    save_checkpoint(best_path, trainer, meta={**meta(trainer, wall()), "validation": dict(
+                        {k: v for k, v in stats.items() if k.startswith("val_")}, iteration=trainer.iteration)})
+                stop = validation.stop_at_plateau and stats["val_plateau"] > 0
+            log(stats)
+            return stop
+
+        deadline = None if time_limit is None else time.monotonic() + time_limit
+        history = trainer.train(progress=progress, desc=desc, on_iteration=on_iteration, deadline=deadline)
+        stopped_early = validation is not None and validation.stop_at_plateau and validation.plateau(history)
+        if trainer.iteration < trainer.ppo.iterations and not stopped_early:   # paused by the time limit
+            if checkpoint is None:
+                raise RuntimeError("a time-limited training needs a checkpoint to resume from")
+            save_state()
+            pd.DataFrame(history).to_csv(curve_path, index=False)
+            run.log_params({"completed": False})
+            print(f"{desc}: paused after iteration {trainer.iteration} of {trainer.ppo.iterations}; "
+                  f"state in {checkpoint}; run the same command again to resume")
+            return None
+        if checkpoint is not None:
+            save_state()   # kept: a larger ppo.iterations continues from here
+        w = wall()
+        save_checkpoint(out, trainer, meta=meta(trainer, w))
+        summary = training_summary(history, w, first, last, extra=extra)
+        if stopped_early:
+            summary["stopped_at_plateau"] = trainer.iteration
+        best = [h for h in history if h.get("val_best")]
+        if best:
+            summary["best_validation"] = {k: v for k, v in best[-1].items() if k.startswith("val_") or k == "iteration"}
         pd.DataFrame(history).to_csv(curve_path, index=False)
         json_path = write_json(out.with_suffix(".json"), summary)
-        record.artifacts = [out, curve_path, json_path]
+        record.artifacts = [out, curve_path, json_path, *([best_path] if best_path.is_file() else [])]
         record.metrics = {k: v for k, v in summary.items() if k not in (extra or {})}
         record.step = len(history)
         record.models = {"actor": trainer.actor}
@@ -45,12 +126,42 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
     return summary
 
 
+def _start_state(trainer, checkpoint: Path | None, init: str | Path | None, resume_hash: str | None) -> float:
+    """Resume ``trainer`` from ``checkpoint`` (if the file exists) or initialise it from ``init``;
+    return the wall seconds of the earlier pieces."""
+    from madpinn.marl.checkpoint import CheckpointError, load_checkpoint, restore_modules
+
+    if checkpoint is not None and checkpoint.is_file():
+        ck = load_checkpoint(checkpoint, trainer.device)
+        state = ck.get("train_state")
+        if state is None:
+            raise CheckpointError(f"{checkpoint} holds no training state (a finished model?); pass it as --init instead")
+        if state.get("config_hash") != resume_hash:
+            raise CheckpointError(f"{checkpoint} was trained with another configuration (hash {state.get('config_hash')}, "
+                                  f"now {resume_hash}); use another --checkpoint or the configuration it was trained with")
+        restore_modules(trainer, ck, checkpoint)
+        trainer.load_training_state(state)
+        print(f"resuming from {checkpoint} at iteration {trainer.iteration}")
+        return float(state["wall_s"])
+    if init is not None:
+        ck = load_checkpoint(init, trainer.device)
+        restore_modules(trainer, ck, init)
+        done = int(ck["meta"].get("iterations", 0))
+        if done >= trainer.ppo.iterations:
+            raise CheckpointError(f"{init} was trained for {done} iterations, the configuration asks for "
+                                  f"{trainer.ppo.iterations}: raise the iterations to continue it")
+        trainer.skip_to(done)
+        print(f"continuing {init} from iteration {done} (its optimizer state is not stored: fresh Adam moments)")
+        return float(ck["meta"].get("wall_s", 0.0))
+    return 0.0
+
+
 def live_curves(run, keys: Sequence[str]) -> Callable[[dict], None]:
     """``on_iteration`` callback of a PPO trainer: the iteration's ``keys`` as step metrics."""
     return lambda stats: run.log_metrics({k: stats[k] for k in keys if k in stats}, step=int(stats["iteration"]))
 
 
-def add_training_parser(sub, name: str, help: str, func, variant: bool = False) -> None:
+def add_training_parser(sub, name: str, help: str, func, variant: bool = False):
     """Sub-command ``name`` of a MARL training job: ``--config``, [``--variant``], ``--out``, job options."""
     p = sub.add_parser(name, help=help)
     add_config_arg(p)
@@ -59,3 +170,4 @@ def add_training_parser(sub, name: str, help: str, func, variant: bool = False) 
     p.add_argument("--out", required=True, help="checkpoint path (.pt)")
     add_job_args(p)
     p.set_defaults(func=func)
+    return p

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from madpinn.device import resolve_device, resolve_dtype
 from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
+from madpinn.marl.networks import DEFAULT_ENCODER
 from madpinn.marl.ppo import PPOConfig
 from madpinn.marl.trainer import PPOTrainer
 from madpinn.observation import ObservationSpec
@@ -26,6 +27,7 @@ def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dt
     return trainer_cls(
         env, PPOConfig.from_config(tcfg["ppo"]), RewardConfig.from_config(tcfg["reward"]),
         tcfg["agent_counts"], hidden=int(tcfg["network"]["hidden"]), seed=int(tcfg["seed"]),
+        encoder=str(tcfg["network"].get("encoder", DEFAULT_ENCODER)),
     )
 
 

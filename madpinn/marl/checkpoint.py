@@ -9,7 +9,7 @@ import torch
 
 from madpinn.atomic import save_torch
 from madpinn.hints import build_hint, unreadable_reason
-from madpinn.marl.networks import GaussianActor
+from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
 
 FORMAT = "madpinn-marl-ppo"
@@ -21,8 +21,10 @@ class CheckpointError(ValueError):
     """A MARL checkpoint is missing, unreadable or inconsistent."""
 
 
-def save_checkpoint(path: str | Path, trainer, meta: dict | None = None) -> Path:
-    """Write the trainer's actor, critic, normalisers and metadata atomically to ``path``."""
+def save_checkpoint(path: str | Path, trainer, meta: dict | None = None, train_state: dict | None = None) -> Path:
+    """Write the trainer's actor, critic, normalisers and metadata atomically to ``path``;
+    ``train_state`` (resumable checkpoints): :meth:`PPOTrainer.training_state` plus the caller's
+    keys (e.g. a configuration hash, the wall time so far) under ``"train_state"``."""
     path = Path(path)
     spec = trainer.env.obs_spec
     payload = {
@@ -38,6 +40,7 @@ def save_checkpoint(path: str | Path, trainer, meta: dict | None = None) -> Path
             "neighbour_features": trainer.obs_norm.neighbours.mean.numel(),
             "extra_features": trainer.extra_features,
             "hidden": trainer.hidden,
+            "encoder": trainer.encoder,
             "neighbours": trainer.env.cfg.neighbours,
             "critic_heads": trainer.critic_heads,
             "u_max": float(trainer.u_max),
@@ -49,7 +52,24 @@ def save_checkpoint(path: str | Path, trainer, meta: dict | None = None) -> Path
             **(meta or {}),
         },
     }
+    if train_state is not None:
+        payload["train_state"] = {**trainer.training_state(), **train_state}
     return save_torch(payload, path)
+
+
+def restore_modules(trainer, ck: dict, path: str | Path) -> None:
+    """Load a checkpoint's modules and normalisers (:func:`load_checkpoint`) into ``trainer``."""
+    modules = {"actor": trainer.actor, "critic": trainer.critic, **trainer.extra_modules()}
+    missing = sorted(set(modules) - set(ck["modules"]))
+    if missing:
+        raise CheckpointError(f"{path} lacks the modules {missing} this trainer needs")
+    try:
+        for k, m in modules.items():
+            m.load_state_dict(ck["modules"][k])
+        trainer.obs_norm.load_state_dict(ck["normalizers"]["obs"])
+        trainer.ret_norm.load_state_dict(ck["normalizers"]["return"])
+    except (RuntimeError, ValueError, KeyError) as exc:
+        raise CheckpointError(f"{path} does not fit this trainer (network size or features differ): {exc}") from exc
 
 
 def load_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> dict:
@@ -74,7 +94,7 @@ def load_actor(path: str | Path, device: torch.device | str = "cpu", dtype: torc
     """-> ``(actor, obs_normalizer, meta)`` in eval mode."""
     ck = load_checkpoint(path, device)
     m = ck["meta"]
-    actor = GaussianActor(m["ego_features"], m["neighbour_features"], m["hidden"])
+    actor = GaussianActor(m["ego_features"], m["neighbour_features"], m["hidden"], encoder=m.get("encoder", DEFAULT_ENCODER))
     try:
         actor.load_state_dict(ck["modules"]["actor"])
         norm = ObsNormalizer(m["ego_features"], m["neighbour_features"])

@@ -14,7 +14,13 @@ Extension points for methods built on this trainer (DEF-MARL) — override in a 
 - :meth:`advantages`: advantages ``[T, E, N]`` and critic targets ``[T, E, N, H]`` from the
   rollout buffer (default: GAE on the normalised reward).
 - :meth:`extra_modules`: further networks of the method (e.g. a team cost critic), saved in
-  the checkpoint next to the actor and critic.
+  the checkpoint next to the actor and critic; :meth:`extra_optimizers`: their optimizers, saved
+  in a resumable checkpoint (:meth:`training_state`).
+
+Resuming: :meth:`training_state` / :meth:`load_training_state` carry everything besides the
+weights and normalisers that the next iteration depends on (optimizer moments, the sampling
+generator, torch's RNG, the scenario counters, the iteration and the history), so a run
+trained in pieces ends with the uninterrupted run's weights.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ from madpinn.marl.buffer import RolloutBuffer
 from madpinn.marl.env import GoalReachingEnv, RewardConfig, StepInfo, goal_reward
 from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
 from madpinn.marl.gae import gae
-from madpinn.marl.networks import GaussianActor, ValueCritic
+from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor, ValueCritic
 from madpinn.marl.normalize import ObsNormalizer, ReturnNormalizer
 from madpinn.marl.ppo import PPOBatch, PPOConfig, ppo_update
 
@@ -49,6 +55,7 @@ class PPOTrainer:
         agent_counts: Sequence[int],
         hidden: int,
         seed: int,
+        encoder: str = DEFAULT_ENCODER,
     ):
         if not agent_counts or min(agent_counts) < 1:
             raise ValueError(f"agent_counts must be non-empty positive integers, got {agent_counts}")
@@ -57,14 +64,17 @@ class PPOTrainer:
         self.reward_cfg = reward
         self.agent_counts = [int(n) for n in agent_counts]
         self.hidden = int(hidden)
+        self.encoder = str(encoder)
         self.seed = int(seed)
         self.device = env.device
         self.u_max = env.dynamics.u_max
         self.generator = torch.Generator().manual_seed(self.seed)
         torch.manual_seed(self.seed)  # network initialisation
         ego = EGO_FEATURES + self.extra_features
-        self.actor = GaussianActor(ego, NEIGHBOUR_FEATURES, self.hidden, init_log_std=ppo.init_log_std).to(self.device, env.dtype)
-        self.critic = ValueCritic(ego, NEIGHBOUR_FEATURES, self.hidden, heads=self.critic_heads).to(self.device, env.dtype)
+        self.actor = GaussianActor(ego, NEIGHBOUR_FEATURES, self.hidden, init_log_std=ppo.init_log_std,
+                                   encoder=self.encoder).to(self.device, env.dtype)
+        self.critic = ValueCritic(ego, NEIGHBOUR_FEATURES, self.hidden, heads=self.critic_heads,
+                                  encoder=self.encoder).to(self.device, env.dtype)
         self.obs_norm = ObsNormalizer(ego, NEIGHBOUR_FEATURES)
         self.ret_norm = ReturnNormalizer(ppo.discount)
         self.optimizer = torch.optim.Adam(list(self.actor.parameters()) + list(self.critic.parameters()), lr=ppo.lr, eps=1e-5)
@@ -86,6 +96,46 @@ class PPOTrainer:
 
     def extra_modules(self) -> dict[str, torch.nn.Module]:
         return {}
+
+    def extra_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        return {}
+
+    # ---- resumable state ----------------------------------------------------------------------
+    def training_state(self) -> dict:
+        """The state a resumed run needs beyond the modules and normalisers (plain tensors and
+        containers: loadable with ``weights_only=True``)."""
+        return {
+            "iteration": int(self.iteration),
+            "optimizers": {"main": self.optimizer.state_dict(),
+                           **{k: o.state_dict() for k, o in self.extra_optimizers().items()}},
+            "generator": self.generator.get_state(),
+            "torch_rng": torch.get_rng_state(),
+            "drawn": {int(k): int(v) for k, v in self.env._drawn.items()},
+            "history": [dict(h) for h in self.history],
+        }
+
+    def load_training_state(self, state: dict) -> None:
+        """Inverse of :meth:`training_state` (modules and normalisers are loaded separately)."""
+        optimizers = {"main": self.optimizer, **self.extra_optimizers()}
+        if set(state["optimizers"]) != set(optimizers):
+            raise ValueError(f"training state has optimizers {sorted(state['optimizers'])}, this trainer {sorted(optimizers)}")
+        for k, opt in optimizers.items():
+            opt.load_state_dict(state["optimizers"][k])
+        self.generator.set_state(state["generator"])
+        torch.set_rng_state(state["torch_rng"])
+        self.env._drawn = {int(k): int(v) for k, v in state["drawn"].items()}
+        self.iteration = int(state["iteration"])
+        self.history = [dict(h) for h in state["history"]]
+
+    def skip_to(self, iteration: int) -> None:
+        """Continue weights trained for ``iteration`` iterations whose training state is lost (a
+        shipped model): count the scenarios those iterations drew (the next rollouts draw new
+        ones) and reseed the sampling generator from ``(seed, iteration)``; optimizers stay fresh."""
+        for it in range(self.iteration, int(iteration)):
+            n = self.agent_counts[it % len(self.agent_counts)]
+            self.env._drawn[n] = self.env._drawn.get(n, 0) + max(1, self.ppo.agents_per_batch // n)
+        self.iteration = int(iteration)
+        self.generator.manual_seed(self.seed * 1_000_003 + self.iteration)
 
     def advantages(self, buf: RolloutBuffer, last_values: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         adv, ret = gae(buf.get("reward"), buf.get("value")[..., 0], last_values[..., 0], self.ppo.discount, self.ppo.gae_lambda)
@@ -170,16 +220,21 @@ class PPOTrainer:
         return stats
 
     def train(self, iterations: int | None = None, progress: bool = True, desc: str = "PPO",
-              on_iteration: Callable[[dict], None] | None = None) -> list[dict]:
-        """Run ``iterations`` steps; ``on_iteration(stats)`` after each (e.g. live curves)."""
+              on_iteration: Callable[[dict], bool | None] | None = None, deadline: float | None = None) -> list[dict]:
+        """Train from the current iteration until ``iterations`` in all (default
+        ``ppo.iterations``). ``on_iteration(stats)`` after each (e.g. live curves); a true return
+        value ends training there (e.g. a validation plateau). ``deadline`` (a
+        :func:`time.monotonic` instant): stop after the first iteration that ends past it."""
         iterations = self.ppo.iterations if iterations is None else int(iterations)
-        bar = tqdm(range(iterations), desc=desc, disable=not progress, mininterval=2.0)
+        bar = tqdm(range(self.iteration, iterations), initial=self.iteration, total=iterations, desc=desc,
+                   disable=not progress, mininterval=2.0)
         for _ in bar:
             s = self.step()
             if not math.isfinite(s["episode_return"]):
                 raise FloatingPointError(f"non-finite episode return at iteration {s['iteration']}")
-            if on_iteration is not None:
-                on_iteration(s)
+            stop = on_iteration(s) if on_iteration is not None else None
             bar.set_postfix(N=s["n_agents"], ret=f"{s['episode_return']:.3f}", dist=f"{s['final_distance']:.3f}",
                             coll=f"{s['collision_rate']:.3f}")
+            if stop or (deadline is not None and time.monotonic() >= deadline):
+                break
         return self.history

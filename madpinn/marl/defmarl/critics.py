@@ -13,15 +13,15 @@ import torch
 from torch import nn
 
 from madpinn.marl.features import LocalObs
-from madpinn.marl.networks import SetEncoder, mlp
+from madpinn.marl.networks import DEFAULT_ENCODER, make_encoder, mlp
 
 
 class TeamCostCritic(nn.Module):
     """Flat observations of ``B·N`` agents (env-major, N agents per env) → ``[B]``."""
 
-    def __init__(self, ego_features: int, neighbour_features: int, hidden: int):
+    def __init__(self, ego_features: int, neighbour_features: int, hidden: int, encoder: str = DEFAULT_ENCODER):
         super().__init__()
-        self.encoder = SetEncoder(ego_features, neighbour_features, hidden)
+        self.encoder = make_encoder(encoder, ego_features, neighbour_features, hidden)
         self.agent = mlp([self.encoder.out_features, hidden, hidden])
         self.head = mlp([hidden, hidden, 1], out_gain=1.0)
 

@@ -2,7 +2,8 @@
 
 Every ``root_period`` policy steps (and at the first), each agent's smallest safe budget
 comes from bisection on its constraint critic ``V_h(o_i, z)`` (:mod:`root`) and the team
-budget is the maximum over the scenario's agents; it is held in between. Every policy step
+agrees on a budget (``consensus``, :func:`root.agree`; default and the deployed runs: the
+maximum over the scenario's agents); it is held in between. Every policy step
 the actor's mean action ``π(o_i, z)`` is applied, clipped to the box. The critic's neighbour
 encoding and first trunk layer are computed once per search; only the z column varies.
 """
@@ -14,9 +15,9 @@ from dataclasses import dataclass, replace
 import torch
 
 from madpinn.marl.checkpoint import CheckpointError, load_actor, load_checkpoint
-from madpinn.marl.defmarl.root import smallest_safe_z, team_budget
+from madpinn.marl.defmarl.root import CONSENSUS, agree, smallest_safe_z
 from madpinn.marl.features import EGO_FEATURES, local_observation
-from madpinn.marl.networks import GaussianActor, ValueCritic
+from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor, ValueCritic
 from madpinn.marl.normalize import CLIP, ObsNormalizer
 from madpinn.observation import ObservationSpec
 
@@ -32,14 +33,19 @@ class BudgetStats:
     all_safe: int = 0
     none_safe: int = 0
     z_sum: float = 0.0
+    below_team_max: int = 0
+    """agents whose agreed z is below their scenario's maximum (graph consensus, split graph)"""
 
 
 class DefMarlPolicy:
     def __init__(self, actor: GaussianActor, critic: ValueCritic, obs_norm: ObsNormalizer, obs_spec: ObservationSpec,
                  neighbours: int, u_max: float, z_min: float, z_max: float, iterations: int = 20, level: float = 0.0,
-                 root_period: int = 1):
+                 root_period: int = 1, consensus: str = "global"):
         if root_period < 1:
             raise ValueError(f"root_period must be ≥ 1 policy step, got {root_period}")
+        if consensus not in CONSENSUS:
+            raise ValueError(f"z consensus must be one of {CONSENSUS}, got {consensus!r}")
+        self.consensus = consensus
         self.actor, self.critic, self.obs_norm = actor, critic, obs_norm
         self.obs_spec, self.neighbours, self.u_max = obs_spec, int(neighbours), float(u_max)
         self.z_min, self.z_max, self.iterations, self.level = float(z_min), float(z_max), int(iterations), float(level)
@@ -75,7 +81,8 @@ class DefMarlPolicy:
             return rest(base + (self._normalised_z(z).unsqueeze(-1) - z0) * w_z)[:, 0]
 
         root = smallest_safe_z(vh, S * N, self.z_min, self.z_max, self.iterations, self.level, state.device, state.dtype)
-        return xn, team_budget(root.z.view(S, N)), root
+        z = agree(root.z.view(S, N), state[..., 0:2], self.obs_spec.sensing_radius, self.consensus)
+        return xn, z, root
 
     @torch.no_grad()
     def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
@@ -86,6 +93,7 @@ class DefMarlPolicy:
             self.stats.all_safe += int(root.all_safe.sum())
             self.stats.none_safe += int(root.none_safe.sum())
             self.stats.z_sum += float(self._z.sum())
+            self.stats.below_team_max += int((self._z < self._z.amax(-1, keepdim=True)).sum())
         else:
             obs = local_observation(state, goals, self.obs_spec, self.neighbours)
             xn = self.obs_norm(obs.with_extra(torch.zeros(S, N, 1, dtype=state.dtype, device=state.device))).flatten()
@@ -95,13 +103,15 @@ class DefMarlPolicy:
 
 
 def load_defmarl(path, obs_spec: ObservationSpec, u_max: float, collision_radius: float, device="cpu",
-                 dtype=torch.float32, iterations: int = 20, level: float = 0.0, root_period: int = 1) -> DefMarlPolicy:
+                 dtype=torch.float32, iterations: int = 20, level: float = 0.0, root_period: int = 1,
+                 consensus: str = "global") -> DefMarlPolicy:
     """Policy from a ``train-defmarl`` checkpoint; refuses a model trained for other limits or radius."""
     actor, norm, meta = load_actor(path, device, dtype)
     if meta.get("method") != FORMAT_METHOD or "epigraph" not in meta:
         raise CheckpointError(f"{path} is not a DEF-MARL checkpoint (method {meta.get('method')!r})")
     ck = load_checkpoint(path, device)
-    critic = ValueCritic(meta["ego_features"], meta["neighbour_features"], meta["hidden"], heads=meta["critic_heads"])
+    critic = ValueCritic(meta["ego_features"], meta["neighbour_features"], meta["hidden"], heads=meta["critic_heads"],
+                         encoder=meta.get("encoder", DEFAULT_ENCODER))
     try:
         critic.load_state_dict(ck["modules"]["critic"])
     except (RuntimeError, KeyError) as exc:
@@ -115,4 +125,4 @@ def load_defmarl(path, obs_spec: ObservationSpec, u_max: float, collision_radius
     obs_spec = replace(obs_spec, **{k: spec[k] for k in ("goal_range", "offset_range", "sensing_radius")})
     epi = meta["epigraph"]
     return DefMarlPolicy(actor, critic.to(device=device, dtype=dtype).eval(), norm, obs_spec, meta["neighbours"], u_max,
-                         epi["z_min"], epi["z_max"], iterations, level, root_period)
+                         epi["z_min"], epi["z_max"], iterations, level, root_period, consensus)

@@ -47,6 +47,39 @@ def smallest_safe_z(
     return RootResult(z, all_safe, none_safe & ~all_safe)
 
 
+CONSENSUS = ("global", "graph", "none")
+"""how a team agrees on z: max over all agents | max-consensus over the communication graph | none"""
+
+
 def team_budget(z_agents: torch.Tensor) -> torch.Tensor:
     """``[S, N]`` per-agent budgets → ``[S, N]`` the team maximum broadcast to every agent."""
     return z_agents.amax(-1, keepdim=True).expand_as(z_agents)
+
+
+def graph_budget(z_agents: torch.Tensor, positions: torch.Tensor, radius: float) -> torch.Tensor:
+    """Max-consensus of ``[S, N]`` budgets over the communication graph (agents within
+    ``radius`` m of each other, positions ``[S, N, 2]``), iterated to its fixed point (at most
+    N − 1 rounds): every agent ends with the maximum over its connected component."""
+    from madpinn.observation import pairwise_distances
+
+    N = z_agents.shape[-1]
+    eye = torch.eye(N, dtype=torch.bool, device=positions.device)
+    linked = (pairwise_distances(positions) <= radius) | eye  # [S, N, N]: i hears j
+    z = z_agents
+    for _ in range(max(N - 1, 0)):
+        nxt = z.unsqueeze(-2).expand_as(linked).masked_fill(~linked, float("-inf")).amax(-1)
+        if torch.equal(nxt, z):
+            break
+        z = nxt
+    return z
+
+
+def agree(z_agents: torch.Tensor, positions: torch.Tensor, radius: float, consensus: str) -> torch.Tensor:
+    """The budgets ``[S, N]`` the agents act on under ``consensus`` (:data:`CONSENSUS`)."""
+    if consensus == "global":
+        return team_budget(z_agents)
+    if consensus == "graph":
+        return graph_budget(z_agents, positions, radius)
+    if consensus == "none":
+        return z_agents
+    raise ValueError(f"z consensus must be one of {CONSENSUS}, got {consensus!r}")

@@ -29,6 +29,7 @@ from madpinn.marl.defmarl.epigraph import (
 )
 from madpinn.marl.env import GoalReachingEnv, RewardConfig, StepInfo, goal_reward
 from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
+from madpinn.marl.networks import DEFAULT_ENCODER
 from madpinn.marl.ppo import PPOConfig
 from madpinn.marl.trainer import PPOTrainer
 
@@ -43,22 +44,25 @@ class DefMarlTrainer(PPOTrainer):
 
     def __init__(
         self, env: GoalReachingEnv, ppo: PPOConfig, reward: RewardConfig, agent_counts: Sequence[int], hidden: int,
-        seed: int, epigraph: EpigraphConfig,
+        seed: int, epigraph: EpigraphConfig, encoder: str = DEFAULT_ENCODER,
     ):
         if reward.collision != 0.0:
             raise ValueError(
                 f"DEF-MARL treats collisions as the constraint h, not as a cost: set reward.collision to 0 (got {reward.collision})"
             )
-        super().__init__(env, ppo, reward, agent_counts, hidden, seed)
+        super().__init__(env, ppo, reward, agent_counts, hidden, seed, encoder)
         self.epi = epigraph
         self.radius = float(env.obs_spec.collision_radius)
-        self.cost_critic = TeamCostCritic(EGO_FEATURES + 1, NEIGHBOUR_FEATURES, self.hidden).to(self.device, env.dtype)
+        self.cost_critic = TeamCostCritic(EGO_FEATURES + 1, NEIGHBOUR_FEATURES, self.hidden, self.encoder).to(self.device, env.dtype)
         self.cost_optimizer = torch.optim.Adam(self.cost_critic.parameters(), lr=epigraph.cost_lr, eps=1e-5)
         self.fixed_z: float | None = None  # evaluation: start every episode at this budget
         self.z: torch.Tensor | None = None
 
     def extra_modules(self) -> dict[str, nn.Module]:
         return {"cost_critic": self.cost_critic}
+
+    def extra_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        return {"cost": self.cost_optimizer}
 
     # ---- per-episode epigraph state -----------------------------------------------------------
     def on_reset(self, n_envs: int, n_agents: int) -> None:
