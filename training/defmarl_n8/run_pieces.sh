@@ -1,17 +1,9 @@
 #!/usr/bin/env bash
 # Train DEF-MARL (n8) on from the shipped models/defmarl_n8.pt (workflow/configs/defmarl_continue.yaml) in
 # resumable pieces of at most ~20 minutes (--time-limit 1140 s + the iteration and validation in flight);
-# the state beside this script (state.pt) is committed, so any machine resumes where the last piece
-# stopped (--init is only read while there is no state.pt). The curve (training and validation
-# columns) is defmarl_n8_history.csv here; the finished model defmarl_n8.pt (plateau or cap).
-# Exit 0 when finished, otherwise the failing piece's code. CPU-friendly: nice 19, one thread.
-set -u
-cd "$(dirname "$0")/../.."
-py=${PYTHON:-.venv/bin/python}
-while :; do
-  nice -n 19 $py -m madpinn train-defmarl --config config.yaml workflow/configs/defmarl_continue.yaml --variant n8 \
-      --out training/defmarl_n8/defmarl_n8.pt --checkpoint training/defmarl_n8/state.pt --init models/defmarl_n8.pt \
-      --time-limit 1140 --no-track --no-progress --threads 1
-  rc=$?
-  [ $rc -eq 75 ] || exit $rc
-done
+# state.pt beside this script is committed, so any machine resumes where the last piece stopped (--init
+# is only read while there is no state.pt). The curve (training and validation columns) is
+# defmarl_n8_history.csv here; the finished model defmarl_n8.pt (plateau or cap).
+exec "$(dirname "$0")/../run_pieces.sh" train-defmarl --config config.yaml workflow/configs/defmarl_continue.yaml --variant n8 \
+    --out training/defmarl_n8/defmarl_n8.pt --checkpoint training/defmarl_n8/state.pt --init models/defmarl_n8.pt \
+    --time-limit 1140 --no-track --no-progress --threads 1
