@@ -266,3 +266,14 @@ def test_explicit_targets_outside_the_configuration_stop_the_dry_run_in_one_line
     check_cell(cfg, 8, 0, arena="small", pattern="circle_swap")
     with pytest.raises(TargetError, match="1 to 69"):
         check_cell(cfg, 70, 0, arena="small")
+
+
+@pytest.mark.parametrize("overlay", sorted(p.name for p in (REPO / "workflow" / "configs").glob("*.yaml")))
+def test_every_shipped_overlay_validates_on_the_protocol(overlay):
+    """Each overlay under workflow/configs/ merges onto config.yaml into a valid configuration
+    (the collision-readings, episode-length, sweep and training overlays go stale otherwise)."""
+    stack = [REPO / "config.yaml"]
+    if overlay.startswith("episode_"):   # an episode overlay sits on the collision-readings one
+        stack += [REPO / "workflow" / "configs" / "shipped.yaml", REPO / "workflow" / "configs" / "collision_readings.yaml"]
+    cfg = load_config([*stack, REPO / "workflow" / "configs" / overlay])
+    assert cfg["experiment"]
