@@ -211,3 +211,12 @@ def test_a_contact_study_must_fly_with_contacts():
         base_study(cfg, "main_contacts")
     cfg["studies"]["main_contacts"]["sim"] = {"contacts": True}
     assert base_study(cfg, "main_contacts") == ("main", True) and base_study(cfg, "main") == ("main", False)
+
+
+def test_the_reproduction_report_names_the_collision_convention():
+    from madpinn.evaluation.reproduction import collision_convention
+
+    cfg = load_config(["config.yaml"])
+    assert "d ≤ r = 0.1 m" in collision_convention(cfg) and "contact physics" in collision_convention(cfg)
+    cfg["sim"]["contacts"] = False
+    assert "pass through" in collision_convention(cfg) and "d ≤ 2r = 0.2 m" in collision_convention(cfg)

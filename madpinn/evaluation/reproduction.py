@@ -77,6 +77,15 @@ def deployment(cfg: Mapping, runs: Iterable[str]) -> dict[str, dict]:
     return out
 
 
+def collision_convention(cfg: Mapping) -> str:
+    """The collision reading the report's safety figures were measured under (SPEC §1, issue 38)."""
+    r = float(cfg["agents"]["collision_radius"])
+    physics = ("contact physics (MuJoCo: CF2X collision cylinders and a floor; double integrator: "
+               "collided agents freeze)" if cfg["sim"].get("contacts") else "agents pass through each other")
+    return (f"collision counted at centre distance d ≤ r = {r:g} m, {physics}; the disc reading d ≤ 2r "
+            f"= {2 * r:g} m is reported beside it (docs/collisions.md)")
+
+
 def _num(x) -> float | None:
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
 
@@ -126,6 +135,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
         "experiment": cfg.get("experiment"),
         "config_hash": config_hash(cfg),
         "backend": cfg["sim"]["backend"],
+        "collisions": collision_convention(cfg),
         "models": {p: sha256(p) for p in models},
         "cells": cells,
         "paper_values": f"madpinn/evaluation/{PAPER_VALUES.name} (from {paper_values_source()})",
@@ -222,6 +232,7 @@ def to_markdown(report: dict) -> str:
         "",
         f"- commit `{prov['commit']}`, experiment `{prov['experiment']}`, config hash `{prov['config_hash']}`, "
         f"backend `{prov['backend']}`",
+        f"- collisions: {prov.get('collisions', 'collision counted at d ≤ r (not recorded)')}",
     ]
     for path, digest in prov["models"].items():
         lines.append(f"- model `{path}`: sha256 `{digest}`")
