@@ -11,9 +11,9 @@ from madpinn.value_functions.build import problem_from_config
 from madpinn.value_functions.sampling import ConflictSampling
 
 
-def problem(fraction, radius=0.3):
+def problem(fraction, radius=0.3, **speed_aware):
     cfg = load_config([REPO / "config.yaml"])
-    cfg["value_functions"]["vhat"]["conflict_sampling"] = {"fraction": fraction, "radius": radius}
+    cfg["value_functions"]["vhat"]["conflict_sampling"] = {"fraction": fraction, "radius": radius, **speed_aware}
     return problem_from_config(cfg, "vhat")
 
 
@@ -49,7 +49,48 @@ def test_fraction_zero_is_the_uniform_batch_and_sampling_is_deterministic():
     assert torch.equal(a, b) and not torch.equal(a, uni)
 
 
+def near_miss(obs, horizon):
+    """Per row, the pair (among 3) with the smallest constant-velocity closest approach over
+    [0, T]: its relative speed ``[B]`` (m/s) and time of closest approach ``[B]`` (s)."""
+    pos, vel, _ = split_observation(obs, 2)
+    dist, speed, when = [], [], []
+    for a, c in ((0, 1), (0, 2), (1, 2)):
+        x, v = pos[:, c] - pos[:, a], vel[:, c] - vel[:, a]
+        tau = (-(x * v).sum(1) / (v * v).sum(1).clamp_min(1e-12)).clamp(0.0, horizon)
+        dist.append((x + v * tau[:, None]).norm(dim=1))
+        speed.append(v.norm(dim=1))
+        when.append(tau)
+    k = torch.stack(dist, 1).argmin(1, keepdim=True)
+    return torch.stack(speed, 1).gather(1, k)[:, 0], torch.stack(when, 1).gather(1, k)[:, 0]
+
+
+def test_speed_aware_conflicts_close_fast_and_late_in_the_horizon():
+    """closing_speed [4, 11.3] m/s and tau [0.5, 1]: the conflict pairs close at ≥ 4 m/s unless
+    the ±v_max box clipped them, and their near miss lies in the late half of the horizon
+    (the disk of radius ρ shifts the closest approach by at most ρ / speed)."""
+    plain = problem(0.5)
+    fast = problem(0.5, tau=[0.5, 1.0], closing_speed=[4.0, 11.3])
+    gen = lambda: torch.Generator().manual_seed(3)
+    s_plain = plain.sample_training_states(4000, gen(), torch.float64)[:2000, :-1]
+    s_fast = fast.sample_training_states(4000, gen(), torch.float64)
+    obs = s_fast[:, :-1]
+    assert bool((obs.abs() <= fast.system.half_widths() + 1e-12).all())
+    assert float((closest_approach(obs[:2000], fast.horizon) <= 0.3 + 1e-9).double().mean()) > 0.95
+    speed, when = near_miss(obs[:2000], fast.horizon)
+    speed0, when0 = near_miss(s_plain, plain.horizon)
+    assert float((speed >= 4.0 - 1e-9).double().mean()) > 0.8          # the box clips a few
+    assert float((speed0 >= 4.0).double().mean()) < 0.7
+    late = when >= 0.5 * fast.horizon - 0.3 / speed.clamp_min(4.0) - 1e-9
+    assert float(late.double().mean()) > 0.9
+    assert float((when0 < 0.4 * plain.horizon).double().mean()) > 0.25   # the plain sampler is not late
+    assert torch.equal(s_fast[2000:], plain.sample_training_states(4000, gen(), torch.float64)[2000:])   # uniform half untouched
+
+
 def test_invalid_conflict_sampling_is_rejected():
+    with pytest.raises(ValueError, match="tau"):
+        ConflictSampling(fraction=0.5, tau=(0.8, 0.2))
+    with pytest.raises(ValueError, match="closing_speed"):
+        ConflictSampling(fraction=0.5, closing_speed=(5.0, 1.0))
     with pytest.raises(ValueError, match="fraction"):
         ConflictSampling(fraction=1.5)
     with pytest.raises(ValueError, match="radius"):

@@ -103,7 +103,7 @@ class EpigraphProblem(PINNProblem):
         s = self.sample_states(batch, generator, dtype)
         sy = self.system
         obs = place_conflicts(s[:, :-1], sy.spec.n_neighbours, sy.horizon, sy.spec.offset_range,
-                              self.conflict, generator)
+                              self.conflict, generator, v_max=sy.v_max)
         return torch.cat([obs, s[:, -1:]], dim=-1)
 
     def boundary_and_grad(self, s):

@@ -28,46 +28,94 @@ from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, split_observation
 @dataclass(frozen=True)
 class ConflictSampling:
     """fraction: share of each batch on a near-collision course; radius: ρ (m) of the disk the
-    pair's constant-velocity relative position reaches within the horizon."""
+    pair's constant-velocity relative position reaches within the horizon.
+
+    Speed-aware variant (issue 33; V̂ only): ``tau = (lo, hi)`` draws the time to the near miss as
+    ``τ ~ U[lo·T, hi·T]`` instead of ``U[0, T]`` (fractions of the horizon; ``(0.5, 1)`` puts the
+    encounter late in the horizon, where V̂ must decide early); ``closing_speed = (lo, hi)`` redraws
+    the pair's relative velocity with speed ``~ U[lo, hi]`` (m/s) in a uniform direction around the
+    pair's mean velocity (both then clipped to ±v_max per axis). ``None`` / ``(0, 1)`` draw exactly
+    what the plain sampler draws."""
 
     fraction: float = 0.0
     radius: float = 0.3
+    tau: tuple[float, float] = (0.0, 1.0)
+    closing_speed: tuple[float, float] | None = None
 
     def __post_init__(self):
         if not 0.0 <= self.fraction <= 1.0:
             raise ValueError(f"conflict sampling fraction must be in [0, 1], got {self.fraction}")
         if self.radius <= 0.0:
             raise ValueError(f"conflict sampling radius must be > 0 m, got {self.radius}")
+        lo, hi = self.tau
+        if not 0.0 <= lo <= hi <= 1.0:
+            raise ValueError(f"conflict sampling tau must be fractions 0 <= lo <= hi <= 1 of the horizon, got {self.tau}")
+        if self.closing_speed is not None and not 0.0 <= self.closing_speed[0] <= self.closing_speed[1]:
+            raise ValueError(f"conflict sampling closing_speed must be 0 <= lo <= hi (m/s), got {self.closing_speed}")
 
     @classmethod
     def from_config(cls, vcfg: dict) -> "ConflictSampling":
         c = vcfg.get("conflict_sampling") or {}
-        return cls(fraction=float(c.get("fraction", 0.0)), radius=float(c.get("radius", 0.3)))
+        speed = c.get("closing_speed")
+        return cls(fraction=float(c.get("fraction", 0.0)), radius=float(c.get("radius", 0.3)),
+                   tau=tuple(float(x) for x in c.get("tau", (0.0, 1.0))),
+                   closing_speed=None if speed is None else tuple(float(x) for x in speed))
+
+
+def _velocity_columns(agent: torch.Tensor) -> torch.Tensor:
+    """First velocity column of observed agent ``agent`` (0 = ego) in the observation vector."""
+    return torch.where(agent == 0, torch.zeros_like(agent), EGO_DIM + (agent - 1) * NEIGHBOUR_DIM + 2)
+
+
+def _redraw_closing(out: torch.Tensor, a, c, va, vc, speed: tuple[float, float], v_max: float,
+                    generator: torch.Generator):
+    """Give pair ``(a, c)`` of each row a relative velocity of speed ``U[speed]`` (m/s), uniform
+    direction, around its mean velocity; both clipped to ±``v_max``; written into ``out``.
+    Returns the new ``(va, vc)`` ``[m, 2]``."""
+    m, dtype, device = va.shape[0], va.dtype, va.device
+    w = (speed[0] + (speed[1] - speed[0]) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    phi = (2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    rel = torch.stack([w * torch.cos(phi), w * torch.sin(phi)], -1)
+    mean = 0.5 * (va + vc)
+    va, vc = (mean - 0.5 * rel).clamp(-v_max, v_max), (mean + 0.5 * rel).clamp(-v_max, v_max)
+    rows = torch.arange(m, device=device)
+    for agent, v in ((a, va), (c, vc)):
+        col = _velocity_columns(agent)
+        out[rows, col] = v[:, 0]
+        out[rows, col + 1] = v[:, 1]
+    return va, vc
 
 
 def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset_range: float,
-                    sampling: ConflictSampling, generator: torch.Generator) -> torch.Tensor:
+                    sampling: ConflictSampling, generator: torch.Generator, v_max: float | None = None) -> torch.Tensor:
     """Return ``obs [B, D]`` with the first ``round(fraction·B)`` rows moved onto a
     near-collision course of one pair (uniform over the ``(n+1)n/2`` pairs; the moved agent is
-    always a neighbour, so the ego stays at the origin). Pure function of the generator state."""
+    always a neighbour, so the ego stays at the origin). ``v_max`` (m/s per axis) bounds the
+    velocities that ``sampling.closing_speed`` redraws (required then). Pure function of the
+    generator state."""
     b = obs.shape[0]
     m = int(round(sampling.fraction * b))
     if m == 0 or n_neighbours == 0:
         return obs
+    if sampling.closing_speed is not None and v_max is None:
+        raise ValueError("conflict sampling with closing_speed needs v_max (the velocity bound of the domain)")
     dtype, device = obs.dtype, obs.device
     pairs = [(a, c) for c in range(1, n_neighbours + 1) for a in range(c)]   # (a < c), c a neighbour
     pick = torch.randint(len(pairs), (m,), generator=generator)
     a = torch.tensor([p[0] for p in pairs])[pick].to(device)
     c = torch.tensor([p[1] for p in pairs])[pick].to(device)
-    tau = horizon * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    lo, hi = sampling.tau
+    tau = horizon * (lo + (hi - lo) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
     radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
     angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
     d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
     pos, vel, _ = split_observation(obs[:m], n_neighbours)      # [m, n+1, 2], ego first
     rows = torch.arange(m, device=device)
     pa, va, vc = pos[rows, a], vel[rows, a], vel[rows, c]
-    pc = (pa - (vc - va) * tau[:, None] + d).clamp(-offset_range, offset_range)
     out = obs.clone()
+    if sampling.closing_speed is not None:
+        va, vc = _redraw_closing(out, a, c, va, vc, sampling.closing_speed, v_max, generator)
+    pc = (pa - (vc - va) * tau[:, None] + d).clamp(-offset_range, offset_range)
     cols = EGO_DIM + (c - 1) * NEIGHBOUR_DIM                   # position offset of neighbour c
     out[rows, cols] = pc[:, 0]
     out[rows, cols + 1] = pc[:, 1]
