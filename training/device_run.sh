@@ -8,10 +8,10 @@ set -u
 LIMIT=${LIMIT:-400}
 PY=${PYTHON:-python3}
 export PYTHONPATH=$PWD${PYTHONPATH:+:$PYTHONPATH} PYTHONUNBUFFERED=1
-echo "device: cpu" > /tmp/device_cpu.yaml
+mkdir -p /tmp/devlogs; echo "device: cpu" > /tmp/device_cpu.yaml
 common=(--time-limit "$LIMIT" --no-track --no-progress --threads 2)
 pids=()
-run() { local name=$1; shift; ( $PY -m madpinn "$@" "${common[@]}" > "/tmp/$name.log" 2>&1; echo "$name exit $?" >> "/tmp/$name.log" ) & pids+=($!); }
+run() { local name=$1; shift; ( $PY -m madpinn "$@" "${common[@]}" > "/tmp/devlogs/$name.log" 2>&1; echo "$name exit $?" >> "/tmp/devlogs/$name.log" ) & pids+=($!); }
 run vhat_h04 train-value --config config.yaml workflow/configs/vhat_horizon_0.4.yaml --kind vhat \
     --out training/vhat_h04/vhat.pt --checkpoint training/vhat_h04/vhat.ckpt.pt
 run vhat_h03 train-value --config config.yaml workflow/configs/vhat_horizon_0.3.yaml --kind vhat \
@@ -23,7 +23,7 @@ run defmarl_att train-defmarl --config config.yaml workflow/configs/defmarl_atte
 ( while sleep 60; do nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader 2>/dev/null; done ) &
 monitor=$!
 wait "${pids[@]}"; kill $monitor 2>/dev/null
-for f in /tmp/vhat_h04.log /tmp/vhat_h03.log /tmp/vhat_speed.log /tmp/defmarl_att.log; do echo "== $f"; tail -n 5 "$f"; done
-mkdir -p "${OUT:-/tmp/out}"; cp /tmp/*.log "${OUT:-/tmp/out}/" 2>/dev/null
+for f in /tmp/devlogs/*.log; do echo "== $f"; tail -n 5 "$f"; done
+mkdir -p "${OUT:-/tmp/out}"; cp /tmp/devlogs/*.log "${OUT:-/tmp/out}/" 2>/dev/null
 tar czf "${OUT:-/tmp/out}/training.tgz" training/
 ls -la "${OUT:-/tmp/out}"
