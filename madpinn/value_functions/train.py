@@ -139,7 +139,7 @@ def residual_stats(problem: PINNProblem, model, samples: int, seed: int, chunk: 
         v, dv_dt, dv_ds = model.state_value_and_grads(s, t)
         out.append(problem.residual(s, t, v, dv_dt, dv_ds).abs())
     r = torch.cat(out).double()
-    q = torch.quantile(r[: min(r.numel(), 1_000_000)], torch.tensor([0.5, 0.9, 0.99], dtype=torch.float64))
+    q = torch.quantile(r[: min(r.numel(), 1_000_000)], torch.tensor([0.5, 0.9, 0.99], dtype=torch.float64, device=r.device))
     return {"residual_mean": float(r.mean()), "residual_median": float(q[0]), "residual_p90": float(q[1]),
             "residual_p99": float(q[2]), "residual_max": float(r.max()), "residual_samples": int(r.numel())}
 
