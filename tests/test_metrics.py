@@ -93,3 +93,37 @@ def test_old_result_rows_without_time_averaged_columns_still_summarise():
     df = scenario_metrics(record_trajectory(pos, goals, dt, 0.1)).drop(columns=["cost_safe_time_avg", "cost_all_time_avg", "episode_s"])
     s = seed_summary(df)
     assert s["cost"] == pytest.approx(0.5 / 3) and np.isnan(s["cost_time_avg"])
+
+
+def test_bootstrap_interval_brackets_the_mean_shrinks_with_scenarios_and_is_repeatable():
+    from madpinn.evaluation.metrics import bootstrap_interval
+
+    assert bootstrap_interval(np.full(20, 0.75)) == (0.75, 0.75)            # no spread, no interval
+    rng = np.random.default_rng(5)
+    few, many = rng.uniform(0.6, 1.0, 20), rng.uniform(0.6, 1.0, 2000)
+    lo, hi = bootstrap_interval(few)
+    assert lo < few.mean() < hi and hi <= 1.0 and lo >= 0.6
+    lo2, hi2 = bootstrap_interval(many)
+    assert (hi2 - lo2) < 0.5 * (hi - lo)                                     # ~1/sqrt(100) as wide
+    assert bootstrap_interval(few) == (lo, hi)
+    with_nan = np.concatenate([few, [np.nan] * 5])                            # all-collided scenarios: no cost
+    assert bootstrap_interval(with_nan)[0] >= 0.6 and bootstrap_interval(with_nan)[1] <= 1.0
+    assert np.isnan(bootstrap_interval(np.array([np.nan, np.nan]))[0])
+
+
+def test_single_seed_tables_show_bootstrap_intervals_and_multi_seed_tables_the_std():
+    import pandas as pd
+
+    from madpinn.evaluation.tables import format_table, per_seed
+
+    rng = np.random.default_rng(1)
+    rows = pd.DataFrame({"run": "madpinn", "n_agents": 64, "seed": 100, "scenario": range(20),
+                         "safety_rate": rng.uniform(0.8, 1.0, 20), "safe": rng.uniform(size=20) < 0.5,
+                         "cost_safe_time_avg": rng.uniform(1.0, 1.5, 20), "cost_safe_mean": 1.0})
+    one = across_seeds(per_seed(rows), ["run", "n_agents"]).assign(label="MAD-PINN")
+    cell = format_table(one, "summary")["Safety Rate"].iloc[0]
+    lo, hi = one.iloc[0]["safety_rate_ci_lo"], one.iloc[0]["safety_rate_ci_hi"]
+    assert cell == f"{100 * rows.safety_rate.mean():.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]" and lo < hi
+    two = pd.concat([rows, rows.assign(seed=101)])
+    agg = across_seeds(per_seed(two), ["run", "n_agents"]).assign(label="MAD-PINN")
+    assert "±" in format_table(agg, "summary")["Safety Rate"].iloc[0] and np.isnan(agg.iloc[0]["safety_rate_ci_lo"])

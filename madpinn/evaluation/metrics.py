@@ -95,8 +95,45 @@ def seed_summary(df: pd.DataFrame) -> dict:
     return out
 
 
+CI_METRICS = ("safety_rate", "safe_scenarios", "cost_time_avg", "safety_rate_2r")
+"""seed figures that single-seed tables show with a bootstrap interval over scenarios"""
+CI_LEVEL = 0.95
+CI_RESAMPLES = 2000
+
+
+def bootstrap_interval(values: np.ndarray, level: float = CI_LEVEL, resamples: int = CI_RESAMPLES,
+                       seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of the (NaN-aware) mean of ``values [S]`` over resampled
+    scenarios (``resamples`` draws of S with replacement, a fixed generator: the same rows give the
+    same interval). NaN entries (e.g. the cost of a scenario where every agent collided) stay in the
+    resample and drop out of its mean; resamples with no finite value are skipped."""
+    v = np.asarray(values, dtype=float)
+    if v.size == 0 or not np.isfinite(v).any():
+        return float("nan"), float("nan")
+    idx = np.random.default_rng(seed).integers(0, v.size, size=(resamples, v.size))
+    draws = v[idx]
+    finite = np.isfinite(draws)
+    counts = finite.sum(1)
+    means = np.where(finite, draws, 0.0).sum(1)[counts > 0] / counts[counts > 0]
+    a = (1.0 - level) / 2.0
+    return float(np.quantile(means, a)), float(np.quantile(means, 1.0 - a))
+
+
+def scenario_intervals(df: pd.DataFrame) -> dict:
+    """``{metric}_ci_lo`` / ``{metric}_ci_hi`` for :data:`CI_METRICS` over one seed's scenario rows
+    (:func:`bootstrap_interval`); figures whose columns the rows lack are NaN."""
+    cols = {"safety_rate": "safety_rate", "safe_scenarios": "safe", "safety_rate_2r": "safety_rate_2r",
+            "cost_time_avg": COST_COLUMNS["cost_time_avg"]}
+    out = {}
+    for m in CI_METRICS:
+        lo, hi = bootstrap_interval(df[cols[m]].to_numpy(dtype=float)) if cols[m] in df else (float("nan"),) * 2
+        out[f"{m}_ci_lo"], out[f"{m}_ci_hi"] = lo, hi
+    return out
+
+
 def across_seeds(per_seed: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
-    """Mean and std (ddof=1 with ≥ 2 seeds, else 0) of the seed figures, grouped by ``keys``."""
+    """Mean and std (ddof=1 with ≥ 2 seeds, else 0) of the seed figures, grouped by ``keys``; a
+    group of one seed also keeps that seed's bootstrap intervals (:func:`scenario_intervals`)."""
     rows = []
     for group, g in per_seed.groupby(keys, sort=False):
         group = group if isinstance(group, tuple) else (group,)
@@ -106,5 +143,9 @@ def across_seeds(per_seed: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
             vals = g[m].to_numpy(dtype=float) if m in g else np.full(len(g), np.nan)   # older result files
             row[f"{m}_mean"] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
             row[f"{m}_std"] = float(np.nanstd(vals, ddof=1)) if np.isfinite(vals).sum() > 1 else 0.0
+        for m in CI_METRICS:
+            for end in ("lo", "hi"):
+                col = f"{m}_ci_{end}"
+                row[col] = float(g[col].iloc[0]) if len(g) == 1 and col in g else float("nan")
         rows.append(row)
     return pd.DataFrame(rows)

@@ -25,7 +25,7 @@ from typing import Iterable
 import pandas as pd
 
 from madpinn.config import method_config
-from madpinn.evaluation.metrics import across_seeds, seed_summary
+from madpinn.evaluation.metrics import across_seeds, scenario_intervals, seed_summary
 from madpinn.scenarios import UNIFORM
 
 KINDS = ("safety_by_n", "summary")
@@ -49,7 +49,7 @@ def load_results(paths: Iterable[str | Path]) -> pd.DataFrame:
 def per_seed(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for (run, n, seed), g in df.groupby(["run", "n_agents", "seed"], sort=False):
-        rows.append({"run": run, "n_agents": int(n), "seed": int(seed), **seed_summary(g)})
+        rows.append({"run": run, "n_agents": int(n), "seed": int(seed), **seed_summary(g), **scenario_intervals(g)})
     return pd.DataFrame(rows)
 
 
@@ -115,21 +115,28 @@ def label_of(cfg: dict, run: str) -> str:
         return run
 
 
-def _pct(mean: float, std: float, n_seeds: int = 2) -> str:
+def _pct(mean: float, std: float, n_seeds: int = 2, ci: tuple[float, float] | None = None) -> str:
+    """Percent: ``mean ± std`` over seeds; one seed: ``mean [lo, hi]`` (95 % bootstrap over scenarios) when given."""
     if pd.isna(mean):
         return "–"
-    return f"{100 * mean:.1f}%" if n_seeds < 2 else f"{100 * mean:.1f}% ± {100 * std:.1f}%"
+    if n_seeds >= 2:
+        return f"{100 * mean:.1f}% ± {100 * std:.1f}%"
+    return f"{100 * mean:.1f}%" if ci is None or pd.isna(ci[0]) else f"{100 * mean:.1f}% [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"
 
 
-def _cost(mean: float, std: float, n_seeds: int = 2) -> str:
+def _cost(mean: float, std: float, n_seeds: int = 2, ci: tuple[float, float] | None = None) -> str:
+    """Cost: as :func:`_pct`, two decimals."""
     if pd.isna(mean):
         return "n/a"
-    return f"{mean:.2f}" if n_seeds < 2 else f"{mean:.2f} ± {std:.2f}"
+    if n_seeds >= 2:
+        return f"{mean:.2f} ± {std:.2f}"
+    return f"{mean:.2f}" if ci is None or pd.isna(ci[0]) else f"{mean:.2f} [{ci[0]:.2f}, {ci[1]:.2f}]"
 
 
 def _fmt(r, metric: str) -> str:
     f = _pct if metric.startswith(("safety_rate", "safe_scenarios")) else _cost
-    return f(r[f"{metric}_mean"], r[f"{metric}_std"], int(r["n_seeds"]))
+    lo, hi = r.get(f"{metric}_ci_lo"), r.get(f"{metric}_ci_hi")
+    return f(r[f"{metric}_mean"], r[f"{metric}_std"], int(r["n_seeds"]), None if lo is None else (lo, hi))
 
 
 def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd.DataFrame:
