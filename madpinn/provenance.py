@@ -254,6 +254,7 @@ def _cell(cfg: Mapping, study: str, run: str) -> dict:
 
 
 _VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
+_Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search
 READS = {
     "train-value": lambda cfg, kind: _training(cfg, kind),
     "train-safemarl-nominal": lambda cfg: _marl(cfg, "safemarl_nominal"),
@@ -261,8 +262,8 @@ READS = {
     "evaluate": _cell,
     "validate-vs": _keys("value_functions.vs.validation", *_VF_RUN),
     "validate-vhat": _keys("value_functions.vhat.validation.samples", *_VF_RUN),
-    "verify-vhat": _keys("value_functions.vhat.validation.scenario", *_VF_RUN),
-    "fig-value-heatmap": _keys("arenas.small.half_width", *_VF_RUN),
+    "verify-vhat": _keys("value_functions.vhat.validation.scenario", _Z_TOL, *_VF_RUN),
+    "fig-value-heatmap": _keys("arenas.small.half_width", _Z_TOL, *_VF_RUN),
     "solve-vs-grid": _keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
                            "value_functions.vs.v_range", "value_functions.vs.validation.grid"),
     "validate-vs-grid": _keys(*_VF_RUN),
