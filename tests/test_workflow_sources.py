@@ -44,7 +44,7 @@ RUNS = {
     ("evaluate", "nominal"): ["evaluation/cell.py", "evaluation/metrics.py", "policies/base.py", "policies/nominal.py",
                               "simulation/backend.py", "simulation/simulator.py", "simulation/recorder.py",
                               "simulation/mujoco/backend.py", "scenarios.py", "conflicts.py", "settings.py"],
-    ("evaluate", "madpinn"): ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py",
+    ("evaluate", "madpinn"): ["evaluation/collisions.py", "policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py",
                               "policies/z_search.py", "value_functions/z_search.py", "policies/safety_filter.py",
                               "value_functions/model.py", "value_functions/siren.py", "dynamics/epigraph.py"],
     ("evaluate", "safemarl"): ["policies/safemarl.py", "policies/safety_filter.py", "marl/deploy.py",
@@ -56,8 +56,7 @@ RUNS = {
     ("figure",): ["figures/cost_safety.py", "figures/trajectories.py", "figures/style.py", "evaluation/tables.py"],
     ("reproduction",): ["evaluation/reproduction.py", "evaluation/paper_values.yaml", "evaluation/tables.py"],
     ("render-clip",): ["simulation/mujoco/render.py", "simulation/mujoco/model.py"],
-    ("gap-decomposition", "madpinn"): ["evaluation/gap.py", "evaluation/collisions.py", "evaluation/cell.py",
-                                       "policies/madpinn.py", "value_functions/model.py", "simulation/mujoco/backend.py"],
+    ("gap-decomposition",): ["evaluation/gap.py", "evaluation/collisions.py"],
 }
 
 
