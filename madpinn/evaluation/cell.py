@@ -114,15 +114,15 @@ class Cell:
 
 
 def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, device, dtype,
-                 models: Mapping[str, Path] | None = None, scenarios: int | None = None,
+                 models: Mapping[str, Path] | None = None,
                  wrap: Callable[[Any, int], Any] | None = None, record: bool = False, progress: bool = True):
     """Simulate one cell batch by batch (``cs.sim.scenario_batch`` scenarios each, fresh policy and
     backend per batch); yield ``(first scenario index, policy, EpisodeResult, run stats)``. The
-    one loop of :func:`run_cell` (with the collision probe where the study asks for it):
-    ``scenarios`` (default ``cs.scenarios``) runs the first ones only, ``wrap(policy, first)``
-    replaces the policy (e.g. by a probe around it), ``record`` keeps the first batch's trajectories."""
+    one loop of :func:`run_cell` (with the collision probe where the study asks for it) and of
+    ``scripts/defmarl_consensus.py``: ``wrap(policy, first)`` replaces the policy (e.g. by a probe
+    around it), ``record`` keeps the first batch's trajectories."""
     r = cs.limits.collision_radius
-    total = cs.scenarios if scenarios is None else int(scenarios)
+    total = cs.scenarios
     batch = cs.sim.scenario_batch
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
