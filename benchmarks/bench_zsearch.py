@@ -34,11 +34,12 @@ from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSpec, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import make_selector
-from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index
+from madpinn.policies.z_search import newton_search, predict_index
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
+from madpinn.value_functions.z_search import ZGrid, cold_search
 
 SPEC = ObservationSpec()
 DT = 0.0025
@@ -56,7 +57,7 @@ class VerifiedPolicy(MadPinnPolicy):
         u = super().act(state, goals, t)
         S, N, _ = state.shape
         obs = build_observation(state, goals, self.neighbours, self.spec).reshape(S * N, -1)
-        grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
+        grid = ZGrid.of(self.vhat.z_max, self.settings.z_tolerance)
         cold, warm = cold_search(self.vhat, obs, grid), self.last_search
         diff = (cold.index != warm.index).nonzero(as_tuple=True)[0]
         self.check["rows"] += obs.shape[0]
@@ -79,7 +80,7 @@ class NewtonComparedPolicy(MadPinnPolicy):
                       "diff_not_monotone": 0}
 
     def act(self, state, goals, t):
-        grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
+        grid = ZGrid.of(self.vhat.z_max, self.settings.z_tolerance)
         pred = None if self._k_last is None else predict_index(self._k_last, self._k_before, grid.cells)
         u = super().act(state, goals, t)
         S, N, _ = state.shape

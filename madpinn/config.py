@@ -209,6 +209,29 @@ def _infeasible_patterns(cfg: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _gap_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """The gap decomposition's studies exist, run MAD-PINN only (its collision probe) on validation
+    seeds (≥ 100); its reference row is one of their (backend, run) rows."""
+    gap = cfg.get("gap_decomposition")
+    if not gap:
+        return []
+    lines, studies = [], cfg["studies"]
+    for name in gap["studies"]:
+        st = studies.get(name)
+        if st is None:
+            lines.append(f"  - 'gap_decomposition.studies': unknown study '{name}'")
+            continue
+        if min(st["seeds"]) < 100:
+            lines.append(f"  - 'studies.{name}.seeds': the gap decomposition runs on validation seeds ≥ 100 only, got {st['seeds']}")
+        if any(r.partition("-")[0] != "madpinn" for r in st["runs"]):
+            lines.append(f"  - 'studies.{name}.runs': the gap decomposition runs MAD-PINN runs only (madpinn[-variant])")
+    ref = gap["reference"]
+    if not any(study_backend(cfg, s) == ref["backend"] and ref["run"] in studies[s]["runs"]
+               for s in gap["studies"] if s in studies):
+        lines.append(f"  - 'gap_decomposition.reference': no study of the decomposition runs {ref['run']} on {ref['backend']}")
+    return lines
+
+
 def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
     lines = []
     arenas = cfg["arenas"]
@@ -222,6 +245,7 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
                 lines.append(f"  - 'studies.{name}.runs': unknown method '{method}' in run '{run}'")
             elif variant and variant not in methods[method].get("variants", {}):
                 lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
+    lines += _gap_errors(cfg)
     traj = cfg["figures"]["trajectories"]
     study = cfg["studies"].get(traj["study"])
     if study is None:
@@ -293,6 +317,20 @@ def study_sim(cfg: Mapping[str, Any], study: str | None = None) -> dict:
     return deep_merge(cfg["sim"], override) if override else dict(cfg["sim"])
 
 
+def run_observation(cfg: Mapping[str, Any], run: str) -> dict:
+    """The ``observation`` section run ``method[-variant]``'s cells deploy with: ``observation``
+    with the run's own deployment overrides (``methods.<method>[.variants.<v>].observation``, e.g.
+    the gap decomposition's old mapping) merged over it; the plain ``observation`` without them."""
+    override = method_config(cfg, run)[1].get("observation")
+    return deep_merge(cfg["observation"], override) if override else dict(cfg["observation"])
+
+
+def study_backend(cfg: Mapping[str, Any], study: str) -> str:
+    """The backend a study's cells run on: its own ``sim.backend`` (e.g. the gap decomposition's
+    double-integrator study), else ``sim.backend``."""
+    return str(study_sim(cfg, study)["backend"])
+
+
 def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
     """The part of the config an evaluation job depends on (hashed to trigger re-runs). The study's
     fan-out (``runs``, ``agent_counts``, ``seeds``) is left out: adding a run or a seed to a study
@@ -303,7 +341,7 @@ def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
         "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
         "agents": cfg["agents"],
         "sim": study_sim(cfg, study),
-        "observation": cfg["observation"],
+        "observation": run_observation(cfg, run),
         "method": method,
         "method_config": {k: v for k, v in mcfg.items() if k not in TRAINING_ONLY_KEYS},
     }

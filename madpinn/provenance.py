@@ -253,7 +253,19 @@ def _cell(cfg: Mapping, study: str, run: str) -> dict:
     return {**job_config(cfg, study, run), "dtype": cfg["dtype"]}
 
 
+def _gap_rows(cfg: Mapping) -> dict:
+    """What names the gap decomposition's rows (its cells are its inputs): the section, the
+    configured carrot margin, each gap study's backend and its runs' settings."""
+    from madpinn.config import method_config, study_backend
+
+    gap = cfg["gap_decomposition"]
+    return {"gap_decomposition": gap, "carrot_margin": cfg["observation"]["carrot_margin"],
+            "studies": {s: {"backend": study_backend(cfg, s), "runs": {r: method_config(cfg, r)[1] for r in cfg["studies"][s]["runs"]}}
+                        for s in gap["studies"]}}
+
+
 _VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
+_Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search
 READS = {
     "train-value": lambda cfg, kind: _training(cfg, kind),
     "train-safemarl-nominal": lambda cfg: _marl(cfg, "safemarl_nominal"),
@@ -261,8 +273,8 @@ READS = {
     "evaluate": _cell,
     "validate-vs": _keys("value_functions.vs.validation", *_VF_RUN),
     "validate-vhat": _keys("value_functions.vhat.validation.samples", *_VF_RUN),
-    "verify-vhat": _keys("value_functions.vhat.validation.scenario", *_VF_RUN),
-    "fig-value-heatmap": _keys("arenas.small.half_width", *_VF_RUN),
+    "verify-vhat": _keys("value_functions.vhat.validation.scenario", _Z_TOL, *_VF_RUN),
+    "fig-value-heatmap": _keys("arenas.small.half_width", _Z_TOL, *_VF_RUN),
     "solve-vs-grid": _keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
                            "value_functions.vs.v_range", "value_functions.vs.validation.grid"),
     "validate-vs-grid": _keys(*_VF_RUN),
@@ -274,8 +286,7 @@ READS = {
     "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "render-clip": _keys("sim.mujoco", "arenas"),
-    "gap-decomposition": _keys("gap_decomposition", "agents", "observation", "sim", "arenas", "methods.madpinn",
-                               "dtype"),
+    "gap-decomposition": lambda cfg: _gap_rows(cfg),
 }
 """command -> function(cfg, **job) -> what its jobs read (``job``: the job's wildcards)"""
 

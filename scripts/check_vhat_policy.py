@@ -23,10 +23,11 @@ from madpinn.value_functions.symmetry import GROUPS, symmetrize
 
 
 class GreedyVHatPolicy:
-    """u_ego = −u_max·sign(∂V̂/∂v_ego) at (t = 0, o, z*) every call; nearest neighbours."""
+    """u_ego = −u_max·sign(∂V̂/∂v_ego) at (t = 0, o, z*) every call (z*: the deployed search at
+    ``z_tolerance``); nearest neighbours."""
 
-    def __init__(self, vhat, u_max: float):
-        self.vhat, self.u_max = vhat, u_max
+    def __init__(self, vhat, u_max: float, z_tolerance: float):
+        self.vhat, self.u_max, self.z_tolerance = vhat, u_max, z_tolerance
 
     def reset(self, state, goals):
         pass
@@ -35,7 +36,7 @@ class GreedyVHatPolicy:
         S, N, _ = state.shape
         spec = self.vhat.obs_spec
         obs = build_observation(state, goals, nearest_neighbours(state, spec.n_neighbours), spec).reshape(S * N, -1)
-        z, _ = min_feasible_z(self.vhat, obs, 0.0)
+        z, _ = min_feasible_z(self.vhat, obs, self.z_tolerance)
         _, grad, _ = self.vhat.value_and_grad(obs, z, 0.0)
         return (-self.u_max * torch.sign(grad[:, 0:2])).reshape(S, N, 2)
 
@@ -69,7 +70,7 @@ def main() -> None:
     out = {}
     for name, (starts, goals) in cases.items():
         backend = DoubleIntegratorBackend(dyn, dt)
-        res, _ = run_episode(backend, GreedyVHatPolicy(vhat, dyn.u_max), starts, goals, steps, r, record_every=0,
+        res, _ = run_episode(backend, GreedyVHatPolicy(vhat, dyn.u_max, cfg["methods"]["madpinn"]["z_tolerance"]), starts, goals, steps, r, record_every=0,
                              progress=False)
         out[name] = {k: getattr(res, k)[0].astype(float).round(3).tolist() for k in ("collided", "min_separation", "final_distance", "cost")}
     print(json.dumps(out, indent=1))

@@ -16,10 +16,11 @@ from madpinn.observation import ObservationSpec, build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
 from madpinn.policies.neighbours import make_selector
-from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index, warm_search
+from madpinn.policies.z_search import newton_search, predict_index, warm_search
 from madpinn.settings import AgentLimits, SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.value_functions import CheckpointError
+from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search
 from policy_models import tiny_model_dir, tiny_models
 
 SPEC = ObservationSpec()

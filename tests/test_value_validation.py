@@ -15,22 +15,27 @@ from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.model import VHat, PairValue, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem
 from madpinn.value_functions.validation import HEATMAP, heatmap_observations, vs_rollouts
+from madpinn.value_functions.z_search import ZGrid, grid_value
 
 NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smoke.yaml")]
 
 
-def test_min_feasible_z_is_the_smallest_feasible_budget():
+def test_min_feasible_z_is_a_crossing_of_the_deployed_grid():
     torch.manual_seed(0)
     spec = ObservationSpec()
     problem = EpigraphProblem(EpigraphSystem(spec, z_max=21.45))
     vhat = VHat(problem, build_network(problem, NET), 1.0)
     obs, _ = problem.system.sample(200, torch.Generator().manual_seed(1))
-    z, ok = min_feasible_z(vhat, obs, 0.0)
-    tol = 1e-3 * vhat.z_max
-    assert ok.any()
+    z, ok = min_feasible_z(vhat, obs, 1e-3)
+    grid = ZGrid.of(vhat.z_max, 1e-3)
+    assert grid.cells == 1024 and ok.any()
+    i = torch.round(z / (vhat.z_max / grid.cells)).long()
+    assert torch.equal(grid.z(i, obs.dtype), z)                    # z* is a grid point
     assert (vhat.value(obs[ok], z[ok]) <= 0).all()
-    assert (vhat.value(obs[ok], (z[ok] - tol).clamp_min(0)) > 0).logical_or(z[ok] <= tol).all()
+    # one cell below is unsafe (the first cell: z_0 = 0 is never evaluated)
+    below = (i[ok] - 1).clamp_min(1)
+    assert (grid_value(vhat, obs[ok], grid, below) > 0).logical_or(i[ok] == 1).all()
     assert (z[~ok] == vhat.z_max).all()
     assert (vhat.value(obs[~ok], torch.full_like(z[~ok], vhat.z_max)) > 0).all()
 

@@ -7,7 +7,16 @@ import torch
 
 from conftest import REPO, SMOKE
 from madpinn.commands import main
-from madpinn.value_functions.verification import ScenarioSettings, epsilon_bound, rollout, verify
+from madpinn.commands.value_functions import deployed_z_tolerance
+from madpinn.config import load_config, method_config
+from madpinn.observation import build_observation
+from madpinn.policies import policy_settings
+from madpinn.policies.madpinn import MadPinnPolicy
+from madpinn.policies.neighbours import make_selector
+from madpinn.value_functions.sampling import ConflictSampling
+from madpinn.value_functions.validation import heatmap_observations, heatmap_values
+from madpinn.value_functions.verification import ScenarioSettings, draw_safe_states, epsilon_bound, rollout, verify
+from madpinn.value_functions.z_search import ZGrid, cold_search, min_feasible_z
 from policy_models import tiny_model_dir, tiny_models
 
 CONFIGS = [str(REPO / "config.yaml"), str(SMOKE)]
@@ -45,14 +54,49 @@ def test_rollout_detects_a_certain_collision_and_a_clear_state():
 def test_verify_reports_consistent_counts_and_cli(tmp_path):
     vhat, _ = tiny_models()
     s = ScenarioSettings(samples=50, dt=0.02, substeps=2, betas=(1e-3,))
-    rep = verify(vhat, s, conflict=True)
+    rep = verify(vhat, s, True, 1e-3)
     assert rep["samples"] == 50 and 0.0 < rep["acceptance_rate"] <= 1.0
     for key in ("safety", "budget"):
         assert rep[key]["violations"] <= rep["any"]["violations"] <= rep["safety"]["violations"] + rep["budget"]["violations"]
         assert rep[key]["rate"] <= rep[key]["epsilon"]["0.001"] <= 1.0
-    assert verify(vhat, s, conflict=True) == rep                        # same seed, same numbers
+    assert verify(vhat, s, True, 1e-3) == rep                        # same seed, same numbers
     out = tmp_path / "scenario.json"
     assert main(["verify-vhat", "--config", *CONFIGS, "--model", f"vhat={tiny_model_dir() / 'vhat.pt'}",
                  "--out", str(out), "--no-track"]) == 0
     report = json.loads(out.read_text())
     assert report["uniform"]["samples"] == report["conflict"]["samples"] == 64
+
+
+def test_verification_and_heatmap_search_the_deployed_grid():
+    """verify-vhat's and the heatmap's z* are the deployed policy's: the MAD-PINN policy built from
+    the config (its first step is the cold search) and the verification's search (at the tolerance
+    the command reads) give bitwise the same z* and feasibility on the same observations, feasible
+    and infeasible rows alike; the verification's accepted budgets are cold-search answers."""
+    from dataclasses import replace
+
+    cfg = load_config([REPO / "config.yaml", SMOKE])
+    vhat, vs = tiny_models()
+    settings = replace(policy_settings(*method_config(cfg, "madpinn")), look_ahead=0.0)   # obs = build_observation
+    tol = deployed_z_tolerance(cfg)
+    assert tol == settings.z_tolerance
+    pol = MadPinnPolicy(vhat, make_selector("nearest", 2), vhat.obs_spec, settings, sim_dt=0.0025)
+    g = torch.Generator().manual_seed(5)
+    state = torch.cat([2 * torch.rand(4, 6, 2, generator=g) - 1, 4 * torch.rand(4, 6, 2, generator=g) - 2], -1)
+    goals = 2 * torch.rand(4, 6, 2, generator=g) - 1
+    state[0, 1, 0:2] = state[0, 0, 0:2]   # a collision: V̂(z_max) > 0, the z_max fallback
+    pol.reset(state, goals)
+    pol.act(state, goals, 0.0)
+    obs = build_observation(state, goals, pol.neighbours, vhat.obs_spec).reshape(24, -1)
+    z, feasible = min_feasible_z(vhat, obs, tol)
+    assert feasible.any() and (~feasible).any()
+    assert torch.equal(z, pol.last_search.z) and torch.equal(feasible, pol.last_search.feasible)
+    # the heatmap: the same search at the same tolerance
+    _, hz, hf, _ = heatmap_values(vhat, tol, points=5)
+    _, hobs = heatmap_observations(vhat.obs_spec, 1.0, 5)
+    ref = cold_search(vhat, hobs, ZGrid.of(vhat.z_max, tol))
+    assert torch.equal(hz.flatten(), ref.z) and torch.equal(hf.flatten(), ref.feasible)
+    # the verification's draw: accepted states with their deployed cold-search budgets
+    obs, zs, _ = draw_safe_states(vhat, 40, ConflictSampling(fraction=1.0, radius=0.3),
+                                  torch.Generator().manual_seed(101), 100_000, tol)
+    ref = cold_search(vhat, obs, ZGrid.of(vhat.z_max, settings.z_tolerance))
+    assert ref.feasible.all() and torch.equal(zs, ref.z)

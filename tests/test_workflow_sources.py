@@ -35,7 +35,8 @@ RUNS = {
     ("train-value",): ["value_functions/train.py", "value_functions/build.py", "value_functions/problems.py",
                        "value_functions/siren.py", "value_functions/sampling.py", "dynamics/epigraph.py",
                        "dynamics/pair.py", "dynamics/system.py", "observation.py", "device.py"],
-    ("verify-vhat",): ["value_functions/verification.py", "value_functions/model.py", "dynamics/epigraph.py"],
+    ("verify-vhat",): ["value_functions/verification.py", "value_functions/z_search.py", "value_functions/model.py",
+                       "dynamics/epigraph.py"],
     ("solve-vs-grid",): ["value_functions/grid_reference.py", "dynamics/pair.py"],
     ("train-safemarl-nominal",): ["marl/trainer.py", "marl/env.py", "marl/ppo.py", "marl/networks.py",
                                   "scenarios.py", "settings.py", "observation.py"],
@@ -43,9 +44,9 @@ RUNS = {
     ("evaluate", "nominal"): ["evaluation/cell.py", "evaluation/metrics.py", "policies/base.py", "policies/nominal.py",
                               "simulation/backend.py", "simulation/simulator.py", "simulation/recorder.py",
                               "simulation/mujoco/backend.py", "scenarios.py", "conflicts.py", "settings.py"],
-    ("evaluate", "madpinn"): ["policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py",
-                              "policies/z_search.py", "policies/safety_filter.py", "value_functions/model.py",
-                              "value_functions/siren.py", "dynamics/epigraph.py"],
+    ("evaluate", "madpinn"): ["evaluation/collisions.py", "policies/madpinn.py", "policies/look_ahead.py", "policies/neighbours.py",
+                              "policies/z_search.py", "value_functions/z_search.py", "policies/safety_filter.py",
+                              "value_functions/model.py", "value_functions/siren.py", "dynamics/epigraph.py"],
     ("evaluate", "safemarl"): ["policies/safemarl.py", "policies/safety_filter.py", "marl/deploy.py",
                                "value_functions/model.py"],
     ("evaluate", "defmarl"): ["policies/defmarl.py", "marl/defmarl/deploy.py"],
@@ -55,8 +56,7 @@ RUNS = {
     ("figure",): ["figures/cost_safety.py", "figures/trajectories.py", "figures/style.py", "evaluation/tables.py"],
     ("reproduction",): ["evaluation/reproduction.py", "evaluation/paper_values.yaml", "evaluation/tables.py"],
     ("render-clip",): ["simulation/mujoco/render.py", "simulation/mujoco/model.py"],
-    ("gap-decomposition", "madpinn"): ["evaluation/gap.py", "evaluation/collisions.py", "evaluation/cell.py",
-                                       "policies/madpinn.py", "value_functions/model.py", "simulation/mujoco/backend.py"],
+    ("gap-decomposition",): ["evaluation/gap.py", "evaluation/collisions.py"],
 }
 
 

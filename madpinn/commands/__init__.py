@@ -26,7 +26,7 @@ COMMAND_MODULES = [
     "madpinn.commands.mujoco",  # render-clip
     "madpinn.commands.safemarl",  # train-safemarl-nominal
     "madpinn.commands.defmarl",  # train-defmarl
-    "madpinn.commands.gap",  # gap-decomposition, diagnose-collisions
+    "madpinn.commands.gap",  # gap-decomposition
 ]
 
 

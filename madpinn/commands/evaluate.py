@@ -26,33 +26,49 @@ def evaluate(
     progress: bool = True,
     track: bool = True,
     echo: bool = False,
+    collision_events: bool = False,
 ) -> dict:
     """Run one cell inside its live MLflow run (opened before the simulation), write its files,
-    log them; return the summary."""
-    from madpinn.config import method_config, study_sim
+    log them; return the summary. ``collision_events``: classify the collision onsets of a MAD-PINN
+    cell into its summary also where the study does not ask for it (the study's
+    ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
+    from dataclasses import replace
+
+    from madpinn.config import ConfigError, method_config, run_observation, study_backend, study_sim
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     cs = CellSettings.from_config(cfg, study, run)
     method, mcfg = method_config(cfg, run)
-    backend = backend or cfg["sim"]["backend"]
+    if collision_events and not cs.collision_events:
+        if method != "madpinn":
+            raise ConfigError(f"--collision-events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
+        cs = replace(cs, collision_events=True)
+    backend = backend or study_backend(cfg, study)
     record = JobRecord(
         job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
         wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
         params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
-                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": cfg["observation"]},
+                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": run_observation(cfg, run)},
     )
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
         record.artifacts = write_cell(cell, out)
         s = cell.summary
         record.metrics = {**{k: s[k] for k in LOGGED}, **{f"policy_{k}": v for k, v in s.get("policy_stats", {}).items()}}
-        finish(tracker, record, echo={k: s[k] for k in ECHO} if echo else None)
+        shown = {k: s[k] for k in ECHO}
+        if cs.collision_events:   # the onsets' summary (madpinn/evaluation/collisions.py); every event is in the JSON
+            from madpinn.evaluation.collisions import summarise
+
+            shown["collisions"] = summarise(s["collision_events"])
+            record.metrics["collision_onsets"] = shown["collisions"]["collision_onsets"]
+        finish(tracker, record, echo=shown if echo else None)
     return s
 
 
 def _evaluate(args) -> int:
     evaluate(config_of(args), args.study, args.run, args.n_agents, args.seed, args.out, models=parse_models(args.model),
-             backend=args.backend, threads=args.threads, progress=not args.no_progress, track=not args.no_track, echo=True)
+             backend=args.backend, threads=args.threads, progress=not args.no_progress, track=not args.no_track, echo=True,
+             collision_events=args.collision_events)
     return 0
 
 
@@ -63,8 +79,10 @@ def register(sub) -> None:
     p.add_argument("--run", required=True, help="method or method-variant")
     p.add_argument("--n-agents", type=int, required=True)
     p.add_argument("--seed", type=int, required=True)
-    p.add_argument("--backend", default=None, help="override sim.backend")
+    p.add_argument("--backend", default=None, help="override the study's backend (its sim.backend, else sim.backend)")
     p.add_argument("--out", required=True, help="per-scenario Parquet path")
+    p.add_argument("--collision-events", action="store_true",
+                   help="classify every collision onset of a MAD-PINN cell into its JSON summary (madpinn/evaluation/collisions.py)")
     add_model_arg(p, ("madpinn: vhat, vs", "safemarl: nominal, vs", "defmarl-<variant>: policy"))
     add_job_args(p)
     p.set_defaults(func=_evaluate)

@@ -46,11 +46,22 @@ def _setup(cfg: dict, threads: int | None):
     return resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
 
 
+def deployed_z_tolerance(cfg: dict) -> float:
+    """The z tolerance of the deployed MAD-PINN policy (its settings' ``z_tolerance``, a fraction
+    of z_max): the grid ``verify-vhat`` and the heatmap search, so they certify and show its z*."""
+    from madpinn.config import method_config
+    from madpinn.policies import policy_settings
+
+    return policy_settings(*method_config(cfg, "madpinn")).z_tolerance
+
+
 def figure_of(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
+    """The validation figure of a trained model (the training's quick look and ``fig-value-heatmap``)."""
     from madpinn.value_functions.figures import validation_figure
 
     return validation_figure(model, kind, cfg["arenas"]["small"]["half_width"],
-                             cfg["value_functions"]["vs"]["validation"]["slice_velocities"], stem)
+                             cfg["value_functions"]["vs"]["validation"]["slice_velocities"],
+                             deployed_z_tolerance(cfg), stem)
 
 
 def _train(args) -> int:
@@ -238,9 +249,10 @@ def _verify_vhat(args) -> int:
         settings = ScenarioSettings.from_config(cfg["value_functions"]["vhat"]["validation"]["scenario"])
         model = single_model(args.model, "vhat")
         vhat = load_vhat(model, device=device, dtype=dtype)
+        tol = deployed_z_tolerance(cfg)
         report = {"model": str(model), "model_iterations": vhat.meta.get("iterations"),
                   "model_config_hash": vhat.meta.get("config_hash"), "horizon": vhat.horizon,
-                  "uniform": verify(vhat, settings, conflict=False), "conflict": verify(vhat, settings, conflict=True)}
+                  "uniform": verify(vhat, settings, False, tol), "conflict": verify(vhat, settings, True, tol)}
         record.artifacts = [write_json(args.out, report)]
         record.metrics = {f"{d}_{k}_rate": report[d][k]["rate"] for d in ("uniform", "conflict") for k in ("safety", "any")}
         return finish(run, record, echo=dict(record.metrics))

@@ -16,7 +16,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from madpinn.config import ConfigError, config_hash, job_config, method_config
+from madpinn.config import ConfigError, config_hash, job_config, method_config, run_observation
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSpec
@@ -58,6 +58,9 @@ class CellSettings:
     """``dtype`` setting"""
     job_config_hash: str
     """hash of the config part the cell depends on (:func:`madpinn.config.job_config`)"""
+    collision_events: bool = False
+    """the study's ``collision_events``: classify every collision onset
+    (:class:`madpinn.evaluation.collisions.CollisionProbe`, MAD-PINN runs) into the cell's summary"""
 
     @classmethod
     def from_config(cls, cfg: Mapping, study: str, run: str) -> "CellSettings":
@@ -65,13 +68,16 @@ class CellSettings:
             raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
         st = cfg["studies"][study]
         method, mcfg = method_config(cfg, run)
+        if st.get("collision_events") and method != "madpinn":
+            raise ConfigError(f"studies.{study}.collision_events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
         sim = SimSettings.from_config(cfg, study)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
             arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),
-            sim=sim, observation=ObservationSpec.from_config(cfg),
+            sim=sim, observation=ObservationSpec.from_config({**cfg, "observation": run_observation(cfg, run)}),
             policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),
+            collision_events=bool(st.get("collision_events", False)),
         )
 
     @property
@@ -108,15 +114,15 @@ class Cell:
 
 
 def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, device, dtype,
-                 models: Mapping[str, Path] | None = None, scenarios: int | None = None,
+                 models: Mapping[str, Path] | None = None,
                  wrap: Callable[[Any, int], Any] | None = None, record: bool = False, progress: bool = True):
     """Simulate one cell batch by batch (``cs.sim.scenario_batch`` scenarios each, fresh policy and
     backend per batch); yield ``(first scenario index, policy, EpisodeResult, run stats)``. The
-    one loop of :func:`run_cell` and the collision probe (``madpinn.evaluation.gap``):
-    ``scenarios`` (default ``cs.scenarios``) runs the first ones only, ``wrap(policy, first)``
-    replaces the policy (e.g. by a probe around it), ``record`` keeps the first batch's trajectories."""
+    one loop of :func:`run_cell` (with the collision probe where the study asks for it) and of
+    ``scripts/defmarl_consensus.py``: ``wrap(policy, first)`` replaces the policy (e.g. by a probe
+    around it), ``record`` keeps the first batch's trajectories."""
     r = cs.limits.collision_radius
-    total = cs.scenarios if scenarios is None else int(scenarios)
+    total = cs.scenarios
     batch = cs.sim.scenario_batch
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
@@ -153,11 +159,14 @@ def run_cell(
     n_steps = cs.episode_steps
     period = cs.policy_period
 
-    frames, traj, timing, policy_stats = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}
+    frames, traj, timing, policy_stats, events = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}, []
     total = cs.scenarios
     t0 = time.perf_counter()
     for first, policy, result, stats in cell_batches(cs, n_agents, seed, backend, device, dtype, models,
+                                                     wrap=_collision_probe(r) if cs.collision_events else None,
                                                      record=True, progress=progress):
+        if cs.collision_events:
+            events += policy.events
         timing["wall_s"] += stats["wall_s"]
         timing["policy_s"] += stats["policy_s"]
         if hasattr(policy, "summarise_stats"):   # policies with summable counters (dict) report them
@@ -186,7 +195,21 @@ def run_cell(
     }
     if policy_stats:   # only collected from policies with summarise_stats
         summary["policy_stats"] = policy.summarise_stats(policy_stats)
+    if cs.collision_events:
+        summary["collision_events"] = [{**e, "seed": int(seed)} for e in events]
     return Cell(df, summary, traj, r, arena.half_width)
+
+
+def _collision_probe(r: float):
+    """``wrap`` of :func:`cell_batches`: a :class:`~madpinn.evaluation.collisions.CollisionProbe`
+    (collision radius ``r``, m) around each batch's policy, numbering its scenarios from ``first``."""
+    from madpinn.evaluation.collisions import CollisionProbe
+
+    def wrap(policy, first):
+        probe = CollisionProbe(policy, r)
+        probe.scenario_offset = first
+        return probe
+    return wrap
 
 
 def cell_paths(out: str | Path) -> tuple[Path, Path, Path]:

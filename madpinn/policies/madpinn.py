@@ -8,8 +8,8 @@ For all agents of all scenarios at once, at every policy step (simulation step `
 2. observation ``o`` ``[S·N, D]`` via :func:`madpinn.observation.build_observation` (phantom
    slots at distinct points of the trained box, so two phantoms never "collide");
 3. ``z* = min{z ∈ [0, z_max] : V̂(0, o, z) ≤ 0}`` on the grid ``z_max·i/2^steps``
-   (:mod:`madpinn.policies.z_search`, tolerance ``z_tolerance·z_max``, i.e.
-   ``⌈log2(1/z_tolerance)⌉`` halvings); where ``V̂(0, o, z_max) > 0`` (unsafe) ``z* = z_max``.
+   (:mod:`madpinn.value_functions.z_search`, the search ``verify-vhat`` certifies; tolerance
+   ``z_tolerance·z_max``, i.e. ``⌈log2(1/z_tolerance)⌉`` halvings); where ``V̂(0, o, z_max) > 0`` (unsafe) ``z* = z_max``.
    With ``warm_start`` each agent's search is bracketed around the linear extrapolation of its
    last two answers (same z* as the cold bisection wherever V̂ is monotone in z, ≈ 2–3 network
    rows per agent-step instead of 12; see :mod:`madpinn.policies.z_search`);
@@ -39,9 +39,10 @@ from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
 from madpinn.policies.neighbours import STRATEGIES, make_selector
 from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
-from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index, warm_search
+from madpinn.policies.z_search import newton_search, predict_index, warm_search
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.symmetry import symmetrize
+from madpinn.value_functions.z_search import ZGrid, cold_search
 
 INF_UPDATE = "inf"
 
@@ -170,7 +171,7 @@ class MadPinnPolicy:
         else:
             obs = build_observation(x, g, self.neighbours, self.spec)
         obs = obs.reshape(S * N, -1)
-        grid = ZGrid(self.vhat.z_max, bisection_steps(self.settings.z_tolerance))
+        grid = ZGrid.of(self.vhat.z_max, self.settings.z_tolerance)
         if self.settings.warm_start and self._k_last is not None and self._k_last.shape[0] == obs.shape[0]:
             search = newton_search if self.settings.z_newton else warm_search
             r = search(self.vhat, obs, grid, predict_index(self._k_last, self._k_before, grid.cells))

@@ -1,15 +1,10 @@
-"""The epigraph budget search of MAD-PINN (SPEC §6) on a dyadic z grid, cold or warm-started.
+"""Warm-started z* searches of the deployed MAD-PINN policy, on the grid of the one z* search.
 
-``z* = min{z ∈ [0, z_max] : V̂(0, o, z) ≤ 0}`` to a tolerance of one grid cell
-``h = z_max / 2^steps``: every V̂ evaluation is at a grid point ``z_i = i·h``, ``i = 1 … 2^steps``
-(indices are integers, so both searches evaluate V̂ at bitwise identical z). Both searches also
-return the control gradient ``∂V̂/∂o`` at ``(t = 0, o, z*)``, so a search's cost is counted in
-network rows: ``value_rows`` (V̂ only) and ``grad_rows`` (V̂ and its gradient, about 2.5 value
-rows of CPU time with the fused SIREN sweeps).
+The grid, its feasibility rule and the cold bisection live in :mod:`madpinn.value_functions.z_search`
+(``verify-vhat`` and the heatmap run that cold search; the policy runs it on its first step and
+whenever the warm start has no previous answer). The variants here evaluate V̂ at the same grid
+points and give the same feasibility flag:
 
-- :func:`cold_search`: ``V̂(z_max)``, then ``steps`` halvings of ``[0, z_max]`` (the paper's
-  bisection; 1 + steps value rows + 1 gradient row per agent). Where ``V̂(z_max) > 0`` (unsafe):
-  ``z* = z_max``, ``feasible = False``.
 - :func:`warm_search`: a bracketed search around a predicted index ``k`` (the policy passes the
   linear extrapolation of its last two answers). One gradient row at ``z_k``, then, in one value
   call, ``V̂(z_max)`` (the cold search's feasibility test; skipped when ``k`` is the top) and, if
@@ -39,96 +34,9 @@ that feasible crossing where the cold search falls back to ``z_max`` (not used b
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import torch
 
-
-def bisection_steps(z_tolerance: float) -> int:
-    """Halvings of ``[0, z_max]`` that leave a bracket ≤ ``z_tolerance·z_max`` (10 for 1e-3)."""
-    if not 0.0 < z_tolerance < 1.0:
-        raise ValueError(f"z_tolerance must be in (0, 1), got {z_tolerance}")
-    return max(1, math.ceil(math.log2(1.0 / z_tolerance)))
-
-
-@dataclass(frozen=True)
-class ZGrid:
-    """Grid ``z_i = i·z_max/2^steps`` of the search (indices ``0 … cells``; 0 is never evaluated)."""
-
-    z_max: float
-    steps: int
-
-    @property
-    def cells(self) -> int:
-        return 2**self.steps
-
-    def z(self, idx: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-        """Budgets ``[B]`` (same units as V̂'s z) of integer indices ``[B]``."""
-        return idx.to(torch.float64).mul(self.z_max / self.cells).to(dtype)
-
-
-@dataclass
-class ZSearchResult:
-    """``index [B]`` (long), ``z [B]``, ``feasible [B]`` (False: ``V̂(z_max) > 0``, z* = z_max),
-    ``grad [B, D]`` = ∂V̂/∂o at z*, ``hit [B]`` (warm: answer = prediction, 2 rows or fewer),
-    network rows evaluated: ``value_rows``, ``grad_rows``."""
-
-    index: torch.Tensor
-    z: torch.Tensor
-    feasible: torch.Tensor
-    grad: torch.Tensor
-    hit: torch.Tensor
-    value_rows: int
-    grad_rows: int
-
-
-def _value(vhat, obs, grid: ZGrid, idx):
-    return vhat.value(obs, grid.z(idx, obs.dtype), 0.0)
-
-
-def _finish(vhat, obs, grid: ZGrid, idx, feasible, hit, value_rows, grad_rows, grad=None, todo=None):
-    """Fill the gradient at ``z_idx`` for rows ``todo`` (all rows when ``grad`` is None)."""
-    if grad is None:
-        _, grad, _ = vhat.value_and_grad(obs, grid.z(idx, obs.dtype), 0.0)
-        grad_rows += obs.shape[0]
-    elif todo is not None and todo.numel():
-        _, g, _ = vhat.value_and_grad(obs[todo], grid.z(idx[todo], obs.dtype), 0.0)
-        grad = grad.clone()
-        grad[todo] = g
-        grad_rows += int(todo.numel())
-    return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, grad, hit, value_rows, grad_rows)
-
-
-def _bisect(vhat, obs, grid: ZGrid, lo, hi):
-    """Halve brackets ``(lo, hi]`` (V̂(lo) > 0 or lo = 0, V̂(hi) ≤ 0) to one cell; returns
-    ``(hi, value rows)``; each round evaluates the rows whose bracket is still wider than a cell."""
-    rows = 0
-    while bool((hi - lo > 1).any()):
-        act = (hi - lo > 1).nonzero(as_tuple=True)[0]
-        mid = (lo[act] + hi[act]) // 2
-        ok = _value(vhat, obs[act], grid, mid) <= 0
-        rows += int(act.numel())
-        hi[act] = torch.where(ok, mid, hi[act])
-        lo[act] = torch.where(ok, lo[act], mid)
-    return hi, rows
-
-
-def cold_search(vhat, obs: torch.Tensor, grid: ZGrid) -> ZSearchResult:
-    """The paper's bisection on all rows (see module docstring); ``obs [B, D]``."""
-    B = obs.shape[0]
-    top = torch.full((B,), grid.cells, dtype=torch.long, device=obs.device)
-    feasible = _value(vhat, obs, grid, top) <= 0
-    lo, hi = torch.zeros_like(top), top.clone()
-    rows = B
-    for _ in range(grid.steps):
-        mid = (lo + hi) // 2
-        ok = _value(vhat, obs, grid, mid) <= 0
-        rows += B
-        hi = torch.where(ok, mid, hi)
-        lo = torch.where(ok, lo, mid)
-    idx = torch.where(feasible, hi, top)
-    return _finish(vhat, obs, grid, idx, feasible, torch.zeros_like(feasible), rows, 0)
+from madpinn.value_functions.z_search import ZGrid, ZSearchResult, bisect, grid_value, search_result
 
 
 def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, check_top: bool = True) -> ZSearchResult:
@@ -146,7 +54,7 @@ def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, c
     top = (k < cells).nonzero(as_tuple=True)[0] if check_top else chk[:0]
     if chk.numel() or top.numel():  # one network call: V̂(z_{k−1}) where V̂(z_k) ≤ 0, V̂(z_max) where k < cells
         rows = torch.cat([chk, top])
-        ok = _value(vhat, obs[rows], grid, torch.cat([k[chk] - 1, torch.full_like(top, cells)])) <= 0
+        ok = grid_value(vhat, obs[rows], grid, torch.cat([k[chk] - 1, torch.full_like(top, cells)])) <= 0
         below[chk] = ok[: chk.numel()]
         top_ok[top] = ok[chk.numel():]
         value_rows += int(rows.numel())
@@ -160,7 +68,7 @@ def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, c
     miss = (~hit & ~top_unsafe).nonzero(as_tuple=True)[0]
     if miss.numel() == 0:
         todo = (top_unsafe & (k < cells)).nonzero(as_tuple=True)[0]
-        return _finish(vhat, obs, grid, idx, feasible, hit, value_rows, grad_rows, grad=grad, todo=todo)
+        return search_result(vhat, obs, grid, idx, feasible, hit, value_rows, grad_rows, grad=grad, todo=todo)
     o = obs[miss]
     up = ~ok_k[miss]
     # bracket (lo, hi]: up rows know V̂(z_k) > 0, down rows know V̂(z_{k−1}) ≤ 0
@@ -185,7 +93,7 @@ def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, c
         ev = (~at_zero & ~known_top).nonzero(as_tuple=True)[0]
         ok = known_top.clone()
         if ev.numel():
-            ok[ev] = _value(vhat, o[act[ev]], grid, probe[ev]) <= 0
+            ok[ev] = grid_value(vhat, o[act[ev]], grid, probe[ev]) <= 0
             value_rows += int(ev.numel())
         # up rows: ok -> hi = probe (bracketed); else lo = probe, unsafe at the top
         # down rows: ok -> hi = probe (keep going down); else lo = probe (bracketed)
@@ -197,13 +105,13 @@ def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, c
     bracketed = ~unsafe
     rows = bracketed.nonzero(as_tuple=True)[0]
     if rows.numel():
-        h_ans, r = _bisect(vhat, o[rows], grid, lo[rows].clone(), hi[rows].clone())
+        h_ans, r = bisect(vhat, o[rows], grid, lo[rows].clone(), hi[rows].clone())
         value_rows += r
         idx[miss[rows]] = h_ans
     idx[miss[unsafe]] = cells
     feasible[miss[unsafe]] = False
     todo = torch.cat([miss, (top_unsafe & (k < cells)).nonzero(as_tuple=True)[0]])
-    return _finish(vhat, obs, grid, idx, feasible, hit, value_rows, grad_rows, grad=grad, todo=todo)
+    return search_result(vhat, obs, grid, idx, feasible, hit, value_rows, grad_rows, grad=grad, todo=todo)
 
 
 def predict_index(last: torch.Tensor, before: torch.Tensor | None, cells: int) -> torch.Tensor:
@@ -231,7 +139,7 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
        and ``V̂(z_hi) ≤ 0`` — the bisection's invariant. Up to :data:`SECANT_ROUNDS` rounds probe
        the cell at the regula-falsi point (the secant through two known values where ``V̂(z_lo)``
        is unknown, the midpoint where neither applies) and its lower neighbour, each keeping the
-       invariant; :func:`_bisect` halves what is left to one cell; one gradient row at the answer.
+       invariant; :func:`~madpinn.value_functions.z_search.bisect` halves what is left to one cell; one gradient row at the answer.
 
     Every feasible answer is a verified crossing and the feasibility flag is the cold search's, as
     for :func:`warm_search`; where V̂ is monotone in z the crossing is unique, so all three searches
@@ -256,7 +164,7 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
     below = ((c - 1 != k) & (c > 1) & ~(up & (k == cells))).nonzero(as_tuple=True)[0]
     ev_rows = torch.cat([top, below])
     ev_idx = torch.cat([torch.full_like(top, cells), c[below] - 1])
-    vals = _value(vhat, obs[ev_rows], grid, ev_idx) if ev_rows.numel() else obs.new_zeros(0)
+    vals = grid_value(vhat, obs[ev_rows], grid, ev_idx) if ev_rows.numel() else obs.new_zeros(0)
     ok = vals <= 0
     value_rows += int(ev_rows.numel())
     v_top = torch.full((B,), float("nan"), dtype=obs.dtype, device=dev)
@@ -325,7 +233,7 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
             cc = torch.minimum(torch.maximum(torch.ceil(guess.nan_to_num(0.0)).long(), l + 1), u)
             p_lo = (cc - 1 > l).nonzero(as_tuple=True)[0]
             p_hi = (cc < u).nonzero(as_tuple=True)[0]
-            pv = _value(vhat, o[torch.cat([act[p_lo], act[p_hi]])], grid, torch.cat([cc[p_lo] - 1, cc[p_hi]]))
+            pv = grid_value(vhat, o[torch.cat([act[p_lo], act[p_hi]])], grid, torch.cat([cc[p_lo] - 1, cc[p_hi]]))
             value_rows += int(pv.numel())
             v1 = torch.full_like(fu, float("nan")).to(obs.dtype)
             v1[p_lo] = pv[: p_lo.numel()]
@@ -340,8 +248,8 @@ def newton_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor)
             vhi[act] = torch.where(lower, v1, torch.where(cell & (cc < u), v2, vhi[act]))
             lo[act] = torch.where(upper, cc, torch.where(cell, cc - 1, l))
             vlo[act] = torch.where(upper, v2, torch.where(cell & (cc - 1 > l), v1, vlo[act]))
-        ans, r = _bisect(vhat, o, grid, lo.clone(), hi.clone())
+        ans, r = bisect(vhat, o, grid, lo.clone(), hi.clone())
         value_rows += r
         idx[rest] = ans
         todo = torch.cat([todo, rest])
-    return _finish(vhat, obs, grid, idx, feasible, hit & (idx == k), value_rows, grad_rows, grad=grad, todo=todo)
+    return search_result(vhat, obs, grid, idx, feasible, hit & (idx == k), value_rows, grad_rows, grad=grad, todo=todo)

@@ -5,7 +5,7 @@ Public API::
     from madpinn.value_functions import load_vhat, load_vs
     vhat = load_vhat("results/models/vhat.pt")   # vhat.value(obs, z, t), vhat.value_and_grad(obs, z, t)
     vs = load_vs("results/models/vs.pt")         # vs.value(x_rel, t), vs.value_and_grad(x_rel, t)
-    z_star, feasible = min_feasible_z(vhat, obs) # epigraph budget search of SPEC §6
+    z_star, feasible = min_feasible_z(vhat, obs, z_tolerance)   # the deployed z* search (SPEC §6)
 
 The names are resolved on first use (PEP 562), so that importing a light sub-module such as
 ``madpinn.value_functions.build`` (the command line's parser does) does not import torch.
@@ -19,7 +19,7 @@ _HOMES = {
     "VHat": "madpinn.value_functions.model",
     "load_vhat": "madpinn.value_functions.model",
     "load_vs": "madpinn.value_functions.model",
-    "min_feasible_z": "madpinn.value_functions.validation",
+    "min_feasible_z": "madpinn.value_functions.z_search",
 }
 
 __all__ = sorted(_HOMES)

@@ -103,13 +103,14 @@ def vs_slices_figure(axis, values, velocities, collision_radius: float, stem: Pa
     return _save(fig, stem)
 
 
-def validation_figure(model, kind: str, half_width: float, slice_velocities, stem: Path) -> list[Path]:
-    """The figure of a trained model: V̂ heatmap over an arena of ``half_width`` (m), or V_s
-    slices at ``slice_velocities`` (m/s); ``.pdf`` and ``.png`` at ``stem``."""
+def validation_figure(model, kind: str, half_width: float, slice_velocities, z_tolerance: float, stem: Path) -> list[Path]:
+    """The figure of a trained model: V̂ heatmap over an arena of ``half_width`` (m), z* on the
+    deployed grid of ``z_tolerance``, or V_s slices at ``slice_velocities`` (m/s); ``.pdf`` and
+    ``.png`` at ``stem``."""
     from madpinn.value_functions import validation
 
     if kind == "vhat":
-        axis, z_star, feasible, _ = validation.heatmap_values(model, half_width)
+        axis, z_star, feasible, _ = validation.heatmap_values(model, z_tolerance, half_width)
         return value_heatmap(axis, z_star, feasible, stem)
     axis, values = validation.vs_slices(model, slice_velocities)
     return vs_slices_figure(axis, values, slice_velocities, model.collision_radius, stem)

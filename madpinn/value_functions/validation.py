@@ -1,34 +1,13 @@
-"""Validation of trained value functions: V_s rollouts, V̂ residuals, the epigraph z* search and
-the grids behind the figures. Pure computations (figures live in :mod:`.figures`)."""
+"""Validation of trained value functions: V_s rollouts, V̂ residuals and the grids behind the
+figures (the V̂ heatmap's z* comes from the deployed search, :mod:`.z_search`). Pure computations
+(figures live in :mod:`.figures`)."""
 
 from __future__ import annotations
-
-import math
 
 import torch
 
 from madpinn.observation import build_observation
-
-
-def min_feasible_z(vhat, obs: torch.Tensor, t=0.0, tol: float | None = None):
-    """``z* = min{z ∈ [0, z_max] : V̂(t, o, z) ≤ 0}`` by vectorised bisection (SPEC §6).
-
-    Returns ``(z* [B], feasible [B] bool)``; where ``V̂(t, o, z_max) > 0`` (unsafe) ``z* = z_max``.
-    ``tol`` defaults to ``1e-3·z_max``.
-    """
-    z_max = vhat.z_max
-    tol = 1e-3 * z_max if tol is None else float(tol)
-    steps = max(1, math.ceil(math.log2(z_max / tol)))
-    B = obs.shape[0]
-    lo = torch.zeros(B, dtype=obs.dtype, device=obs.device)
-    hi = torch.full_like(lo, z_max)
-    feasible = vhat.value(obs, hi, t) <= 0
-    for _ in range(steps):
-        mid = 0.5 * (lo + hi)
-        ok = vhat.value(obs, mid, t) <= 0
-        hi = torch.where(ok, mid, hi)
-        lo = torch.where(ok, lo, mid)
-    return torch.where(feasible, hi, torch.full_like(hi, z_max)), feasible
+from madpinn.value_functions.z_search import min_feasible_z
 
 
 @torch.no_grad()
@@ -116,12 +95,13 @@ def heatmap_observations(spec, half_width: float = 1.0, points: int = 101, cfg: 
     return axis, obs
 
 
-def heatmap_values(vhat, half_width: float = 1.0, points: int = 101):
-    """``(axis [P], V_d = z* [P, P], feasible [P, P], V̂(0, o, z=0) [P, P])`` over the ego position."""
+def heatmap_values(vhat, z_tolerance: float, half_width: float = 1.0, points: int = 101):
+    """``(axis [P], V_d = z* [P, P], feasible [P, P], V̂(0, o, z=0) [P, P])`` over the ego position;
+    z* from the deployed search on the grid of ``z_tolerance`` (``methods.madpinn.z_tolerance``)."""
     axis, obs = heatmap_observations(vhat.obs_spec, half_width, points)
     p = next(vhat.net.parameters())
     obs = obs.to(device=p.device, dtype=p.dtype)
-    z_star, feasible = min_feasible_z(vhat, obs, 0.0)
+    z_star, feasible = min_feasible_z(vhat, obs, z_tolerance)
     v0 = vhat.value(obs, torch.zeros(obs.shape[0], dtype=obs.dtype, device=obs.device), 0.0)
     shape = (points, points)
     return axis, z_star.reshape(shape).cpu(), feasible.reshape(shape).cpu(), v0.reshape(shape).cpu()

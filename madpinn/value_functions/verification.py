@@ -1,7 +1,9 @@
 """Scenario-based verification of V̂ (issue 15; the paper's stated future work).
 
 For ``N`` i.i.d. 3-agent states that V̂ calls safe at the budget ``z*`` (``V̂(0, o, z*) ≤ 0``,
-drawn by rejection from a sampling distribution), every observed agent follows the V̂ policy
+drawn by rejection from a sampling distribution; ``z*`` from the deployed policy's cold search on
+its grid, :mod:`.z_search` with ``methods.madpinn.z_tolerance``, so the certified budgets are the
+deployed ones, to the deployed tolerance), every observed agent follows the V̂ policy
 ``u_a = −u_max·sign(∂V̂/∂v_a)(τ, o(τ), z(τ))`` re-evaluated every ``dt`` over the horizon
 ``[0, T]`` in the exact dynamics of V̂'s model (planar double integrators, exact zero-order-hold
 steps, no velocity clipping; ``ż = −l_d``). A *safety violation* is a pair closer than the
@@ -20,7 +22,7 @@ import torch
 
 from madpinn.observation import split_observation
 from madpinn.value_functions.sampling import ConflictSampling, place_conflicts
-from madpinn.value_functions.validation import min_feasible_z
+from madpinn.value_functions.z_search import min_feasible_z
 
 
 @dataclass(frozen=True)
@@ -66,10 +68,11 @@ def epsilon_bound(violations: int, samples: int, beta: float) -> float:
     return float(beta_dist.ppf(1.0 - beta, violations + 1, samples - violations))
 
 
-def draw_safe_states(vhat, n: int, conflict: ConflictSampling, generator: torch.Generator, max_draws: int):
+def draw_safe_states(vhat, n: int, conflict: ConflictSampling, generator: torch.Generator, max_draws: int,
+                     z_tolerance: float):
     """Rejection sampling: ``(obs [n, D], z* [n], acceptance rate)`` of states with
     ``V̂(0, o, z*) ≤ 0`` from the uniform domain, rewritten by ``conflict`` (fraction 1: every
-    state on a near-collision course)."""
+    state on a near-collision course); z* by the deployed search on the grid of ``z_tolerance``."""
     system = vhat.system
     p = next(vhat.net.parameters())
     kept_o, kept_z, drawn = [], [], 0
@@ -81,7 +84,7 @@ def draw_safe_states(vhat, n: int, conflict: ConflictSampling, generator: torch.
         obs, _ = system.sample(b, generator, dtype=p.dtype)
         obs = place_conflicts(obs, system.spec.n_neighbours, system.horizon, system.spec.offset_range, conflict, generator)
         obs = obs.to(p.device)
-        z_star, feasible = min_feasible_z(vhat, obs)
+        z_star, feasible = min_feasible_z(vhat, obs, z_tolerance)
         kept_o.append(obs[feasible])
         kept_z.append(z_star[feasible])
         drawn += b
@@ -128,13 +131,15 @@ def rollout(vhat, obs: torch.Tensor, z: torch.Tensor, dt: float, substeps: int) 
     return {"min_distance": min_d, "final_cost": final_cost, "final_z": z, "steps": steps}
 
 
-def verify(vhat, settings: ScenarioSettings, conflict: bool, chunk: int = 4096) -> dict:
+def verify(vhat, settings: ScenarioSettings, conflict: bool, z_tolerance: float, chunk: int = 4096) -> dict:
     """Scenario verification of ``vhat`` on the uniform (``conflict=False``) or the conflict
-    distribution (every state on a near-collision course of radius ``settings.conflict_radius``)."""
+    distribution (every state on a near-collision course of radius ``settings.conflict_radius``),
+    at the budgets of the deployed search on the grid of ``z_tolerance`` (the policy's
+    ``z_tolerance``, a fraction of z_max)."""
     sampling = ConflictSampling(fraction=1.0 if conflict else 0.0, radius=settings.conflict_radius)
     gen = torch.Generator().manual_seed(int(settings.seed) * 7919 + (1 if conflict else 0))
     obs, z, acceptance = draw_safe_states(vhat, settings.samples, sampling, gen,
-                                          settings.max_draws_factor * settings.samples)
+                                          settings.max_draws_factor * settings.samples, z_tolerance)
     parts = [rollout(vhat, obs[i:i + chunk], z[i:i + chunk], settings.dt, settings.substeps)
              for i in range(0, obs.shape[0], chunk)]
     min_d = torch.cat([p["min_distance"] for p in parts])
@@ -144,7 +149,7 @@ def verify(vhat, settings: ScenarioSettings, conflict: bool, chunk: int = 4096) 
     budget = over > 1e-3 * vhat.z_max
     n = int(min_d.numel())
     out = {"distribution": "conflict" if conflict else "uniform", "samples": n, "acceptance_rate": acceptance,
-           "dt": settings.dt, "seed": settings.seed}
+           "dt": settings.dt, "seed": settings.seed, "z_tolerance": z_tolerance}
     for name, mask in (("safety", unsafe), ("budget", budget), ("any", unsafe | budget)):
         k = int(mask.sum())
         out[name] = {"violations": k, "rate": k / n,

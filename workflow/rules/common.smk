@@ -4,7 +4,7 @@ import os
 
 import yaml
 
-from madpinn.config import ConfigError, study_pattern, write_if_changed
+from madpinn.config import ConfigError, study_backend, study_pattern, write_if_changed
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
@@ -93,13 +93,19 @@ wildcard_constraints:
     seed=r"\d+",
 
 
-def eval_path(study, run, n, seed, backend=BACKEND):
-    return f"{RESULTS}/eval/{backend}/{study}/{run}/n{n}_seed{seed}.parquet"
+def eval_path(study, run, n, seed, backend=None):
+    """An evaluation cell's Parquet file; ``backend`` defaults to the study's (its sim.backend, else sim.backend)."""
+    return f"{RESULTS}/eval/{backend or study_backend(config, study)}/{study}/{run}/n{n}_seed{seed}.parquet"
 
 
 def study_results(study):
     st = config["studies"][study]
     return [eval_path(study, run, n, seed) for run in st["runs"] for n in st["agent_counts"] for seed in st["seeds"]]
+
+
+def studies_in_all():
+    """The studies whose cells `all` builds (all but those with `in_all: false`, e.g. the gap decomposition's)."""
+    return [s for s, st in config["studies"].items() if st.get("in_all", True)]
 
 
 def run_models(wildcards):
@@ -201,7 +207,7 @@ def reading_studies():
 def all_targets(wildcards=None):
     """Every final output: the evaluation cells, the tables and the registered targets (an input
     function of `all`: called after every rule file has registered its part)."""
-    evals = [p for study in config["studies"] for p in study_results(study)]
+    evals = [p for study in studies_in_all() for p in study_results(study)]
     tables = [f"{FIGURES}/{name}.{ext}" for name in configured_tables() for ext in ("csv", "md", "tex")]
     return evals + tables + REGISTERED["targets"]
 

@@ -1,35 +1,31 @@
-# Gap decomposition (issue 14): MAD-PINN with the same V̂ / V_s on the double integrator and on
-# MuJoCo, each deployment fix alone and all together, on validation seeds. Not part of `all`:
-#   snakemake -j1 gap_decomposition [--configfile workflow/configs/smoke.yaml]
-GAP = config["gap_decomposition"]
+# Gap decomposition (issue 14): a table of the cells of the studies `gap_decomposition.studies`
+# lists (MAD-PINN with the same V̂ / V_s on each backend, one deployment cause switched per run,
+# validation seeds; studies.gap_*, `in_all: false`). The evaluate rule computes the cells like any
+# other (cache, parallel cells, an MLflow run each); this job only builds the table. Not part of all:
+#   snakemake -j2 gap_decomposition [--configfile workflow/configs/smoke.yaml]
+if config.get("gap_decomposition"):
 
-
-rule gap_decomposition:
-    input:
-        vhat=str(rules.train_vhat.output.model),
-        vs=str(rules.train_vs.output.model),
-    output:
-        csv=f"{RESULTS}/gap/decomposition.csv",
-        md=f"{RESULTS}/gap/decomposition.md",
-        json=f"{RESULTS}/gap/decomposition.json",
-    params:
-        config=RESOLVED,
-        agents=[str(n) for n in GAP["agent_counts"]],
-        seeds=[str(s) for s in GAP["seeds"]],
-        scenarios=GAP["scenarios"],
-        sweep=["--margin-sweep", *map(str, GAP["margin_sweep"])] if GAP["margin_sweep"] else [],
-        out_dir=out_dir_of("csv"),
-        settings=settings_hash("gap-decomposition"),
-        source=source_hash("gap-decomposition", "madpinn"),
-    threads: 1
-    resources:
-        mem_mb=4000,
-        runtime=600,
-    conda:
-        CONDA_ENV
-    log:
-        f"{LOGS}/gap_decomposition.log",
-    shell:
-        "python -m madpinn gap-decomposition --config {params.config:q} --model vhat={input.vhat:q} --model vs={input.vs:q}"
-        " --agents {params.agents:q} --seeds {params.seeds:q} --scenarios {params.scenarios:q} {params.sweep:q}"
-        " --out-dir {params.out_dir:q} --no-progress 2>&1 | tee {log:q}"
+    rule gap_decomposition:
+        input:
+            tracking=TRACKING,
+            results=[p.replace(".parquet", ".json") for s in config["gap_decomposition"]["studies"]
+                     for p in study_results(s)],
+        output:
+            csv=f"{RESULTS}/gap/decomposition.csv",
+            md=f"{RESULTS}/gap/decomposition.md",
+            json=f"{RESULTS}/gap/decomposition.json",
+        params:
+            config=RESOLVED,
+            out_dir=out_dir_of("csv"),
+            settings=settings_hash("gap-decomposition"),
+            source=source_hash("gap-decomposition"),
+        resources:
+            mem_mb=2000,
+            runtime=10,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/gap_decomposition.log",
+        shell:
+            "python -m madpinn gap-decomposition --config {params.config:q} --inputs {input.results:q}"
+            " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"

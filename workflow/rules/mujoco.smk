@@ -1,5 +1,5 @@
 # MuJoCo backend extras (issue 5). With sim.backend: mujoco and sim.mujoco.render_clips: true,
-# one GIF per (study, run) — the smallest N, first seed — rendered offscreen from the evaluation
+# one GIF per (study, run) of `all` — the smallest N, first seed — rendered offscreen from the evaluation
 # job's trajectory and logged to MLflow; without a GL context the job records why and succeeds.
 _MUJOCO = config["sim"].get("mujoco") or {}
 
@@ -27,7 +27,7 @@ if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
             " --key {wildcards.backend:q}/{wildcards.study:q}/{wildcards.run:q}/n{wildcards.n}_seed{wildcards.seed} 2>&1 | tee {log:q}"
 
     register_targets(*[
-        f"{RESULTS}/clips/{BACKEND}/{study}/{run}/n{min(st['agent_counts'])}_seed{st['seeds'][0]}.json"
-        for study, st in config["studies"].items()
+        f"{RESULTS}/clips/{study_backend(config, study)}/{study}/{run}/n{min(st['agent_counts'])}_seed{st['seeds'][0]}.json"
+        for study, st in ((s, config["studies"][s]) for s in studies_in_all())
         for run in st["runs"]
     ])
