@@ -36,14 +36,14 @@ from pathlib import Path
 
 import torch
 
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, bisection_steps, cold_budget_search
 from madpinn.policies.neighbours import in_domain, make_selector, pair_scores_brute_force, select_lowest
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.value_functions import load_vhat, load_vs
 from timing import best_of  # benchmarks/timing.py
 
-SPEC = ObservationSpec()
+SPEC = ObservationSettings()
 NET = {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0}
 
 

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import in_domain, make_selector, select_lowest
 from madpinn.scenarios import Arena, generate_scenarios
@@ -39,7 +39,7 @@ from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 
-SPEC = ObservationSpec()
+SPEC = ObservationSettings()
 DT = 0.0025
 
 

@@ -24,7 +24,7 @@ import torch
 
 from madpinn.device import resolve_device
 from madpinn.dynamics.epigraph import EpigraphSystem
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.value_functions.model import build_network
 from madpinn.value_functions.problems import EpigraphProblem, assemble
 from madpinn.value_functions.train import TrainSettings, train_step, training_batch
@@ -50,7 +50,7 @@ def peak_rss_mb() -> float:
 
 
 def setup(batch, device, dtype):
-    spec = ObservationSpec()
+    spec = ObservationSettings()
     system = EpigraphSystem(spec, z_max=EpigraphSystem.default_z_max(spec, 4.0, 4.0, 0.2))
     problem = EpigraphProblem(system)
     settings = TrainSettings(iterations=1000, batch_size=batch, lr=2e-5, lr_final=2e-5, curriculum_fraction=0.5,

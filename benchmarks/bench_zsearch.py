@@ -31,7 +31,7 @@ import time
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import make_selector
 from madpinn.policies.z_search import ZGrid, bisection_steps, cold_search, newton_search, predict_index
@@ -40,7 +40,7 @@ from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 
-SPEC = ObservationSpec()
+SPEC = ObservationSettings()
 DT = 0.0025
 CELLS = {"small": (12, Arena("small", 1.0, 3.0)), "large": (64, Arena("large", 4.0, 6.0))}
 

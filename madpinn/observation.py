@@ -35,7 +35,7 @@ NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
 
 
 @dataclass(frozen=True)
-class ObservationSpec:
+class ObservationSettings:
     """Sizes and trained ranges of the decentralized observation.
 
     n_neighbours: neighbours per agent (paper: 2).
@@ -66,7 +66,7 @@ class ObservationSpec:
         if self.neighbour_goal not in NEIGHBOUR_GOAL_MODES:
             raise ValueError(f"observation.neighbour_goal must be one of {NEIGHBOUR_GOAL_MODES}, got '{self.neighbour_goal}'")
 
-    def base_mapping(self) -> "ObservationSpec":
+    def base_mapping(self) -> "ObservationSettings":
         """This spec with the deployment-only settings at the old mapping: what value-function
         training sees, and what the baselines (MPPI, MARL features) keep using (the fixes are
         about V̂'s trained box)."""
@@ -86,7 +86,7 @@ class ObservationSpec:
         return self.n_neighbours + 1
 
     @classmethod
-    def from_config(cls, cfg: dict) -> "ObservationSpec":
+    def from_config(cls, cfg: dict) -> "ObservationSettings":
         o = cfg["observation"]
         return cls(
             n_neighbours=int(o["n_neighbours"]),
@@ -136,7 +136,7 @@ def gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
 
 
 def build_observation(
-    state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSpec
+    state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSettings
 ) -> torch.Tensor:
     """Global state ``[S, N, 4]``, goals ``[S, N, 2]``, neighbour indices ``[S, N, n]`` (−1 =
     phantom) -> observations ``[S, N, 4 + 6n]``."""

@@ -3,7 +3,7 @@
 Defaults live in one place — ``config.yaml`` checked by ``workflow/schemas/config.schema.yaml``
 — so these classes have no defaults of their own: ``from_config`` reads every field from the
 validated config. Method settings live beside their method (``MadPinnSettings``,
-``MPPIParams``, …); backends and policies receive these objects, never the raw config dict.
+``MPPISettings``, …); backends and policies receive these objects, never the raw config dict.
 """
 
 from __future__ import annotations

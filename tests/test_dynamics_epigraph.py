@@ -6,9 +6,9 @@ import pytest
 import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
-from madpinn.observation import ObservationSpec, build_observation, constraint, running_cost, terminal_cost
+from madpinn.observation import ObservationSettings, build_observation, constraint, running_cost, terminal_cost
 
-SPEC = ObservationSpec()
+SPEC = ObservationSettings()
 
 
 def system():

@@ -12,7 +12,7 @@ from conftest import REPO, SMOKE
 from madpinn.commands.evaluate import evaluate
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec, build_observation, constraint
+from madpinn.observation import ObservationSettings, build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
 from madpinn.policies.neighbours import make_selector
@@ -22,7 +22,7 @@ from madpinn.simulation import make_backend, run_episode
 from madpinn.value_functions import CheckpointError
 from policy_models import tiny_model_dir, tiny_models
 
-SPEC = ObservationSpec()
+SPEC = ObservationSettings()
 
 
 def observations(B, seed=0, overlap=False):
@@ -315,7 +315,7 @@ def test_clear_errors(tmp_path):
         make_policy(method, ctx)
     cfg = tiny_cfg(tmp_path / "b")
     method, ctx = context(cfg, "madpinn")
-    ctx.obs_spec = ObservationSpec(goal_range=3.0)
+    ctx.obs_spec = ObservationSettings(goal_range=3.0)
     with pytest.raises(ValueError, match="goal_range"):
         make_policy(method, ctx)
     base = load_yaml(REPO / "config.yaml")

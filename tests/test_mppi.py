@@ -10,9 +10,9 @@ import torch
 
 from madpinn.config import ConfigError, load_config, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.policies.mppi import MPPIParams, segment_distance
+from madpinn.policies.mppi import MPPISettings, segment_distance
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
 REPO = Path(__file__).resolve().parents[1]
@@ -30,7 +30,7 @@ def make(cfg, seed=0, period=2, **overrides):
     _, mcfg = method_config(cfg, "mppi")
     mcfg = {**mcfg, **FAST, **overrides}
     ctx = PolicyContext(
-        method=policy_settings("mppi", mcfg), dynamics=DoubleIntegrator(), obs_spec=ObservationSpec.from_config(cfg),
+        method=policy_settings("mppi", mcfg), dynamics=DoubleIntegrator(), obs_spec=ObservationSettings.from_config(cfg),
         device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=SIM_DT, policy_period=period,
     )
     return make_policy("mppi", ctx)
@@ -158,4 +158,4 @@ def test_bad_parameters_fail_early(cfg):
     with pytest.raises(ConfigError):
         validate_config(bad)
     with pytest.raises(ValueError, match="samples"):
-        MPPIParams(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0)
+        MPPISettings(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0)

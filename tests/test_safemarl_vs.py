@@ -12,10 +12,10 @@ from madpinn.config import deep_merge, validate_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.dynamics.pair import PairSystem
 from madpinn.marl.checkpoint import save_checkpoint
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
-from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings
+from madpinn.marl.ppo import PPOSettings
 from madpinn.marl.trainer import PPOTrainer
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies.nominal import NominalPD
 from madpinn.policies.safemarl import CBVFFilter, SafetyFilteredPolicy
 from madpinn.scenarios import Arena
@@ -41,8 +41,8 @@ def models(tmp_path_factory):
                       checkpoint_every=10**6, network={"hidden": 64, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}, seed=0)
     net, _ = train(problem, s, d / "vs.ckpt.pt", "test", progress=False)
     save_atomic(model_payload(problem, net, 1.0, {}), d / "vs.pt")
-    env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), ObservationSpec(), EnvConfig(0.05, 1, 2), seed=0)
-    tr = PPOTrainer(env, PPOConfig(iterations=1, agents_per_batch=12, epochs=1, minibatch=64), RewardConfig(), (3,), hidden=8, seed=0)
+    env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), ObservationSettings(), EnvSettings(0.05, 1, 2), seed=0)
+    tr = PPOTrainer(env, PPOSettings(iterations=1, agents_per_batch=12, epochs=1, minibatch=64), RewardSettings(), (3,), hidden=8, seed=0)
     tr.train(progress=False)
     save_checkpoint(d / "safemarl_nominal.pt", tr)
     yield d

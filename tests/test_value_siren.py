@@ -6,7 +6,7 @@ import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.value_functions.model import PairValue, VHat, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem, assemble
 from madpinn.value_functions.train import TrainSettings, make_head, training_batch
@@ -15,7 +15,7 @@ NET = {"hidden": 48, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0}
 
 
 def problems():
-    spec = ObservationSpec()
+    spec = ObservationSettings()
     return [EpigraphProblem(EpigraphSystem(spec, z_max=21.45)), PairProblem(PairSystem())]
 
 

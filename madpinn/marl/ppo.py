@@ -12,7 +12,7 @@ from madpinn.marl.networks import GaussianActor
 
 
 @dataclass(frozen=True)
-class PPOConfig:
+class PPOSettings:
     """iterations: rollouts (one episode per env each); agents_per_batch: E·N per rollout (E is
     chosen per agent count); epochs / minibatch: passes and samples per gradient step; lr: Adam
     step; discount γ and gae_lambda λ per policy period; clip ε; entropy_coef, value_coef: loss
@@ -32,7 +32,7 @@ class PPOConfig:
     init_log_std: float = -0.5
 
     @classmethod
-    def from_config(cls, d: dict) -> "PPOConfig":
+    def from_config(cls, d: dict) -> "PPOSettings":
         """All fields required (the schema enforces them); ints stay ints."""
         return cls(**{f.name: type(f.default)(d[f.name]) for f in fields(cls)})
 
@@ -57,7 +57,7 @@ def ppo_update(
     critic: nn.Module,
     optimizer: torch.optim.Optimizer,
     batch: PPOBatch,
-    cfg: PPOConfig,
+    cfg: PPOSettings,
     generator: torch.Generator,
     value_weights: torch.Tensor | None = None,
 ) -> dict:

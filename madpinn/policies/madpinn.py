@@ -34,7 +34,7 @@ from pathlib import Path
 
 import torch
 
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
 from madpinn.policies.neighbours import STRATEGIES, make_selector
@@ -93,7 +93,7 @@ def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
     return r.z, r.feasible
 
 
-def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float) -> None:
+def check_compatible(vhat, vs, spec: ObservationSettings, u_max: float) -> None:
     """Fail early when the trained models do not match the deployment configuration."""
     m = vhat.obs_spec
     for name in ("n_neighbours", "goal_range", "offset_range", "collision_radius"):
@@ -114,7 +114,7 @@ class MadPinnPolicy:
     prediction) and the V̂ network rows of the z search and control (value only / with gradient).
     """
 
-    def __init__(self, vhat, selector, spec: ObservationSpec, settings: MadPinnSettings, sim_dt: float):
+    def __init__(self, vhat, selector, spec: ObservationSettings, settings: MadPinnSettings, sim_dt: float):
         self.vhat = vhat
         self.selector = selector
         self.spec = spec

@@ -19,7 +19,7 @@ import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.value_functions.sampling import (
     ConflictSampling, NearSampling, place_conflicts, place_near, place_pair_conflicts,
 )
@@ -126,7 +126,7 @@ class EpigraphProblem(PINNProblem):
 
     @classmethod
     def from_description(cls, d: dict) -> "EpigraphProblem":
-        return cls(EpigraphSystem(spec=ObservationSpec(**d["spec"]), u_max=d["u_max"], v_max=d["v_max"],
+        return cls(EpigraphSystem(spec=ObservationSettings(**d["spec"]), u_max=d["u_max"], v_max=d["v_max"],
                                   horizon=d["horizon"], z_max=d["z_max"], velocity_saturation=bool(d.get("velocity_saturation", False))))
 
 

@@ -19,7 +19,7 @@ if "mujoco" not in sys.modules and "MUJOCO_GL" not in os.environ and ctypes.util
 
 from madpinn.simulation.backend import register_backend
 from madpinn.simulation.mujoco.backend import MujocoBackend, PhysicsDivergedError
-from madpinn.simulation.mujoco.controller import CascadedController, ControllerGains
+from madpinn.simulation.mujoco.controller import CascadedController, ControllerSettings
 from madpinn.simulation.mujoco.model import CrazyflieSpec, compile_world, mixer_matrix, world_xml
 from madpinn.simulation.mujoco.settings import MujocoSettings
 
@@ -34,6 +34,6 @@ def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
 
 
 __all__ = [
-    "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerGains", "CrazyflieSpec",
+    "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerSettings", "CrazyflieSpec",
     "MujocoSettings", "compile_world", "mixer_matrix", "world_xml", "make_mujoco_backend",
 ]

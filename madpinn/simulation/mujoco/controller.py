@@ -30,7 +30,7 @@ from madpinn.simulation.mujoco.rotations import body_z_axis, euler_zyx
 
 
 @dataclass(frozen=True)
-class ControllerGains:
+class ControllerSettings:
     """Loop gains (all 1/s, i.e. per-loop bandwidths) and limits."""
 
     pos_xy: float = 6.0
@@ -56,7 +56,7 @@ class ControllerGains:
 class CascadedController:
     """Rotor thrusts for M drones from their state and setpoints (all numpy float64)."""
 
-    def __init__(self, gains: ControllerGains, spec: CrazyflieSpec = CrazyflieSpec()):
+    def __init__(self, gains: ControllerSettings, spec: CrazyflieSpec = CrazyflieSpec()):
         gains.validate()
         spec.validate()
         self.gains, self.spec = gains, spec

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, fields
 
-from madpinn.simulation.mujoco.controller import ControllerGains
+from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.forces import FORCE_MODES
 from madpinn.simulation.mujoco.model import MAX_DRONES_PER_WORLD, CrazyflieSpec
 
@@ -25,7 +25,7 @@ class MujocoSettings:
     thrust_to_weight: float = 2.25
     max_drones: int = 65536
     render_clips: bool = False
-    gains: ControllerGains = field(default_factory=ControllerGains)
+    gains: ControllerSettings = field(default_factory=ControllerSettings)
 
     @property
     def spec(self) -> CrazyflieSpec:
@@ -54,10 +54,10 @@ class MujocoSettings:
         if unknown:
             raise ValueError(f"unknown sim.mujoco keys {sorted(unknown)} (known: {sorted(known)})")
         gains = dict(section.pop("gains", None) or {})
-        gain_names = {f.name for f in fields(ControllerGains)}
+        gain_names = {f.name for f in fields(ControllerSettings)}
         if set(gains) - gain_names:
             raise ValueError(f"unknown sim.mujoco.gains keys {sorted(set(gains) - gain_names)} (known: {sorted(gain_names)})")
-        settings = cls(**section, gains=ControllerGains(**{k: float(v) for k, v in gains.items()}))
+        settings = cls(**section, gains=ControllerSettings(**{k: float(v) for k, v in gains.items()}))
         settings.validate()
         return settings
 
