@@ -20,13 +20,13 @@ from madpinn.device import resolve_device, resolve_dtype
 from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours, split_observation
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
-from madpinn.settings import AgentLimits
+from madpinn.settings import AgentSettings
 
 
 def build(cfg, device, dtype, seed=0):
     _, mcfg = method_config(cfg, "mppi")
     ctx = PolicyContext(
-        method=policy_settings("mppi", mcfg), dynamics=AgentLimits.from_config(cfg).dynamics(),
+        method=policy_settings("mppi", mcfg), dynamics=AgentSettings.from_config(cfg).dynamics(),
         obs_spec=ObservationSettings.from_config(cfg), device=device, dtype=dtype, seed=seed,
         sim_dt=cfg["sim"]["dt"], policy_period=int(mcfg.get("policy_period_steps", 1)),
     )

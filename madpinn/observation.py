@@ -32,6 +32,8 @@ EGO_DIM = 4
 NEIGHBOUR_DIM = 6
 PHANTOM = -1
 NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
+TRAINING_MAPPING = {"carrot_margin": 0.0, "neighbour_goal": "ego"}
+"""The deployment-only keys at the mapping value-function training sees (:meth:`ObservationSettings.base_mapping`)."""
 
 
 @dataclass(frozen=True)
@@ -48,17 +50,17 @@ class ObservationSettings:
     neighbour_goal: ``"neighbour"`` shortens a neighbour's goal offset relative to the neighbour
         (heading preserved), ``"ego"`` shortens ``g_j − p_ego`` into the box (the old mapping).
 
-    The dataclass defaults are the old mapping (what V̂ training and the MARL features use);
-    ``from_config`` reads ``observation.carrot_margin`` / ``observation.neighbour_goal``.
+    No defaults: ``from_config`` reads every field (``config.yaml``); :meth:`base_mapping` is the
+    old mapping (what V̂ training and the MARL features use).
     """
 
-    n_neighbours: int = 2
-    goal_range: float = 2.0
-    offset_range: float = 2.0
-    sensing_radius: float = 1.0
-    collision_radius: float = 0.1
-    carrot_margin: float = 0.0
-    neighbour_goal: str = "ego"
+    n_neighbours: int
+    goal_range: float
+    offset_range: float
+    sensing_radius: float
+    collision_radius: float
+    carrot_margin: float
+    neighbour_goal: str
 
     def __post_init__(self):
         if not (math.isfinite(self.carrot_margin) and 0.0 <= self.carrot_margin < self.goal_range):
@@ -70,7 +72,7 @@ class ObservationSettings:
         """This spec with the deployment-only settings at the old mapping: what value-function
         training sees, and what the baselines (MPPI, MARL features) keep using (the fixes are
         about V̂'s trained box)."""
-        return replace(self, carrot_margin=0.0, neighbour_goal="ego")
+        return replace(self, **TRAINING_MAPPING)
 
     @property
     def carrot_range(self) -> float:
@@ -94,8 +96,8 @@ class ObservationSettings:
             offset_range=float(o["offset_range"]),
             sensing_radius=float(o["sensing_radius"]),
             collision_radius=float(cfg["agents"]["collision_radius"]),
-            carrot_margin=float(o.get("carrot_margin", 0.0)),
-            neighbour_goal=str(o.get("neighbour_goal", "ego")),
+            carrot_margin=float(o["carrot_margin"]),
+            neighbour_goal=str(o["neighbour_goal"]),
         )
 
 

@@ -6,9 +6,10 @@ import pytest
 import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
-from madpinn.observation import ObservationSettings, build_observation, constraint, running_cost, terminal_cost
+from madpinn.observation import build_observation, constraint, running_cost, terminal_cost
+from settings_helpers import observation_settings
 
-SPEC = ObservationSettings()
+SPEC = observation_settings()
 
 
 def system():

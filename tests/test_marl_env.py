@@ -7,16 +7,16 @@ from madpinn.dynamics import DoubleIntegrator
 from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings, goal_reward
 from madpinn.marl.features import local_observation
 from madpinn.marl.networks import GaussianActor, ValueCritic
-from madpinn.observation import ObservationSettings
 from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend
+from settings_helpers import observation_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 DYN = DoubleIntegrator(4.0, 4.0)
-SPEC = ObservationSettings()
+SPEC = observation_settings()
 
 
 def _env(episode_s=3.0, substeps=5):

@@ -12,9 +12,9 @@ from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings
 from madpinn.marl.gae import gae
 from madpinn.marl.ppo import PPOSettings
 from madpinn.marl.trainer import PPOTrainer
-from madpinn.observation import ObservationSettings
 from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
+from settings_helpers import observation_settings, reward_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -25,7 +25,7 @@ TINY = PPOSettings(iterations=12, agents_per_batch=96, epochs=4, minibatch=256, 
 
 
 def _trainer(ppo=TINY, seed=0, counts=(3,)):
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), ObservationSettings(),
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), observation_settings(),
                           EnvSettings(0.05, 2, 3), seed=seed)
     return PPOTrainer(env, ppo, RewardSettings(1.0, 1.0, 0.01, 1.0), counts, hidden=16, seed=seed)
 
@@ -82,7 +82,7 @@ def test_checkpoint_round_trip_deploys_and_errors(tmp_path):
     with torch.no_grad():
         assert torch.equal(actor(norm(obs).flatten()), tr.actor(tr.obs_norm(obs).flatten()))
     # deployment at the simulator's period through the Policy protocol
-    policy = ActorPolicy(actor, norm, ObservationSettings(), meta["neighbours"], 4.0)
+    policy = ActorPolicy(actor, norm, observation_settings(), meta["neighbours"], 4.0)
     starts, goals = tr.env.state[..., :2].clone(), tr.env.goals.clone()
     res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(), 0.0025), policy, starts, goals, 10, 0.1, progress=False)
     assert res.cost.shape == (4, 3)
@@ -102,7 +102,7 @@ def test_non_finite_loss_fails_clearly():
         def reward(self, info):
             return super().reward(info) * float("nan")
 
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.2), ObservationSettings(), EnvSettings(0.05, 1, 2), seed=0)
-    tr = NaNReward(env, dataclasses.replace(TINY, iterations=1), RewardSettings(), (3,), hidden=8, seed=0)
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.2), observation_settings(), EnvSettings(0.05, 1, 2), seed=0)
+    tr = NaNReward(env, dataclasses.replace(TINY, iterations=1), reward_settings(), (3,), hidden=8, seed=0)
     with pytest.raises(FloatingPointError, match="non-finite"):
         tr.train(progress=False)

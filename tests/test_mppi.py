@@ -158,4 +158,5 @@ def test_bad_parameters_fail_early(cfg):
     with pytest.raises(ConfigError):
         validate_config(bad)
     with pytest.raises(ValueError, match="samples"):
-        MPPISettings(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0)
+        MPPISettings(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0,
+                      terminal_weight=1.0, dual_lr=0.0, penalty_max=1.0e4)

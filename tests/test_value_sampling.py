@@ -8,7 +8,7 @@ from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, validate_config
 from madpinn.observation import split_observation
 from madpinn.value_functions.build import problem_from_config
-from madpinn.value_functions.sampling import ConflictSampling
+from madpinn.value_functions.sampling import ConflictSamplingSettings
 
 
 def problem(fraction, radius=0.3):
@@ -51,9 +51,9 @@ def test_fraction_zero_is_the_uniform_batch_and_sampling_is_deterministic():
 
 def test_invalid_conflict_sampling_is_rejected():
     with pytest.raises(ValueError, match="fraction"):
-        ConflictSampling(fraction=1.5)
+        ConflictSamplingSettings(fraction=1.5, radius=0.3)
     with pytest.raises(ValueError, match="radius"):
-        ConflictSampling(fraction=0.5, radius=0.0)
+        ConflictSamplingSettings(fraction=0.5, radius=0.0)
     cfg = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vhat": {"conflict_sampling": {"fraction": 2.0}}}})
     with pytest.raises(ConfigError, match="conflict_sampling"):
         validate_config(cfg)
@@ -63,12 +63,12 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
     import math
 
     from madpinn.dynamics.pair import PairSystem
-    from madpinn.value_functions.sampling import ConflictSampling, place_pair_conflicts
+    from madpinn.value_functions.sampling import ConflictSamplingSettings, place_pair_conflicts
 
     system = PairSystem()
     x = system.sample(4000, torch.Generator().manual_seed(101))
-    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSampling(0.0, 0.3), torch.Generator()), x)
-    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSampling(1.0, 0.3), torch.Generator().manual_seed(7))
+    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSamplingSettings(0.0, 0.3), torch.Generator()), x)
+    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSamplingSettings(1.0, 0.3), torch.Generator().manual_seed(7))
     assert torch.equal(out[:, 2:], x[:, 2:]) and out[:, :2].abs().max() <= system.p_range
     unclipped = out[:, :2].abs().amax(-1) < system.p_range
     # constant-velocity closest approach within [0, T] of the unclipped rows is inside the 0.3-m disk
@@ -79,7 +79,7 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
 
 
 def test_near_rows_fill_the_inner_box_and_leave_the_rest():
-    from madpinn.value_functions.sampling import NearSampling, place_near
+    from madpinn.value_functions.sampling import NearSamplingSettings, place_near
 
     cfg = load_config([REPO / "config.yaml"])
     cfg["value_functions"]["vs"]["conflict_sampling"] = {"fraction": 0.25, "radius": 0.3}
@@ -94,11 +94,11 @@ def test_near_rows_fill_the_inner_box_and_leave_the_rest():
     # the other rows are the uniform + conflict batch of the same generator stream (v beyond the box)
     assert float(rest[:, 2:].abs().max()) > 7.0
     x = p.system.sample(64, torch.Generator().manual_seed(1))
-    assert torch.equal(place_near(x, 2.0, 8.0, NearSampling(0.0), torch.Generator()), x)
+    assert torch.equal(place_near(x, 2.0, 8.0, NearSamplingSettings(0.0, 1.0, 3.0), torch.Generator()), x)
     a = p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32)
     assert torch.equal(a, p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32))
     with pytest.raises(ValueError, match="fraction"):
-        NearSampling(fraction=-0.1)
+        NearSamplingSettings(fraction=-0.1, p_range=1.0, v_range=3.0)
     bad = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vs": {"near_sampling": {"p_range": 0}}}})
     with pytest.raises(ConfigError, match="near_sampling"):
         validate_config(bad)

@@ -17,7 +17,8 @@ NET = {"hidden": 32, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 
 def settings(**kw):
     base = dict(iterations=24, batch_size=128, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.5,
-                checkpoint_every=5, output_scale=1.0, network=NET, seed=3)
+                checkpoint_every=5, output_scale=1.0, network=NET, seed=3, loss="l1", init_from=None,
+                obstacle_weight=0.0)
     base.update(kw)
     return TrainSettings(**base)
 

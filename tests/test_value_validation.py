@@ -10,11 +10,11 @@ from madpinn.commands import main
 from madpinn.config import ConfigError, REPO_ROOT, load_config, validate_config
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSettings
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.model import VHat, PairValue, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem
 from madpinn.value_functions.validation import HEATMAP, heatmap_observations, vs_rollouts
+from settings_helpers import observation_settings
 
 NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smoke.yaml")]
@@ -22,7 +22,7 @@ CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smo
 
 def test_min_feasible_z_is_the_smallest_feasible_budget():
     torch.manual_seed(0)
-    spec = ObservationSettings()
+    spec = observation_settings()
     problem = EpigraphProblem(EpigraphSystem(spec, z_max=21.45))
     vhat = VHat(problem, build_network(problem, NET), 1.0)
     obs, _ = problem.system.sample(200, torch.Generator().manual_seed(1))
@@ -47,7 +47,7 @@ def test_rollouts_of_an_untrained_network_report_consistent_rates():
 
 
 def test_heatmap_observation_is_the_papers_configuration():
-    spec = ObservationSettings()
+    spec = observation_settings()
     axis, obs = heatmap_observations(spec, 1.0, points=5)
     p = torch.stack(torch.meshgrid(axis, axis, indexing="ij")[::-1], -1).reshape(-1, 2)
     assert torch.allclose(obs[:, 0:2], torch.tensor(HEATMAP["ego_velocity"]).expand(25, 2))

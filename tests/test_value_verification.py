@@ -25,7 +25,7 @@ def test_epsilon_bound_is_the_binomial_tail():
     with pytest.raises(ValueError):
         epsilon_bound(11, 10, 0.1)
     with pytest.raises(ValueError, match="validation seeds"):
-        ScenarioSettings(seed=3)
+        ScenarioSettings(samples=10000, dt=0.005, substeps=4, seed=3, betas=(1e-3,), conflict_radius=0.3)
 
 
 def test_rollout_detects_a_certain_collision_and_a_clear_state():
@@ -44,7 +44,7 @@ def test_rollout_detects_a_certain_collision_and_a_clear_state():
 
 def test_verify_reports_consistent_counts_and_cli(tmp_path):
     vhat, _ = tiny_models()
-    s = ScenarioSettings(samples=50, dt=0.02, substeps=2, betas=(1e-3,))
+    s = ScenarioSettings(samples=50, dt=0.02, substeps=2, seed=100, betas=(1e-3,), conflict_radius=0.3)
     rep = verify(vhat, s, conflict=True)
     assert rep["samples"] == 50 and 0.0 < rep["acceptance_rate"] <= 1.0
     for key in ("safety", "budget"):

@@ -28,7 +28,7 @@ def _render_clip(args) -> int:
     with job(cfg, record, ok and not args.no_track) as run:
         status = {"traj": str(traj), "rendered": ok, "detail": detail}
         if ok:
-            render_clip(traj, clip, altitude=MujocoSettings.from_config(cfg["sim"].get("mujoco")).altitude)
+            render_clip(traj, clip, altitude=MujocoSettings.from_config(cfg["sim"]["mujoco"]).altitude)
             status["clip"] = str(clip)
         write_json(out, status)
         record.artifacts = [clip, out] if ok else [out]

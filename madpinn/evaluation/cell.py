@@ -22,7 +22,7 @@ from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import UNIFORM, Arena, generate_scenarios
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
 
@@ -44,7 +44,7 @@ class CellSettings:
     """the study's scenarios: ``uniform`` (SPEC §2) or a structured conflict (:mod:`madpinn.conflicts`)"""
     scenarios: int
     """scenarios per (N, seed) cell"""
-    limits: AgentLimits
+    limits: AgentSettings
     """agents' size and control limits"""
     sim: SimSettings
     """simulation settings"""
@@ -68,7 +68,7 @@ class CellSettings:
         sim = SimSettings.from_config(cfg, study)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentSettings.from_config(cfg),
             sim=sim, observation=ObservationSettings.from_config(cfg),
             policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),

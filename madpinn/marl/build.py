@@ -9,7 +9,7 @@ from madpinn.marl.ppo import PPOSettings
 from madpinn.marl.trainer import PPOTrainer
 from madpinn.observation import ObservationSettings
 from madpinn.scenarios import Arena
-from madpinn.settings import AgentLimits
+from madpinn.settings import AgentSettings
 
 CURVES = ("episode_return", "final_distance", "reached_rate", "collision_rate", "loss_policy", "loss_value",
           "entropy", "approx_kl", "clip_frac")
@@ -21,7 +21,7 @@ def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dt
     device = device or resolve_device(cfg["device"])
     dtype = dtype or resolve_dtype(cfg["dtype"])
     env = GoalReachingEnv(
-        AgentLimits.from_config(cfg).dynamics(), Arena.from_config(cfg, tcfg["arena"]), ObservationSettings.from_config(cfg),
+        AgentSettings.from_config(cfg).dynamics(), Arena.from_config(cfg, tcfg["arena"]), ObservationSettings.from_config(cfg),
         EnvSettings.from_config(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
     )
     return trainer_cls(

@@ -32,9 +32,9 @@ class EnvSettings:
     """train_dt: policy period in training (s); substeps: collision checks per period;
     neighbours: K neighbour slots in the local observation."""
 
-    train_dt: float = 0.05
-    substeps: int = 5
-    neighbours: int = 4
+    train_dt: float
+    substeps: int
+    neighbours: int
 
     @classmethod
     def from_config(cls, d: dict) -> "EnvSettings":
@@ -46,10 +46,10 @@ class RewardSettings:
     """Per-agent reward per period: ``progress·(d_prev − d) − distance·d·dt − control·‖u/u_max‖²·dt
     − collision·[collided during the period]`` (d: distance to goal, m; dt: train_dt, s)."""
 
-    progress: float = 1.0
-    distance: float = 1.0
-    control: float = 0.01
-    collision: float = 3.0
+    progress: float
+    distance: float
+    control: float
+    collision: float
 
     @classmethod
     def from_config(cls, d: dict) -> "RewardSettings":

@@ -54,9 +54,9 @@ class MPPISettings:
     temperature: float
     penalty_weight: float
     margin: float
-    terminal_weight: float = 1.0
-    dual_lr: float = 0.0
-    penalty_max: float = 1.0e4
+    terminal_weight: float
+    dual_lr: float
+    penalty_max: float
 
     def __post_init__(self):
         if self.samples < 1 or self.horizon < 1:

@@ -26,12 +26,12 @@ from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, split_observation
 
 
 @dataclass(frozen=True)
-class ConflictSampling:
+class ConflictSamplingSettings:
     """fraction: share of each batch on a near-collision course; radius: ρ (m) of the disk the
     pair's constant-velocity relative position reaches within the horizon."""
 
-    fraction: float = 0.0
-    radius: float = 0.3
+    fraction: float
+    radius: float
 
     def __post_init__(self):
         if not 0.0 <= self.fraction <= 1.0:
@@ -40,13 +40,13 @@ class ConflictSampling:
             raise ValueError(f"conflict sampling radius must be > 0 m, got {self.radius}")
 
     @classmethod
-    def from_config(cls, vcfg: dict) -> "ConflictSampling":
-        c = vcfg.get("conflict_sampling") or {}
-        return cls(fraction=float(c.get("fraction", 0.0)), radius=float(c.get("radius", 0.3)))
+    def from_config(cls, vcfg: dict) -> "ConflictSamplingSettings":
+        c = vcfg["conflict_sampling"]
+        return cls(fraction=float(c["fraction"]), radius=float(c["radius"]))
 
 
 def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset_range: float,
-                    sampling: ConflictSampling, generator: torch.Generator) -> torch.Tensor:
+                    sampling: ConflictSamplingSettings, generator: torch.Generator) -> torch.Tensor:
     """Return ``obs [B, D]`` with the first ``round(fraction·B)`` rows moved onto a
     near-collision course of one pair (uniform over the ``(n+1)n/2`` pairs; the moved agent is
     always a neighbour, so the ego stays at the origin). Pure function of the generator state."""
@@ -74,7 +74,7 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     return out
 
 
-def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampling: ConflictSampling,
+def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampling: ConflictSamplingSettings,
                          generator: torch.Generator) -> torch.Tensor:
     """Return the relative pair states ``x [B, 4] = [p, v]`` with the first ``round(fraction·B)``
     rows moved onto a near-collision course: ``p = −v·τ + d``, ``τ ~ U[0, T]``, ``d`` uniform in
@@ -94,15 +94,15 @@ def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampli
 
 
 @dataclass(frozen=True)
-class NearSampling:
+class NearSamplingSettings:
     """fraction: share of each V_s training batch drawn uniformly from the inner box
     ``|p| ≤ p_range``, ``|v| ≤ v_range`` per axis (m, m/s), where nearby, slow pairs sit — a small
     corner of the uniform training box (|p| ≤ 2, |v| ≤ 8: the inner box 1 × 3 holds 3.5 % of it)
     that carries the collision disk, the kink of ψ and most of the grid reference's unsafe states."""
 
-    fraction: float = 0.0
-    p_range: float = 1.0
-    v_range: float = 3.0
+    fraction: float
+    p_range: float
+    v_range: float
 
     def __post_init__(self):
         if not 0.0 <= self.fraction <= 1.0:
@@ -111,13 +111,12 @@ class NearSampling:
             raise ValueError(f"near sampling box must be positive, got p {self.p_range} m, v {self.v_range} m/s")
 
     @classmethod
-    def from_config(cls, vcfg: dict) -> "NearSampling":
-        c = vcfg.get("near_sampling") or {}
-        return cls(fraction=float(c.get("fraction", 0.0)), p_range=float(c.get("p_range", 1.0)),
-                   v_range=float(c.get("v_range", 3.0)))
+    def from_config(cls, vcfg: dict) -> "NearSamplingSettings":
+        c = vcfg["near_sampling"]
+        return cls(fraction=float(c["fraction"]), p_range=float(c["p_range"]), v_range=float(c["v_range"]))
 
 
-def place_near(x: torch.Tensor, p_range: float, v_range: float, sampling: NearSampling,
+def place_near(x: torch.Tensor, p_range: float, v_range: float, sampling: NearSamplingSettings,
                generator: torch.Generator) -> torch.Tensor:
     """Return the relative pair states ``x [B, 4]`` with the last ``round(fraction·B)`` rows redrawn
     uniformly from the inner box (clipped to the training box ``p_range``, ``v_range``); the first

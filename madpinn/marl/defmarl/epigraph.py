@@ -29,12 +29,12 @@ class EpigraphSettings:
     separation margin (m) beyond which h saturates at −1; h_margin: the jump ±m of h at the
     collision boundary (0 ≤ m < 1); cost_lr: Adam step of the cost critic."""
 
-    z_min: float = -2.0
-    z_max: float = 3.0
-    end_mass: float = 0.2
-    h_clip: float = 0.2
-    cost_lr: float = 1e-3
-    h_margin: float = 0.5
+    z_min: float
+    z_max: float
+    end_mass: float
+    h_clip: float
+    cost_lr: float
+    h_margin: float
 
     def __post_init__(self):
         if not self.z_min < self.z_max:

@@ -27,9 +27,10 @@ from madpinn.simulation.mujoco.settings import MujocoSettings
 @register_backend("mujoco")
 def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
     """The MuJoCo backend for :class:`~madpinn.settings.SimSettings` ``sim`` (its ``mujoco``
-    section; absent: the defaults) and :class:`~madpinn.settings.AgentLimits` ``limits``."""
-    settings = sim.mujoco if sim.mujoco is not None else MujocoSettings.from_config(None)
-    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=settings, device=device, dtype=dtype,
+    section) and :class:`~madpinn.settings.AgentSettings` ``limits``."""
+    if sim.mujoco is None:
+        raise ValueError("the mujoco backend needs sim.mujoco settings")
+    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=sim.mujoco, device=device, dtype=dtype,
                          contacts=sim.contacts)
 
 
