@@ -61,8 +61,8 @@ def models(vhat_path: str | None, vs_path: str | None, tmp: Path):
     from madpinn.value_functions.problems import EpigraphProblem, PairProblem
 
     torch.manual_seed(0)
-    sysv = EpigraphSystem(SPEC, z_max=EpigraphSystem.default_z_max(SPEC, 4.0, 4.0, 0.2))
-    for name, problem in (("vhat", EpigraphProblem(sysv)), ("vs", PairProblem(PairSystem()))):
+    sysv = EpigraphSystem.from_config(PAPER)
+    for name, problem in (("vhat", EpigraphProblem(sysv)), ("vs", PairProblem(PairSystem.from_config(PAPER)))):
         save_atomic(model_payload(problem, build_network(problem, NET), 1.0, {}), tmp / f"{name}.pt")
     return load_vhat(tmp / "vhat.pt"), load_vs(tmp / "vs.pt"), "untrained (paper architecture)"
 

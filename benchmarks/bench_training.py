@@ -53,7 +53,7 @@ def peak_rss_mb() -> float:
 def setup(batch, device, dtype):
     paper = load_config([REPO_ROOT / "config.yaml"])
     spec = ObservationSettings.from_config(paper).base_mapping()
-    system = EpigraphSystem(spec, z_max=EpigraphSystem.default_z_max(spec, 4.0, 4.0, 0.2))
+    system = EpigraphSystem.from_config(paper)
     problem = EpigraphProblem(system)
     settings = TrainSettings(iterations=1000, batch_size=batch, lr=2e-5, lr_final=2e-5, curriculum_fraction=0.5,
                              checkpoint_every=10**9, loss="l1", output_scale=1.0,

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 from madpinn.config import deep_merge, load_config
+from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.dynamics.pair import PairSystem
 from madpinn.marl.defmarl.epigraph import EpigraphSettings
 from madpinn.marl.env import EnvSettings, RewardSettings
 from madpinn.marl.ppo import PPOSettings
@@ -49,3 +51,13 @@ def reward_settings(**changes) -> RewardSettings:
 
 def epigraph_settings(**changes) -> EpigraphSettings:
     return replace(EpigraphSettings.from_config(PAPER["methods"]["defmarl"]["epigraph"]), **changes)
+
+
+def epigraph_system(**changes) -> EpigraphSystem:
+    """V̂'s system of the paper config (observation at the training mapping, z_max ``auto``)."""
+    return replace(EpigraphSystem.from_config(PAPER), **changes)
+
+
+def pair_system(**changes) -> PairSystem:
+    """V_s's relative pair system of the paper config."""
+    return replace(PairSystem.from_config(PAPER), **changes)

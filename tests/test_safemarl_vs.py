@@ -22,7 +22,7 @@ from madpinn.value_functions import load_vs
 from madpinn.value_functions.model import model_payload, save_atomic
 from madpinn.value_functions.problems import PairProblem
 from madpinn.value_functions.train import TrainSettings, train
-from settings_helpers import observation_settings, ppo_settings, reward_settings
+from settings_helpers import observation_settings, pair_system, ppo_settings, reward_settings
 
 DYN = DoubleIntegrator(4.0, 4.0)
 R = 0.1
@@ -35,7 +35,7 @@ def models(tmp_path_factory):
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("results") / "models"
     d.mkdir()
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     s = TrainSettings(iterations=300, batch_size=512, lr=1e-3, lr_final=1e-4, curriculum_fraction=0.5,
                       checkpoint_every=10**6, network={"hidden": 64, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}, seed=0,
                       loss="l1", output_scale=1.0, init_from=None, obstacle_weight=0.0)

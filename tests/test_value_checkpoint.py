@@ -8,7 +8,7 @@ from madpinn.dynamics.pair import PairSystem
 from madpinn.value_functions import CheckpointError, load_vhat, load_vs
 from madpinn.value_functions.model import build_network, model_payload, save_atomic
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem
-from settings_helpers import observation_settings
+from settings_helpers import epigraph_system, observation_settings, pair_system
 
 NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 
@@ -17,8 +17,8 @@ NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 def files(tmp_path):
     torch.manual_seed(0)
     spec = observation_settings()
-    pv = EpigraphProblem(EpigraphSystem(spec, horizon=0.2, z_max=21.45))
-    ps = PairProblem(PairSystem())
+    pv = EpigraphProblem(epigraph_system(spec=spec, z_max=21.45))
+    ps = PairProblem(pair_system())
     vh = save_atomic(model_payload(pv, build_network(pv, NET), 1.5, {"iterations": 7}), tmp_path / "vhat.pt")
     vs = save_atomic(model_payload(ps, build_network(ps, NET), 1.0, {"iterations": 9}), tmp_path / "vs.pt")
     return vh, vs
@@ -115,7 +115,7 @@ def test_resume_from_a_file_that_is_not_a_resume_checkpoint_refuses_and_keeps_it
     vh_path, vs_path = files
     bad = tmp_path / "mine.pt"
     bad.write_bytes(b"not a checkpoint at all")
-    problem = EpigraphProblem(EpigraphSystem(observation_settings(), horizon=0.2, z_max=21.45))
+    problem = EpigraphProblem(epigraph_system(z_max=21.45))
     s = TrainSettings(iterations=2, batch_size=16, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.0, checkpoint_every=1,
                       output_scale=1.5, network=NET, seed=0, loss="l1", init_from=None, obstacle_weight=0.0)
     for path, words in ((bad, "not a torch checkpoint"), (vs_path, "'vs' value function"), (vh_path, "finished vhat model")):

@@ -12,13 +12,14 @@ from madpinn.value_functions.grid_reference import (
     GridSettings, compare_values, convergence, load_solution, solve_pair_grid,
 )
 from policy_models import tiny_model_dir
+from settings_helpers import pair_system
 
 CONFIGS = [str(REPO / "config.yaml"), str(SMOKE)]
 
 
 @pytest.fixture(scope="module")
 def grids():
-    system = PairSystem()
+    system = pair_system()
     fine = solve_pair_grid(system, 9, 1.0, 6.0, (0.0, 0.5), accuracy="low")
     coarse = solve_pair_grid(system, 5, 1.0, 6.0, (0.0, 0.5), accuracy="low")
     return system, fine, coarse

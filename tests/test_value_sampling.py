@@ -9,6 +9,7 @@ from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, vali
 from madpinn.observation import split_observation
 from madpinn.value_functions.build import problem_from_config
 from madpinn.value_functions.sampling import ConflictSamplingSettings
+from settings_helpers import pair_system
 
 
 def problem(fraction, radius=0.3):
@@ -65,7 +66,7 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
     from madpinn.dynamics.pair import PairSystem
     from madpinn.value_functions.sampling import ConflictSamplingSettings, place_pair_conflicts
 
-    system = PairSystem()
+    system = pair_system()
     x = system.sample(4000, torch.Generator().manual_seed(101))
     assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSamplingSettings(0.0, 0.3), torch.Generator()), x)
     out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSamplingSettings(1.0, 0.3), torch.Generator().manual_seed(7))

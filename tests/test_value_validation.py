@@ -14,7 +14,7 @@ from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.model import VHat, PairValue, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem
 from madpinn.value_functions.validation import HEATMAP, heatmap_observations, vs_rollouts
-from settings_helpers import observation_settings
+from settings_helpers import epigraph_system, observation_settings, pair_system
 
 NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smoke.yaml")]
@@ -23,7 +23,7 @@ CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smo
 def test_min_feasible_z_is_the_smallest_feasible_budget():
     torch.manual_seed(0)
     spec = observation_settings()
-    problem = EpigraphProblem(EpigraphSystem(spec, z_max=21.45))
+    problem = EpigraphProblem(epigraph_system(spec=spec, z_max=21.45))
     vhat = VHat(problem, build_network(problem, NET), 1.0)
     obs, _ = problem.system.sample(200, torch.Generator().manual_seed(1))
     z, ok = min_feasible_z(vhat, obs, 0.0)
@@ -37,7 +37,7 @@ def test_min_feasible_z_is_the_smallest_feasible_budget():
 
 def test_rollouts_of_an_untrained_network_report_consistent_rates():
     torch.manual_seed(0)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     vs = PairValue(problem, build_network(problem, NET), 1.0)
     r = vs_rollouts(vs, 500, 0.05, seed=0)
     assert r["samples"] == 500

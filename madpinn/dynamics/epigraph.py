@@ -59,11 +59,11 @@ class EpigraphSystem(BoxControlSystem):
     """
 
     spec: ObservationSettings
-    u_max: float = 4.0
-    v_max: float = 4.0
-    horizon: float = 0.2
-    z_max: float = 20.0
-    velocity_saturation: bool = False
+    u_max: float
+    v_max: float
+    horizon: float
+    z_max: float
+    velocity_saturation: bool
 
     control_mode = "min"   # the agents minimise the epigraph value (cost)
     control_ndim = 2       # one control per observed agent: [..., n+1, 2]
