@@ -266,7 +266,7 @@ def models_of(cfg):
 
 def context(cfg, run, seed=0):
     method, mcfg = method_config(cfg, run)
-    return method, PolicyContext(method=policy_settings(method, mcfg), dynamics=DoubleIntegrator(), obs_spec=SPEC,
+    return method, PolicyContext(method=policy_settings(method, mcfg), dynamics=DoubleIntegrator(u_max=4.0, v_max=4.0), obs_spec=SPEC,
                                  device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=0.0025,
                                  policy_period=1, models=models_of(cfg))
 

@@ -84,7 +84,7 @@ def test_checkpoint_round_trip_deploys_and_errors(tmp_path):
     # deployment at the simulator's period through the Policy protocol
     policy = ActorPolicy(actor, norm, observation_settings(), meta["neighbours"], 4.0)
     starts, goals = tr.env.state[..., :2].clone(), tr.env.goals.clone()
-    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(), 0.0025), policy, starts, goals, 10, 0.1, progress=False)
+    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), 0.0025), policy, starts, goals, 10, 0.1, progress=False)
     assert res.cost.shape == (4, 3)
     with pytest.raises(CheckpointError, match="not found"):
         load_actor(tmp_path / "missing.pt")

@@ -65,14 +65,14 @@ def test_bad_settings_fail_early():
 def _simulate(policy, arena, n, count, seed=0):
     starts, goals = generate_scenarios(arena, n, seed, count, 0.1, dtype=torch.float64)
     steps = int(round(arena.episode_s / SIM_DT))
-    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(), SIM_DT), policy, starts, goals, steps, 0.1, progress=False)
+    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), SIM_DT), policy, starts, goals, steps, 0.1, progress=False)
     return (starts - goals).numpy(), res.cost
 
 
 @pytest.mark.parametrize("name", ["nominal", "bang_bang"])
 def test_bound_below_simulated_controllers_per_agent(name):
     arena = Arena("small", 1.0, 1.0)
-    policy = NominalPD(DoubleIntegrator(), 6.0, 4.9) if name == "nominal" else BangBang()
+    policy = NominalPD(DoubleIntegrator(u_max=4.0, v_max=4.0), 6.0, 4.9) if name == "nominal" else BangBang()
     offsets, cost = _simulate(policy, arena, n=4, count=3)
     lb = lower_bound(offsets.reshape(-1, 2), OracleSettings(horizon_s=arena.episode_s, u_max=4.0, v_max=4.0, dt=0.025)).reshape(cost.shape)
     assert (lb <= cost + 1e-4).all()          # simulator: trapezoid over 2.5 ms steps

@@ -215,6 +215,13 @@ def test_every_settings_class_is_registered_and_named_settings():
     assert not other, f"one suffix for settings classes (*Settings): {other}"
 
 
+def test_objects_built_from_settings_have_no_defaults_either():
+    """The double integrator is built from ``agents`` in one place (``AgentSettings.dynamics``)."""
+    from madpinn.dynamics import DoubleIntegrator
+
+    assert all(f.default is dataclasses.MISSING for f in dataclasses.fields(DoubleIntegrator))
+
+
 @pytest.mark.parametrize("entry", SETTINGS, ids=lambda e: f"{e.cls.__name__}:{e.section}")
 def test_config_fields_have_no_default_of_their_own(entry):
     with_default = [f.name for f in dataclasses.fields(entry.cls) if f.name not in entry.not_config
