@@ -216,10 +216,16 @@ def test_every_settings_class_is_registered_and_named_settings():
 
 
 def test_objects_built_from_settings_have_no_defaults_either():
-    """The double integrator is built from ``agents`` in one place (``AgentSettings.dynamics``)."""
+    """The double integrator is built from ``agents`` in one place (``AgentSettings.dynamics``); the
+    Crazyflie's thrust-to-weight ratio comes from ``sim.mujoco`` (``MujocoSettings.spec``), its
+    other fields are the airframe's constants, no config keys."""
     from madpinn.dynamics import DoubleIntegrator
+    from madpinn.simulation.mujoco.model import CrazyflieSpec
 
     assert all(f.default is dataclasses.MISSING for f in dataclasses.fields(DoubleIntegrator))
+    spec = {f.name: f for f in dataclasses.fields(CrazyflieSpec)}
+    assert spec["thrust_to_weight"].default is dataclasses.MISSING
+    assert not (set(spec) - {"thrust_to_weight"}) & set(_node("sim.mujoco")["properties"])
 
 
 @pytest.mark.parametrize("entry", SETTINGS, ids=lambda e: f"{e.cls.__name__}:{e.section}")

@@ -56,7 +56,7 @@ class ControllerSettings:
 class CascadedController:
     """Rotor thrusts for M drones from their state and setpoints (all numpy float64)."""
 
-    def __init__(self, gains: ControllerSettings, spec: CrazyflieSpec = CrazyflieSpec()):
+    def __init__(self, gains: ControllerSettings, spec: CrazyflieSpec):
         gains.validate()
         spec.validate()
         self.gains, self.spec = gains, spec
