@@ -18,7 +18,7 @@ import torch
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.marl.defmarl.deploy import DefMarlPolicy
 from madpinn.marl.defmarl.build import build_defmarl_trainer
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from timing import best_of  # benchmarks/timing.py
 
 
@@ -44,7 +44,7 @@ def main() -> None:
 
     S, N = 100, 16
     gen = torch.Generator().manual_seed(0)
-    spec = ObservationSpec.from_config(cfg)
+    spec = ObservationSettings.from_config(cfg)
     epi = m["epigraph"]
     policy = DefMarlPolicy(trainer.actor.eval(), trainer.critic.eval(), trainer.obs_norm, spec, trainer.env.cfg.neighbours,
                            4.0, epi["z_min"], epi["z_max"], m["root_iterations"], m["safe_level"], m["root_period_steps"])

@@ -19,7 +19,7 @@ from madpinn.config import REPO_ROOT, load_config
 from madpinn.marl.deploy import ActorPolicy
 from madpinn.marl.build import build_trainer
 from madpinn.marl.ppo import PPOBatch, ppo_update
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies.cbvf_qp import solve_box_qp
 from madpinn.policies.safemarl import CBVFFilter
 from timing import best_of  # benchmarks/timing.py
@@ -62,7 +62,7 @@ def main() -> None:
     t_qp = best_of(lambda: solve_box_qp(u_nom, a, b, 4.0), args.repeats * 5)
     print(f"qp: problems={B} rows={k} us_per_problem={1e6 * t_qp / B:.3f}")
 
-    spec = ObservationSpec.from_config(cfg)
+    spec = ObservationSettings.from_config(cfg)
     policy = ActorPolicy(trainer.actor.eval(), trainer.obs_norm, spec, trainer.env.cfg.neighbours, 4.0)
     state = torch.cat([torch.rand(S, N, 2, generator=gen) * 2 - 1, torch.rand(S, N, 2, generator=gen) * 4 - 2], -1)
     goals = torch.rand(S, N, 2, generator=gen) * 2 - 1

@@ -17,17 +17,17 @@ import torch
 
 from madpinn.config import load_config, method_config
 from madpinn.device import resolve_device, resolve_dtype
-from madpinn.observation import ObservationSpec, build_observation, nearest_neighbours, split_observation
+from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours, split_observation
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
-from madpinn.settings import AgentLimits
+from madpinn.settings import AgentSettings
 
 
 def build(cfg, device, dtype, seed=0):
     _, mcfg = method_config(cfg, "mppi")
     ctx = PolicyContext(
-        method=policy_settings("mppi", mcfg), dynamics=AgentLimits.from_config(cfg).dynamics(),
-        obs_spec=ObservationSpec.from_config(cfg), device=device, dtype=dtype, seed=seed,
+        method=policy_settings("mppi", mcfg), dynamics=AgentSettings.from_config(cfg).dynamics(),
+        obs_spec=ObservationSettings.from_config(cfg), device=device, dtype=dtype, seed=seed,
         sim_dt=cfg["sim"]["dt"], policy_period=int(mcfg.get("policy_period_steps", 1)),
     )
     return make_policy("mppi", ctx), mcfg
@@ -78,7 +78,7 @@ def main(argv=None) -> int:
 
     # Per-agent loop: the same planner with a batch of one per agent (its own plan and warm
     # start); each agent builds its own observation from its scenario, then plans.
-    spec = ObservationSpec.from_config(cfg)
+    spec = ObservationSettings.from_config(cfg)
     n = spec.n_neighbours
     m = min(args.loop_agents, total)
     rows = [(i // args.agents, i % args.agents) for i in range(m)]

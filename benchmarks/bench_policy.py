@@ -28,6 +28,8 @@ timed (the cost does not depend on the weights, only the warm-start hit rate doe
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import argparse
 import math
 import tempfile
@@ -36,7 +38,8 @@ from pathlib import Path
 
 import torch
 
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.config import REPO_ROOT, load_config
+from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
 from madpinn.policies.neighbours import in_domain, make_selector, pair_scores_brute_force, select_lowest
 from madpinn.scenarios import Arena, generate_scenarios
@@ -44,7 +47,9 @@ from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
 from timing import best_of  # benchmarks/timing.py
 
-SPEC = ObservationSpec()
+PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
+SPEC = ObservationSettings.from_config(PAPER).base_mapping()
+BASE_SETTINGS = MadPinnSettings.from_config(PAPER["methods"]["madpinn"])
 NET = {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0}
 
 
@@ -57,8 +62,8 @@ def models(vhat_path: str | None, vs_path: str | None, tmp: Path):
     from madpinn.value_functions.problems import EpigraphProblem, PairProblem
 
     torch.manual_seed(0)
-    sysv = EpigraphSystem(SPEC, z_max=EpigraphSystem.default_z_max(SPEC, 4.0, 4.0, 0.2))
-    for name, problem in (("vhat", EpigraphProblem(sysv)), ("vs", PairProblem(PairSystem()))):
+    sysv = EpigraphSystem.from_config(PAPER)
+    for name, problem in (("vhat", EpigraphProblem(sysv)), ("vs", PairProblem(PairSystem.from_config(PAPER)))):
         save_atomic(model_payload(problem, build_network(problem, NET), 1.0, {}), tmp / f"{name}.pt")
     return load_vhat(tmp / "vhat.pt"), load_vs(tmp / "vs.pt"), "untrained (paper architecture)"
 
@@ -73,7 +78,7 @@ def layout(N: int, seed: int = 0):
 
 def batched_step_time(vhat, vs, state, goals, pruned: bool, warm: bool, repeats: int) -> float:
     """Seconds for one control step that includes a neighbour update (after a warm-up step)."""
-    settings = MadPinnSettings(strategy="value", update_every=1, warm_start=warm)
+    settings = replace(BASE_SETTINGS, strategy="value", update_every=1, warm_start=warm)
     sel = make_selector("value", 2, vs=vs) if pruned else (lambda s: select_lowest(pair_scores_brute_force(s, vs), 2))
     pol = MadPinnPolicy(vhat, sel, SPEC, settings, sim_dt=0.0025)
     pol.reset(state, goals)
@@ -85,7 +90,7 @@ def batched_step_time(vhat, vs, state, goals, pruned: bool, warm: bool, repeats:
 def rollout_step_time(vhat, vs, state, goals, look_ahead: float, repeats: int, steps: int = 20) -> float:
     """Seconds per control step over a ``steps``-step double-integrator rollout (dt 2.5 ms, after
     three warm-up steps), best of ``repeats`` rollouts from the same state."""
-    settings = MadPinnSettings(strategy="value", update_every=5, warm_start=True, look_ahead=look_ahead)
+    settings = replace(BASE_SETTINGS, strategy="value", update_every=5, warm_start=True, look_ahead=look_ahead)
     pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, settings, sim_dt=0.0025)
     dt = 0.0025
 

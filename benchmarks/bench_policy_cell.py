@@ -24,6 +24,8 @@ not in it).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import argparse
 import time
 
@@ -31,7 +33,8 @@ import numpy as np
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.config import REPO_ROOT, load_config
+from madpinn.observation import ObservationSettings
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import in_domain, make_selector, select_lowest
 from madpinn.scenarios import Arena, generate_scenarios
@@ -39,7 +42,9 @@ from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 
-SPEC = ObservationSpec()
+PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
+SPEC = ObservationSettings.from_config(PAPER).base_mapping()
+BASE_SETTINGS = MadPinnSettings.from_config(PAPER["methods"]["madpinn"])
 DT = 0.0025
 
 
@@ -62,10 +67,10 @@ def old_selector(vs, n: int, chunk: int = 65536):
 
 def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
     if variant == "old":
-        selector, settings = old_selector(vs, SPEC.n_neighbours), MadPinnSettings()
+        selector, settings = old_selector(vs, SPEC.n_neighbours), BASE_SETTINGS
     else:
         selector = make_selector("value", SPEC.n_neighbours, vs=vs)   # includes the margin calibration
-        settings = MadPinnSettings(z_newton=variant == "new")
+        settings = replace(BASE_SETTINGS, z_newton=variant == "new")
     pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     cpu = time.process_time()

@@ -22,9 +22,10 @@ import time
 
 import torch
 
+from madpinn.config import REPO_ROOT, load_config
 from madpinn.device import resolve_device
 from madpinn.dynamics.epigraph import EpigraphSystem
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.value_functions.model import build_network
 from madpinn.value_functions.problems import EpigraphProblem, assemble
 from madpinn.value_functions.train import TrainSettings, train_step, training_batch
@@ -50,11 +51,13 @@ def peak_rss_mb() -> float:
 
 
 def setup(batch, device, dtype):
-    spec = ObservationSpec()
-    system = EpigraphSystem(spec, z_max=EpigraphSystem.default_z_max(spec, 4.0, 4.0, 0.2))
+    paper = load_config([REPO_ROOT / "config.yaml"])
+    spec = ObservationSettings.from_config(paper).base_mapping()
+    system = EpigraphSystem.from_config(paper)
     problem = EpigraphProblem(system)
     settings = TrainSettings(iterations=1000, batch_size=batch, lr=2e-5, lr_final=2e-5, curriculum_fraction=0.5,
-                             checkpoint_every=10**9)
+                             checkpoint_every=10**9, loss="l1", output_scale=1.0,
+                             network=dict(paper["value_functions"]["vhat"]["network"]), seed=0, init_from=None, obstacle_weight=0.0)
     torch.manual_seed(0)
     net = build_network(problem, settings.network).to(device=device, dtype=dtype)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)

@@ -19,6 +19,7 @@ import argparse
 import numpy as np
 import torch
 
+from madpinn.config import REPO_ROOT, load_config
 from madpinn.policies.neighbours import free_drift_lower_bound
 from madpinn.value_functions import load_vs
 from madpinn.value_functions.grid_reference import GridSettings, compare_values, solve_pair_grid, vs_on_grid
@@ -31,7 +32,8 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(1)
     vs = load_vs(args.vs)
-    gs = GridSettings(nodes=args.nodes)
+    grid = load_config([REPO_ROOT / "config.yaml"])["value_functions"]["vs"]["validation"]["grid"]
+    gs = GridSettings.from_config({**grid, "nodes": args.nodes})
     sol = solve_pair_grid(vs.system, args.nodes, gs.p_range, gs.v_range, gs.times, gs.accuracy)
     mask = sol.interior_mask(gs.interior_p, gs.interior_v)
     x = torch.as_tensor(sol.states()[mask], dtype=torch.float64)

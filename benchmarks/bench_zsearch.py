@@ -25,13 +25,16 @@ Last line: ``warm_vhat_evals_per_agent_step: X`` (mean over the cells); with ``-
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import argparse
 import time
 
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.config import REPO_ROOT, load_config
+from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import make_selector
 from madpinn.policies.z_search import newton_search, predict_index
@@ -41,7 +44,9 @@ from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import ZGrid, cold_search
 
-SPEC = ObservationSpec()
+PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
+SPEC = ObservationSettings.from_config(PAPER).base_mapping()
+BASE_SETTINGS = MadPinnSettings.from_config(PAPER["methods"]["madpinn"])
 DT = 0.0025
 CELLS = {"small": (12, Arena("small", 1.0, 3.0)), "large": (64, Arena("large", 4.0, 6.0))}
 
@@ -110,7 +115,7 @@ def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bo
     if warm and compare_newton and not newton:
         cls = NewtonComparedPolicy
     pol = cls(vhat, make_selector("value", SPEC.n_neighbours, vs=vs), SPEC,
-              MadPinnSettings(warm_start=warm, z_newton=newton), DT)
+              replace(BASE_SETTINGS, warm_start=warm, z_newton=newton), DT)
     t_search = time.process_time()
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     # policy CPU time: run_episode times the policy in wall time; we take process time around it

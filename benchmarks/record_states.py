@@ -18,7 +18,8 @@ import time
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.config import REPO_ROOT, load_config
+from madpinn.observation import ObservationSettings
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import make_selector
 from madpinn.scenarios import Arena, generate_scenarios
@@ -26,7 +27,9 @@ from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 
-SPEC = ObservationSpec()
+PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
+SPEC = ObservationSettings.from_config(PAPER).base_mapping()
+BASE_SETTINGS = MadPinnSettings.from_config(PAPER["methods"]["madpinn"])
 DT = 0.0025
 
 
@@ -44,7 +47,7 @@ def record(vhat, vs, n_agents: int, arena: Arena, seed: int, scenarios: int, kee
         return inner(state)
 
     starts, goals = generate_scenarios(arena, n_agents, seed, scenarios, SPEC.collision_radius)
-    pol = MadPinnPolicy(vhat, selector, SPEC, MadPinnSettings(), DT)
+    pol = MadPinnPolicy(vhat, selector, SPEC, BASE_SETTINGS, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     run_episode(backend, pol, starts, goals, int(round(arena.episode_s / DT)), SPEC.collision_radius, progress=False)
     return torch.cat(kept)  # each kept state is [S, N, 4]

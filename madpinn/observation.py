@@ -32,10 +32,12 @@ EGO_DIM = 4
 NEIGHBOUR_DIM = 6
 PHANTOM = -1
 NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
+TRAINING_MAPPING = {"carrot_margin": 0.0, "neighbour_goal": "ego"}
+"""The deployment-only keys at the mapping value-function training sees (:meth:`ObservationSettings.base_mapping`)."""
 
 
 @dataclass(frozen=True)
-class ObservationSpec:
+class ObservationSettings:
     """Sizes and trained ranges of the decentralized observation.
 
     n_neighbours: neighbours per agent (paper: 2).
@@ -48,17 +50,17 @@ class ObservationSpec:
     neighbour_goal: ``"neighbour"`` shortens a neighbour's goal offset relative to the neighbour
         (heading preserved), ``"ego"`` shortens ``g_j − p_ego`` into the box (the old mapping).
 
-    The dataclass defaults are the old mapping (what V̂ training and the MARL features use);
-    ``from_config`` reads ``observation.carrot_margin`` / ``observation.neighbour_goal``.
+    No defaults: ``from_config`` reads every field (``config.yaml``); :meth:`base_mapping` is the
+    old mapping (what V̂ training and the MARL features use).
     """
 
-    n_neighbours: int = 2
-    goal_range: float = 2.0
-    offset_range: float = 2.0
-    sensing_radius: float = 1.0
-    collision_radius: float = 0.1
-    carrot_margin: float = 0.0
-    neighbour_goal: str = "ego"
+    n_neighbours: int
+    goal_range: float
+    offset_range: float
+    sensing_radius: float
+    collision_radius: float
+    carrot_margin: float
+    neighbour_goal: str
 
     def __post_init__(self):
         if not (math.isfinite(self.carrot_margin) and 0.0 <= self.carrot_margin < self.goal_range):
@@ -66,11 +68,11 @@ class ObservationSpec:
         if self.neighbour_goal not in NEIGHBOUR_GOAL_MODES:
             raise ValueError(f"observation.neighbour_goal must be one of {NEIGHBOUR_GOAL_MODES}, got '{self.neighbour_goal}'")
 
-    def base_mapping(self) -> "ObservationSpec":
+    def base_mapping(self) -> "ObservationSettings":
         """This spec with the deployment-only settings at the old mapping: what value-function
         training sees, and what the baselines (MPPI, MARL features) keep using (the fixes are
         about V̂'s trained box)."""
-        return replace(self, carrot_margin=0.0, neighbour_goal="ego")
+        return replace(self, **TRAINING_MAPPING)
 
     @property
     def carrot_range(self) -> float:
@@ -86,7 +88,7 @@ class ObservationSpec:
         return self.n_neighbours + 1
 
     @classmethod
-    def from_config(cls, cfg: dict) -> "ObservationSpec":
+    def from_config(cls, cfg: dict) -> "ObservationSettings":
         o = cfg["observation"]
         return cls(
             n_neighbours=int(o["n_neighbours"]),
@@ -94,8 +96,8 @@ class ObservationSpec:
             offset_range=float(o["offset_range"]),
             sensing_radius=float(o["sensing_radius"]),
             collision_radius=float(cfg["agents"]["collision_radius"]),
-            carrot_margin=float(o.get("carrot_margin", 0.0)),
-            neighbour_goal=str(o.get("neighbour_goal", "ego")),
+            carrot_margin=float(o["carrot_margin"]),
+            neighbour_goal=str(o["neighbour_goal"]),
         )
 
 
@@ -136,7 +138,7 @@ def gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
 
 
 def build_observation(
-    state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSpec
+    state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSettings
 ) -> torch.Tensor:
     """Global state ``[S, N, 4]``, goals ``[S, N, 2]``, neighbour indices ``[S, N, n]`` (−1 =
     phantom) -> observations ``[S, N, 4 + 6n]``."""

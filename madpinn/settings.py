@@ -1,9 +1,10 @@
 """Settings parsed once from the validated config into small frozen dataclasses.
 
-Defaults live in one place — ``config.yaml`` checked by ``workflow/schemas/config.schema.yaml``
-— so these classes have no defaults of their own: ``from_config`` reads every field from the
-validated config. Method settings live beside their method (``MadPinnSettings``,
-``MPPIParams``, …); backends and policies receive these objects, never the raw config dict.
+Values live in one place, ``config.yaml``, and bounds in ``workflow/schemas/config.schema.yaml``
+(an optional key's absent value is the schema's ``default``): these classes have no defaults of
+their own, ``from_config`` reads every field from the validated config, and a check a class
+repeats for objects built in code uses the schema's bound (``tests/test_settings_schema.py``). Method settings live beside their method (``MadPinnSettings``,
+``MPPISettings``, …); backends and policies receive these objects, never the raw config dict.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from madpinn.dynamics import DoubleIntegrator
 
 
 @dataclass(frozen=True)
-class AgentLimits:
+class AgentSettings:
     """``agents``: the agents' size and control limits (SPEC §1)."""
 
     collision_radius: float
@@ -27,7 +28,7 @@ class AgentLimits:
     """per-axis speed bound (m/s)"""
 
     @classmethod
-    def from_config(cls, cfg: Mapping) -> "AgentLimits":
+    def from_config(cls, cfg: Mapping) -> "AgentSettings":
         a = cfg["agents"]
         return cls(collision_radius=float(a["collision_radius"]), u_max=float(a["u_max"]), v_max=float(a["v_max"]))
 
@@ -54,20 +55,19 @@ class SimSettings:
     """agents touch (SPEC §1): MuJoCo drones carry the CF2X collision cylinder and hit each other
     and the floor; in the double integrator a collided agent (d ≤ r) stops where it is and stays
     an obstacle. False: agents pass through each other (the first protocol)"""
-    mujoco: object | None = None
-    """``sim.mujoco`` as :class:`madpinn.simulation.mujoco.MujocoSettings` (None when absent)"""
+    mujoco: object | None
+    """``sim.mujoco`` as :class:`madpinn.simulation.mujoco.MujocoSettings` (None: built in code for
+    the double integrator only)"""
 
     @classmethod
     def from_config(cls, cfg: Mapping, study: str | None = None) -> "SimSettings":
         """``sim``, with ``studies.<study>.sim`` merged over it when ``study`` is given."""
         from madpinn.config import study_sim
 
-        s = study_sim(cfg, study)
-        mujoco = None
-        if s.get("mujoco") is not None:
-            from madpinn.simulation.mujoco.settings import MujocoSettings
+        from madpinn.simulation.mujoco.settings import MujocoSettings
 
-            mujoco = MujocoSettings.from_config(s["mujoco"])
+        s = study_sim(cfg, study)
+        mujoco = MujocoSettings.from_config(s["mujoco"])
         return cls(backend=str(s["backend"]), dt=float(s["dt"]), policy_period_steps=int(s["policy_period_steps"]),
                    scenario_batch=int(s["scenario_batch"]), record_every=int(s["record_every"]),
                    contacts=bool(s["contacts"]), mujoco=mujoco)

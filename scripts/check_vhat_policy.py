@@ -14,7 +14,7 @@ import torch
 
 from madpinn.config import load_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec, build_observation, nearest_neighbours
+from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import min_feasible_z

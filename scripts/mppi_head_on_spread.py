@@ -14,7 +14,7 @@ import torch
 
 from madpinn.config import load_config, method_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
@@ -45,9 +45,9 @@ def main() -> None:
         for lam in args.lambdas:
             _, mcfg = method_config(cfg, "mppi")
             mcfg = {**mcfg, **FAST, "penalty_weight": lam, "dual_ascent": {"lr": 0.0, "max": 1.0e4}}
-            ctx = PolicyContext(cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(), obs_spec=ObservationSpec.from_config(cfg),
+            ctx = PolicyContext(cfg=cfg, method_cfg=mcfg, dynamics=DoubleIntegrator(u_max=4.0, v_max=4.0), obs_spec=ObservationSettings.from_config(cfg),
                                 device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=SIM_DT, policy_period=PERIOD)
-            backend = DoubleIntegratorBackend(DoubleIntegrator(), SIM_DT)
+            backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), SIM_DT)
             result, _ = run_episode(backend, make_policy("mppi", ctx), starts, goals, STEPS, r, policy_period=PERIOD, progress=False)
             sep = result.min_separation.min(axis=1)
             print(f"{seed:4d}  {lam:6g}  {int((sep < r).sum()):13d}  {sep.mean():10.4f}  {sep.min():9.4f}", flush=True)

@@ -7,6 +7,7 @@ import torch
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings
+from settings_helpers import mujoco_section
 
 DT = 0.0025
 DYN = DoubleIntegrator(u_max=4.0, v_max=4.0)
@@ -14,8 +15,7 @@ DYN = DoubleIntegrator(u_max=4.0, v_max=4.0)
 
 def make_backend(**overrides) -> MujocoBackend:
     torch.set_num_threads(1)
-    gains = overrides.pop("gains", {})
-    return MujocoBackend(DYN, DT, MujocoSettings.from_config({**overrides, "gains": gains}), dtype=torch.float64)
+    return MujocoBackend(DYN, DT, MujocoSettings.from_config(mujoco_section(**overrides)), dtype=torch.float64)
 
 
 def bang_bang(n_drones: int, steps: int, mean_dwell_s: float, seed: int, u_max: float = 4.0) -> torch.Tensor:

@@ -14,10 +14,11 @@ from madpinn.evaluation.cell import CellSettings
 from madpinn.evaluation.metrics import DISC_FACTOR, safety_curve, scenario_metrics, seed_summary
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.simulation.mujoco.model import COLLISION_CYLINDER
 from tests.mujoco_helpers import DT, DYN
+from tests.settings_helpers import mujoco_section
 
 R = 0.1
 
@@ -55,7 +56,7 @@ def _mujoco(contacts: bool):
     from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings
 
     torch.set_num_threads(1)
-    return MujocoBackend(DYN, DT, MujocoSettings.from_config({}), dtype=torch.float64, contacts=contacts)
+    return MujocoBackend(DYN, DT, MujocoSettings.from_config(mujoco_section()), dtype=torch.float64, contacts=contacts)
 
 
 def test_drones_of_different_scenarios_never_interact():
@@ -93,9 +94,9 @@ def test_contacts_keep_scenarios_whole_in_each_world():
 
 
 def test_double_integrator_freezes_collided_agents_and_keeps_them_as_obstacles():
-    limits = AgentLimits(collision_radius=R, u_max=4.0, v_max=4.0)
+    limits = AgentSettings(collision_radius=R, u_max=4.0, v_max=4.0)
     sim = SimSettings(backend="double_integrator", dt=DT, policy_period_steps=1, scenario_batch=1,
-                      record_every=1, contacts=True)
+                      record_every=1, contacts=True, mujoco=None)
     frozen, _ = _head_on(make_backend("double_integrator", sim, limits, "cpu", torch.float64))
     passing, _ = _head_on(make_backend("double_integrator", dataclasses.replace(sim, contacts=False), limits,
                                        "cpu", torch.float64))

@@ -7,9 +7,10 @@ import pytest
 import torch
 
 from madpinn.marl.defmarl.epigraph import (
-    EpigraphConfig, collision_constraint, discounted_max_return, epigraph_lambda_returns, epigraph_value, sample_z, update_z,
+    EpigraphSettings, collision_constraint, discounted_max_return, epigraph_lambda_returns, epigraph_value, sample_z, update_z,
 )
 from madpinn.marl.defmarl.root import smallest_safe_z, team_budget
+from settings_helpers import epigraph_settings
 
 
 def test_discounted_max_target_on_hand_built_sequence():
@@ -74,7 +75,7 @@ def test_lambda_returns_mix_n_step_backups():
 
 
 def test_z_sampling_and_dynamics():
-    cfg = EpigraphConfig(z_min=-1.0, z_max=2.0, end_mass=0.4, h_clip=0.2, cost_lr=1e-3)
+    cfg = EpigraphSettings(z_min=-1.0, z_max=2.0, end_mass=0.4, h_clip=0.2, cost_lr=1e-3, h_margin=0.5)
     z = sample_z(20000, cfg, torch.Generator().manual_seed(0))
     assert z.min() >= -1.0 and z.max() <= 2.0
     assert (z == -1.0).float().mean().item() == pytest.approx(0.2, abs=0.02)
@@ -86,7 +87,7 @@ def test_z_sampling_and_dynamics():
     out = update_z(torch.tensor([1.0, 0.0, 1.5]), torch.tensor([0.25, 2.0, -1.0]), cfg)
     assert torch.allclose(out, torch.tensor([0.75, -1.0, 2.0]))
     with pytest.raises(ValueError):
-        EpigraphConfig(z_min=1.0, z_max=1.0)
+        epigraph_settings(z_min=1.0, z_max=1.0)
 
 
 def test_collision_constraint():
@@ -103,7 +104,7 @@ def test_collision_constraint_margin_separates_contact_from_collision():
     assert h[4] - h[3] > 0.99  # a grazing collision is a full unit above contact
     assert ((h > 0) == (sep < 0.1)).all()
     with pytest.raises(ValueError):
-        EpigraphConfig(h_margin=1.0)
+        epigraph_settings(h_margin=1.0)
 
 
 def test_root_finder_smallest_safe_z_and_fallbacks():

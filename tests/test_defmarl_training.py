@@ -9,27 +9,27 @@ import torch
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.marl.checkpoint import CheckpointError, save_checkpoint
 from madpinn.marl.defmarl.deploy import load_defmarl
-from madpinn.marl.defmarl.epigraph import EpigraphConfig
+from madpinn.marl.defmarl.epigraph import EpigraphSettings
 from madpinn.marl.defmarl.trainer import DefMarlTrainer
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
-from madpinn.marl.ppo import PPOConfig
-from madpinn.observation import ObservationSpec
+from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings
+from madpinn.marl.ppo import PPOSettings
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
+from settings_helpers import observation_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-TINY = PPOConfig(iterations=12, agents_per_batch=96, epochs=4, minibatch=256, lr=3e-3, discount=0.95,
+TINY = PPOSettings(iterations=12, agents_per_batch=96, epochs=4, minibatch=256, lr=3e-3, discount=0.95,
                  gae_lambda=0.9, clip=0.2, entropy_coef=0.0, value_coef=0.5, max_grad_norm=0.5, init_log_std=-0.5)
-EPI = EpigraphConfig(z_min=-1.0, z_max=1.0, end_mass=0.2, h_clip=0.2, cost_lr=3e-3)
+EPI = EpigraphSettings(z_min=-1.0, z_max=1.0, end_mass=0.2, h_clip=0.2, cost_lr=3e-3, h_margin=0.5)
 Z_GRID = (-1.0, 0.0, 1.0)
 
 
 def _trainer(ppo=TINY, seed=0, counts=(3,)):
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), ObservationSpec(), EnvConfig(0.05, 2, 3), seed=seed)
-    return DefMarlTrainer(env, ppo, RewardConfig(1.0, 1.0, 0.01, 0.0), counts, hidden=16, seed=seed, epigraph=EPI)
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), observation_settings(), EnvSettings(0.05, 2, 3), seed=seed)
+    return DefMarlTrainer(env, ppo, RewardSettings(1.0, 1.0, 0.01, 0.0), counts, hidden=16, seed=seed, epigraph=EPI)
 
 
 def _objective(tr) -> float:
@@ -88,16 +88,16 @@ def test_determinism_under_a_seed():
 
 
 def test_reward_with_collision_penalty_is_refused():
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), ObservationSpec(), EnvConfig(0.05, 2, 3), seed=0)
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), observation_settings(), EnvSettings(0.05, 2, 3), seed=0)
     with pytest.raises(ValueError, match="collision"):
-        DefMarlTrainer(env, TINY, RewardConfig(1.0, 1.0, 0.01, 3.0), (3,), hidden=16, seed=0, epigraph=EPI)
+        DefMarlTrainer(env, TINY, RewardSettings(1.0, 1.0, 0.01, 3.0), (3,), hidden=16, seed=0, epigraph=EPI)
 
 
 def test_checkpoint_and_root_finding_deployment(tmp_path):
     tr = _trainer(dataclasses.replace(TINY, iterations=2))
     tr.train(progress=False)
     path = save_checkpoint(tmp_path / "defmarl.pt", tr, meta={"method": "defmarl", "epigraph": dataclasses.asdict(EPI)})
-    spec = ObservationSpec()
+    spec = observation_settings()
     pol = load_defmarl(path, spec, 4.0, spec.collision_radius, iterations=20)
     starts, goals = generate_scenarios(Arena("small", 1.0, 0.2), 4, 0, 3, spec.collision_radius)
     state = torch.cat([starts, torch.zeros_like(starts)], -1)
@@ -155,12 +155,12 @@ def test_attention_encoder_and_its_deployment(tmp_path):
     z_changed[:, 4] += 3.0                              # an extra ego column (z) only moves itself
     assert torch.equal(enc(LocalObs(z_changed, nbr, mask))[:, 5:], out[:, 5:])
 
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), ObservationSpec(), EnvConfig(0.05, 2, 3), seed=0)
-    tr = DefMarlTrainer(env, dataclasses.replace(TINY, iterations=2), RewardConfig(1.0, 1.0, 0.01, 0.0), (3,), hidden=16,
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), observation_settings(), EnvSettings(0.05, 2, 3), seed=0)
+    tr = DefMarlTrainer(env, dataclasses.replace(TINY, iterations=2), RewardSettings(1.0, 1.0, 0.01, 0.0), (3,), hidden=16,
                         seed=0, epigraph=EPI, encoder="attention")
     tr.train(progress=False)
     path = save_checkpoint(tmp_path / "att.pt", tr, meta={"method": "defmarl", "epigraph": dataclasses.asdict(EPI)})
-    spec = ObservationSpec()
+    spec = observation_settings()
     pol = load_defmarl(path, spec, 4.0, spec.collision_radius)
     assert type(pol.critic.encoder).__name__ == "AttentionEncoder"
     starts, goals = generate_scenarios(Arena("small", 1.0, 0.2), 4, 0, 3, spec.collision_radius)

@@ -6,13 +6,15 @@ import pytest
 import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
-from madpinn.observation import ObservationSpec, build_observation, constraint, running_cost, terminal_cost
+from madpinn.observation import build_observation, constraint, running_cost, terminal_cost
+from settings_helpers import observation_settings
 
-SPEC = ObservationSpec()
+SPEC = observation_settings()
 
 
 def system():
-    return EpigraphSystem(SPEC, u_max=4.0, v_max=4.0, horizon=0.2, z_max=EpigraphSystem.default_z_max(SPEC, 4.0, 4.0, 0.2))
+    return EpigraphSystem(SPEC, u_max=4.0, v_max=4.0, horizon=0.2, z_max=EpigraphSystem.default_z_max(SPEC, 4.0, 4.0, 0.2),
+                          velocity_saturation=False)
 
 
 def test_layout_and_bounds():

@@ -4,10 +4,11 @@ import torch
 
 from madpinn.dynamics.pair import PairSystem
 from madpinn.dynamics import DoubleIntegrator
+from settings_helpers import pair_system
 
 
 def test_hamiltonian_and_control_match_brute_force():
-    sy = PairSystem()
+    sy = pair_system()
     g = torch.Generator().manual_seed(0)
     x = sy.sample(128, g, dtype=torch.float64)
     grad = torch.randn(128, 4, generator=g, dtype=torch.float64)
@@ -22,7 +23,7 @@ def test_hamiltonian_and_control_match_brute_force():
 
 
 def test_relative_system_is_difference_of_two_agents():
-    sy, di = PairSystem(), DoubleIntegrator(u_max=4.0, v_max=100.0)
+    sy, di = pair_system(), DoubleIntegrator(u_max=4.0, v_max=100.0)
     g = torch.Generator().manual_seed(1)
     si = torch.randn(64, 4, generator=g, dtype=torch.float64)
     sj = torch.randn(64, 4, generator=g, dtype=torch.float64)
@@ -34,7 +35,7 @@ def test_relative_system_is_difference_of_two_agents():
 
 
 def test_target_and_domain():
-    sy = PairSystem()
+    sy = pair_system()
     x = torch.tensor([[0.3, 0.4, 1.0, 2.0], [0.0, 0.05, 0.0, 0.0]], dtype=torch.float64)
     psi, grad = sy.target_and_grad(x)
     assert torch.allclose(psi, torch.tensor([0.4, -0.05], dtype=torch.float64))

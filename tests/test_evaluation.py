@@ -28,7 +28,7 @@ def _tiny(cfg, tmp_path, **study):
 
 
 def test_nominal_policy_reaches_goals_single_agent():
-    dyn = DoubleIntegrator()
+    dyn = DoubleIntegrator(u_max=4.0, v_max=4.0)
     starts, goals = generate_scenarios(Arena("small", 1.0, 3.0), 1, seed=0, count=4, collision_radius=0.1)
     res, stats = run_episode(DoubleIntegratorBackend(dyn, 0.0025), NominalPD(dyn, 6.0, 4.9), starts, goals, 1200, 0.1, progress=False)
     assert res.final_distance.max() < 0.01
@@ -46,7 +46,7 @@ def test_policy_period_holds_the_command():
             Counting.calls += 1
             return torch.ones_like(goals)
 
-    dyn = DoubleIntegrator()
+    dyn = DoubleIntegrator(u_max=4.0, v_max=4.0)
     starts = torch.zeros(1, 2, 2)
     starts[0, 1, 0] = 1.0
     res, _ = run_episode(DoubleIntegratorBackend(dyn, 0.01), Counting(), starts, starts.clone(), 10, 0.1, policy_period=5, progress=False)

@@ -7,6 +7,7 @@ import pytest
 
 from madpinn.evaluation.tables import ORACLE_RUN
 from madpinn.figures.cost_safety import ORACLE_LABEL, ZOOM_SAFETY_PCT, draw_cost_safety
+from settings_helpers import pair_system
 
 RUNS = {   # run -> (label, {N: (safety fraction, cost ÷ T)}): a crowd at 100 % as in the protocol
     "madpinn": ("Ours (paper's deployment)", {3: (1.0, 0.284), 16: (0.980, 0.552)}),
@@ -145,7 +146,7 @@ def test_vs_grid_tick_labels_of_neighbouring_panels_do_not_meet():
     from madpinn.value_functions.figures import draw_vs_grid
     from madpinn.value_functions.grid_reference import solve_pair_grid
 
-    sol = solve_pair_grid(PairSystem(), 9, 1.0, 6.0, (0.0, 0.25, 0.5, 0.75), accuracy="low")
+    sol = solve_pair_grid(pair_system(), 9, 1.0, 6.0, (0.0, 0.25, 0.5, 0.75), accuracy="low")
     fig = draw_vs_grid(sol, load_vs(REPO / "models" / "vs.pt", dtype=torch.float64), (-3.0, 0.0))
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()

@@ -4,10 +4,11 @@ which an agent sees its own predicted state and the others' constant-velocity on
 import pytest
 import torch
 
-from madpinn.observation import ObservationSpec, build_observation, nearest_neighbours
+from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours
 from madpinn.policies.look_ahead import look_ahead_observation, observation_with_own_state, predict_states
 
-SPEC = ObservationSpec(n_neighbours=2, goal_range=2.0, offset_range=2.0, sensing_radius=1.0, collision_radius=0.1)
+SPEC = ObservationSettings(n_neighbours=2, goal_range=2.0, offset_range=2.0, sensing_radius=1.0, collision_radius=0.1,
+                           carrot_margin=0.0, neighbour_goal="ego")
 
 
 def world(S=3, N=6, seed=0):

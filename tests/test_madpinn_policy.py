@@ -12,18 +12,19 @@ from conftest import REPO, SMOKE
 from madpinn.commands.evaluate import evaluate
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec, build_observation, constraint
+from madpinn.observation import build_observation, constraint
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
+from madpinn.policies.madpinn import MadPinnPolicy, cold_budget_search
 from madpinn.policies.neighbours import make_selector
 from madpinn.policies.z_search import newton_search, predict_index, warm_search
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.value_functions import CheckpointError
 from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search
 from policy_models import tiny_model_dir, tiny_models
+from settings_helpers import madpinn_settings, observation_settings
 
-SPEC = ObservationSpec()
+SPEC = observation_settings()
 
 
 def observations(B, seed=0, overlap=False):
@@ -134,9 +135,9 @@ def test_policy_warm_start_keeps_the_cold_episode():
     state, goals = scenario(S=2, N=6, seed=3)
     runs = {}
     for warm in (True, False):
-        pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, MadPinnSettings(warm_start=warm), 0.0025)
+        pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, madpinn_settings(warm_start=warm), 0.0025)
         cfg = load_config([REPO / "config.yaml", SMOKE])
-        sim = make_backend("double_integrator", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
+        sim = make_backend("double_integrator", SimSettings.from_config(cfg), AgentSettings.from_config(cfg),
                            torch.device("cpu"), torch.float32)
         result, _ = run_episode(sim, pol, state[..., 0:2], goals, 60, 0.1, progress=False)
         runs[warm] = (result, MadPinnPolicy.summarise_stats(pol.stats))
@@ -151,7 +152,7 @@ def policy(strategy="nearest", update_every=5, dtype=torch.float32, seed=0):
     vhat, vs = tiny_models(dtype)
     gen = torch.Generator().manual_seed(seed)
     sel = make_selector(strategy, 2, vs=vs, radius=1.0, generator=gen)
-    return MadPinnPolicy(vhat, sel, SPEC, MadPinnSettings(strategy=strategy, update_every=update_every), sim_dt=0.0025)
+    return MadPinnPolicy(vhat, sel, SPEC, madpinn_settings(strategy=strategy, update_every=update_every), sim_dt=0.0025)
 
 
 def scenario(S=2, N=5, seed=0):
@@ -252,9 +253,10 @@ def test_look_ahead_acts_on_the_predicted_own_state_under_the_last_command():
     assert torch.equal(u1.reshape(12, 2), -4.0 * torch.sign(grad[:, 0:2]))
     plain = build_observation(moved, goals, pol.neighbours, SPEC).reshape(12, -1)
     assert not torch.allclose(obs, plain)   # the prediction did change what V̂ sees
-    with pytest.raises(ValueError, match="look_ahead"):
-        MadPinnSettings.from_config({"neighbours": "value", "update_every": 5, "z_tolerance": 1e-3, "warm_start": True,
-                                     "pair_batch": 10, "symmetry": "none", "safety_filter": None, "look_ahead": -0.1})
+    cfg = load_config([REPO / "config.yaml"])
+    cfg["methods"]["madpinn"]["look_ahead"] = -0.1
+    with pytest.raises(ConfigError, match="look_ahead"):   # the bound lives in the schema (issue 32)
+        validate_config(cfg)
 
 
 def models_of(cfg):
@@ -265,7 +267,7 @@ def models_of(cfg):
 
 def context(cfg, run, seed=0):
     method, mcfg = method_config(cfg, run)
-    return method, PolicyContext(method=policy_settings(method, mcfg), dynamics=DoubleIntegrator(), obs_spec=SPEC,
+    return method, PolicyContext(method=policy_settings(method, mcfg), dynamics=DoubleIntegrator(u_max=4.0, v_max=4.0), obs_spec=SPEC,
                                  device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=0.0025,
                                  policy_period=1, models=models_of(cfg))
 
@@ -286,7 +288,7 @@ def test_episode_deterministic_per_seed_for_every_strategy(tmp_path):
         outs = []
         for seed in (0, 0, 1):
             method, ctx = context(cfg, run, seed)
-            backend = make_backend("double_integrator", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
+            backend = make_backend("double_integrator", SimSettings.from_config(cfg), AgentSettings.from_config(cfg),
                                    ctx.device, ctx.dtype)
             res, _ = run_episode(backend, make_policy(method, ctx), state[..., 0:2], goals, 40, 0.1, progress=False)
             outs.append(res.cost)
@@ -316,7 +318,7 @@ def test_clear_errors(tmp_path):
         make_policy(method, ctx)
     cfg = tiny_cfg(tmp_path / "b")
     method, ctx = context(cfg, "madpinn")
-    ctx.obs_spec = ObservationSpec(goal_range=3.0)
+    ctx.obs_spec = observation_settings(goal_range=3.0)
     with pytest.raises(ValueError, match="goal_range"):
         make_policy(method, ctx)
     base = load_yaml(REPO / "config.yaml")

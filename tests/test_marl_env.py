@@ -4,23 +4,23 @@ import pytest
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig, goal_reward
+from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings, goal_reward
 from madpinn.marl.features import local_observation
 from madpinn.marl.networks import GaussianActor, ValueCritic
-from madpinn.observation import ObservationSpec
 from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend
+from settings_helpers import observation_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 DYN = DoubleIntegrator(4.0, 4.0)
-SPEC = ObservationSpec()
+SPEC = observation_settings()
 
 
 def _env(episode_s=3.0, substeps=5):
-    return GoalReachingEnv(DYN, Arena("small", 1.0, episode_s), SPEC, EnvConfig(0.05, substeps, 4), seed=0)
+    return GoalReachingEnv(DYN, Arena("small", 1.0, episode_s), SPEC, EnvSettings(0.05, substeps, 4), seed=0)
 
 
 def test_reset_shapes_and_scenario_rules():
@@ -68,10 +68,10 @@ def test_reward_terms():
     env.goals = torch.tensor([[[0.0, 0.0], [-0.5, -0.5]]])
     env.t = 0
     _, info = env.step(torch.tensor([[[-4.0, 0.0], [0.0, 0.0]]]))
-    w = RewardConfig(progress=1.0, distance=0.0, control=0.0, collision=0.0)
+    w = RewardSettings(progress=1.0, distance=0.0, control=0.0, collision=0.0)
     r = goal_reward(info, w, 0.05, 4.0)
     assert r[0, 0] > 0 and r[0, 1] == 0  # moving towards the goal is rewarded
-    w = RewardConfig(progress=0.0, distance=0.0, control=1.0, collision=0.0)
+    w = RewardSettings(progress=0.0, distance=0.0, control=1.0, collision=0.0)
     assert torch.allclose(goal_reward(info, w, 0.05, 4.0), torch.tensor([[-0.05, 0.0]]))
 
 

@@ -8,26 +8,26 @@ import torch
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.marl.checkpoint import CheckpointError, load_actor, save_checkpoint
 from madpinn.marl.deploy import ActorPolicy
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
+from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings
 from madpinn.marl.gae import gae
-from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.ppo import PPOSettings
 from madpinn.marl.trainer import PPOTrainer
-from madpinn.observation import ObservationSpec
 from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
+from settings_helpers import observation_settings, reward_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-TINY = PPOConfig(iterations=12, agents_per_batch=96, epochs=4, minibatch=256, lr=3e-3, discount=0.95,
+TINY = PPOSettings(iterations=12, agents_per_batch=96, epochs=4, minibatch=256, lr=3e-3, discount=0.95,
                  gae_lambda=0.9, clip=0.2, entropy_coef=0.0, value_coef=0.5, max_grad_norm=0.5, init_log_std=-0.5)
 
 
 def _trainer(ppo=TINY, seed=0, counts=(3,)):
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), ObservationSpec(),
-                          EnvConfig(0.05, 2, 3), seed=seed)
-    return PPOTrainer(env, ppo, RewardConfig(1.0, 1.0, 0.01, 1.0), counts, hidden=16, seed=seed)
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.5), observation_settings(),
+                          EnvSettings(0.05, 2, 3), seed=seed)
+    return PPOTrainer(env, ppo, RewardSettings(1.0, 1.0, 0.01, 1.0), counts, hidden=16, seed=seed)
 
 
 def test_gae_against_hand_recursion():
@@ -82,9 +82,9 @@ def test_checkpoint_round_trip_deploys_and_errors(tmp_path):
     with torch.no_grad():
         assert torch.equal(actor(norm(obs).flatten()), tr.actor(tr.obs_norm(obs).flatten()))
     # deployment at the simulator's period through the Policy protocol
-    policy = ActorPolicy(actor, norm, ObservationSpec(), meta["neighbours"], 4.0)
+    policy = ActorPolicy(actor, norm, observation_settings(), meta["neighbours"], 4.0)
     starts, goals = tr.env.state[..., :2].clone(), tr.env.goals.clone()
-    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(), 0.0025), policy, starts, goals, 10, 0.1, progress=False)
+    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), 0.0025), policy, starts, goals, 10, 0.1, progress=False)
     assert res.cost.shape == (4, 3)
     with pytest.raises(CheckpointError, match="not found"):
         load_actor(tmp_path / "missing.pt")
@@ -102,7 +102,7 @@ def test_non_finite_loss_fails_clearly():
         def reward(self, info):
             return super().reward(info) * float("nan")
 
-    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.2), ObservationSpec(), EnvConfig(0.05, 1, 2), seed=0)
-    tr = NaNReward(env, dataclasses.replace(TINY, iterations=1), RewardConfig(), (3,), hidden=8, seed=0)
+    env = GoalReachingEnv(DoubleIntegrator(4.0, 4.0), Arena("small", 1.0, 0.2), observation_settings(), EnvSettings(0.05, 1, 2), seed=0)
+    tr = NaNReward(env, dataclasses.replace(TINY, iterations=1), reward_settings(), (3,), hidden=8, seed=0)
     with pytest.raises(FloatingPointError, match="non-finite"):
         tr.train(progress=False)

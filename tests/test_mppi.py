@@ -10,9 +10,9 @@ import torch
 
 from madpinn.config import ConfigError, load_config, method_config, validate_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.policies.mppi import MPPIParams, segment_distance
+from madpinn.policies.mppi import MPPISettings, segment_distance
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
 REPO = Path(__file__).resolve().parents[1]
@@ -30,7 +30,7 @@ def make(cfg, seed=0, period=2, **overrides):
     _, mcfg = method_config(cfg, "mppi")
     mcfg = {**mcfg, **FAST, **overrides}
     ctx = PolicyContext(
-        method=policy_settings("mppi", mcfg), dynamics=DoubleIntegrator(), obs_spec=ObservationSpec.from_config(cfg),
+        method=policy_settings("mppi", mcfg), dynamics=DoubleIntegrator(u_max=4.0, v_max=4.0), obs_spec=ObservationSettings.from_config(cfg),
         device=torch.device("cpu"), dtype=torch.float32, seed=seed, sim_dt=SIM_DT, policy_period=period,
     )
     return make_policy("mppi", ctx)
@@ -39,7 +39,7 @@ def make(cfg, seed=0, period=2, **overrides):
 def episode(cfg, starts, goals, seconds, period=2, **overrides):
     torch.set_num_threads(1)
     policy = make(cfg, period=period, **overrides)
-    backend = DoubleIntegratorBackend(DoubleIntegrator(), SIM_DT)
+    backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), SIM_DT)
     steps = int(round(seconds / SIM_DT))
     result, _ = run_episode(backend, policy, torch.as_tensor(starts), torch.as_tensor(goals), steps,
                             cfg["agents"]["collision_radius"], policy_period=period, progress=False)
@@ -89,7 +89,7 @@ def test_controls_always_in_box(cfg):
         assert torch.isfinite(u).all()
         assert u.abs().max() <= 4.0
         assert policy.planner.U.abs().max() <= 4.0 + 1e-6
-        state = DoubleIntegrator().step(state, u, SIM_DT)
+        state = DoubleIntegrator(u_max=4.0, v_max=4.0).step(state, u, SIM_DT)
 
 
 def test_dual_ascent_raises_lambda_only_in_conflict(cfg):
@@ -100,7 +100,7 @@ def test_dual_ascent_raises_lambda_only_in_conflict(cfg):
     state = torch.cat([starts, torch.zeros_like(starts)], dim=-1)
     policy.reset(state, goals)
     for k in range(80):
-        state = DoubleIntegrator().step(state, policy.act(state, goals, k * SIM_DT), SIM_DT)
+        state = DoubleIntegrator(u_max=4.0, v_max=4.0).step(state, policy.act(state, goals, k * SIM_DT), SIM_DT)
     lam = policy.planner.penalty.reshape(2, 2)
     assert torch.all(lam[0] > 10.0) and torch.all(lam[0] <= 500.0)
     assert torch.all(lam[1] == 10.0)
@@ -116,7 +116,7 @@ def _actions(cfg, seed, steps=30):
     for k in range(steps):
         u = policy.act(state, goals, k * SIM_DT)
         out.append(u)
-        state = DoubleIntegrator().step(state, u, SIM_DT)
+        state = DoubleIntegrator(u_max=4.0, v_max=4.0).step(state, u, SIM_DT)
     return torch.stack(out)
 
 
@@ -158,4 +158,5 @@ def test_bad_parameters_fail_early(cfg):
     with pytest.raises(ConfigError):
         validate_config(bad)
     with pytest.raises(ValueError, match="samples"):
-        MPPIParams(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0)
+        MPPISettings(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0,
+                      terminal_weight=1.0, dual_lr=0.0, penalty_max=1.0e4)

@@ -6,10 +6,11 @@ import pytest
 import torch
 
 from madpinn.config import REPO_ROOT, load_config
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 from madpinn.simulation import make_backend as make_registered_backend
 from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, PhysicsDivergedError
 from mujoco_helpers import DT, bang_bang, make_backend
+from settings_helpers import mujoco_section
 
 
 def _run(backend, accel):
@@ -24,7 +25,7 @@ def _run(backend, accel):
 def test_registered_backend_returns_planar_state_on_requested_dtype():
     cfg = load_config([REPO_ROOT / "config.yaml"])
     cfg["sim"]["contacts"] = False   # random starts may overlap; contacts: tests/test_collision_conventions.py
-    backend = make_registered_backend("mujoco", SimSettings.from_config(cfg), AgentLimits.from_config(cfg),
+    backend = make_registered_backend("mujoco", SimSettings.from_config(cfg), AgentSettings.from_config(cfg),
                                       torch.device("cpu"), torch.float32)
     assert isinstance(backend, MujocoBackend) and backend.dt == cfg["sim"]["dt"]
     starts = torch.rand(2, 5, 2)
@@ -51,10 +52,9 @@ def test_splitting_into_worlds_does_not_change_the_physics():
     assert torch.equal(one_world, three_worlds)
 
 
-def test_config_defaults_match_the_documented_settings():
+def test_settings_are_the_config_section():
     cfg = load_config([REPO_ROOT / "config.yaml"])
-    assert MujocoSettings.from_config(cfg["sim"]["mujoco"]) == MujocoSettings()
-    assert MujocoSettings.from_config(None) == MujocoSettings()
+    assert MujocoSettings.from_config(cfg["sim"]["mujoco"]).as_dict() == cfg["sim"]["mujoco"]
 
 
 @pytest.mark.parametrize("section, match", [
@@ -68,7 +68,7 @@ def test_config_defaults_match_the_documented_settings():
 ])
 def test_bad_settings_are_rejected(section, match):
     with pytest.raises(ValueError, match=match):
-        MujocoSettings.from_config(section)
+        MujocoSettings.from_config(mujoco_section(**section))
 
 
 def test_bad_inputs_give_clear_errors():
@@ -95,14 +95,14 @@ def test_bad_inputs_give_clear_errors():
     with pytest.raises(ValueError, match="non-finite position"):
         backend.hold(torch.full((1, 2, 2), math.inf))
     with pytest.raises(ValueError, match="sim.dt"):
-        MujocoBackend(backend.dynamics, 0.0)
+        MujocoBackend(backend.dynamics, 0.0, backend.settings)
 
 
 def test_unstable_physics_fails_with_a_clear_error(tmp_path, monkeypatch):
     # a rate loop far too fast for a 50 ms physics step diverges: the backend must stop, not
     # return MuJoCo's silently reset state
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to ./MUJOCO_LOG.TXT
-    settings = MujocoSettings.from_config({"substeps": 1, "gains": {"rate_rp": 400.0, "att_rp": 100.0}})
+    settings = MujocoSettings.from_config(mujoco_section(substeps=1, gains={"rate_rp": 400.0, "att_rp": 100.0}))
     unstable = MujocoBackend(make_backend().dynamics, 0.05, settings, dtype=torch.float64)
     starts = torch.zeros(1, 2, 2, dtype=torch.float64)
     unstable.reset(starts, starts)

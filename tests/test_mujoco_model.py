@@ -8,10 +8,14 @@ import pytest
 
 from madpinn.simulation.mujoco import CrazyflieSpec, compile_world, mixer_matrix, world_xml
 from madpinn.simulation.mujoco.model import GRAVITY, MAX_DRONES_PER_WORLD
+from madpinn.simulation.mujoco.settings import MujocoSettings
+from settings_helpers import mujoco_section
+
+SPEC = MujocoSettings.from_config(mujoco_section()).spec   # thrust_to_weight from config.yaml
 
 
 def test_compiled_drone_has_the_public_physical_facts():
-    spec = CrazyflieSpec()
+    spec = SPEC
     model = compile_world(3, 0.00125, spec)
     assert model.nbody == 4 and model.nv == 18 and model.nu == 0
     np.testing.assert_allclose(model.body_mass[1:], 0.027)
@@ -26,7 +30,7 @@ def test_compiled_drone_has_the_public_physical_facts():
 
 
 def test_mixer_maps_hover_and_torques():
-    spec = CrazyflieSpec()
+    spec = SPEC
     mix = mixer_matrix(spec)
     hover = np.full(4, spec.mass * GRAVITY / 4)
     np.testing.assert_allclose(mix @ hover, [spec.mass * GRAVITY, 0, 0, 0], atol=1e-15)
@@ -40,7 +44,7 @@ def test_mixer_maps_hover_and_torques():
 
 
 def test_site_actuators_are_rotor_thrusts():
-    spec = CrazyflieSpec()
+    spec = SPEC
     model = compile_world(2, 0.0025, spec, actuated=True)
     assert model.nu == 8
     np.testing.assert_allclose(model.actuator_ctrlrange, [[0.0, spec.max_rotor_thrust]] * 8)
@@ -51,13 +55,13 @@ def test_site_actuators_are_rotor_thrusts():
 @pytest.mark.parametrize("count", [0, -1, MAX_DRONES_PER_WORLD + 1])
 def test_out_of_range_drone_count_is_rejected(count):
     with pytest.raises(ValueError, match="drones"):
-        world_xml(count, 0.0025)
+        world_xml(count, 0.0025, SPEC)
 
 
 @pytest.mark.parametrize("timestep", [0.0, -1e-3, math.nan])
 def test_bad_timestep_is_rejected(timestep):
     with pytest.raises(ValueError, match="timestep"):
-        world_xml(2, timestep)
+        world_xml(2, timestep, SPEC)
 
 
 def test_bad_physical_parameters_are_rejected():

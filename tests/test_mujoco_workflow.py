@@ -10,8 +10,9 @@ import yaml
 
 from conftest import subprocess_env
 from madpinn.commands import main
-from madpinn.config import REPO_ROOT
+from madpinn.config import REPO_ROOT, load_config
 from madpinn.simulation.mujoco.render import gl_context_available
+from madpinn.simulation.mujoco.settings import MujocoSettings
 
 
 def test_dag_on_mujoco_with_clips(tmp_path):
@@ -42,6 +43,6 @@ def test_render_clip_command(tmp_path):
     assert main(["render-clip", "--config", str(REPO_ROOT / "config.yaml"), "--traj", str(traj),
                  "--out", str(status_path), "--no-track"]) == 0
     status = json.loads(status_path.read_text())
-    ok, _ = gl_context_available()
+    ok, _ = gl_context_available(MujocoSettings.from_config(load_config([REPO_ROOT / "config.yaml"])["sim"]["mujoco"]).spec)
     assert status["rendered"] is ok
     assert (tmp_path / "clip.gif").is_file() is ok

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from madpinn.observation import (
-    ObservationSpec,
+    ObservationSettings,
     build_observation,
     constraint,
     nearest_neighbours,
@@ -14,7 +14,8 @@ from madpinn.observation import (
     split_observation,
 )
 
-SPEC = ObservationSpec(n_neighbours=2, goal_range=2.0, offset_range=2.0, sensing_radius=1.0, collision_radius=0.1)
+SPEC = ObservationSettings(n_neighbours=2, goal_range=2.0, offset_range=2.0, sensing_radius=1.0, collision_radius=0.1,
+                           carrot_margin=0.0, neighbour_goal="ego")
 
 
 def _random_world(S=3, N=6, seed=0):

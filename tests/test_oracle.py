@@ -31,7 +31,7 @@ class BangBang:
 
 
 def test_goal_at_start_costs_zero():
-    s = OracleSettings(horizon_s=1.0, dt=0.05)
+    s = OracleSettings(horizon_s=1.0, u_max=4.0, v_max=4.0, dt=0.05)
     assert lower_bound(np.zeros((2, 2)), s) == pytest.approx([0.0, 0.0], abs=1e-6)
     assert upper_bound(np.zeros((1, 2)), s)[0] == pytest.approx(0.0, abs=1e-6)
 
@@ -40,7 +40,7 @@ def test_one_metre_trip_is_sandwiched_around_the_bang_bang_cost():
     """1 m along x, T = 3 s: accelerating 0.5 s and braking 0.5 s costs ∫ = 0.5 exactly (peak
     speed 2 m/s, the velocity box is inactive). The bound must not exceed any attainable cost,
     and the feasible programme must come within its gap."""
-    s = OracleSettings(horizon_s=3.0, dt=0.025)
+    s = OracleSettings(horizon_s=3.0, u_max=4.0, v_max=4.0, dt=0.025)
     lb, ub = lower_bound(np.array([[1.0, 0.0]]), s)[0], upper_bound(np.array([[1.0, 0.0]]), s)[0]
     assert lb <= 0.5 + 1e-6
     assert lb <= ub <= lb + 0.02
@@ -48,33 +48,33 @@ def test_one_metre_trip_is_sandwiched_around_the_bang_bang_cost():
 
 
 def test_bound_is_invariant_under_axis_reflections_and_swaps():
-    s = OracleSettings(horizon_s=1.0, dt=0.05)
+    s = OracleSettings(horizon_s=1.0, u_max=4.0, v_max=4.0, dt=0.05)
     lb = lower_bound(np.array([[0.6, -0.3], [-0.6, 0.3], [0.3, 0.6]]), s)
     assert np.ptp(lb) < 1e-5
 
 
 def test_bad_settings_fail_early():
     with pytest.raises(ValueError, match="divide"):
-        OracleSettings(horizon_s=1.0, dt=0.3)
+        OracleSettings(horizon_s=1.0, u_max=4.0, v_max=4.0, dt=0.3)
     with pytest.raises(ValueError, match="positive"):
-        OracleSettings(horizon_s=1.0, dt=-0.1)
+        OracleSettings(horizon_s=1.0, u_max=4.0, v_max=4.0, dt=-0.1)
     with pytest.raises(ValueError, match="finite"):
-        lower_bound(np.array([[np.nan, 0.0]]), OracleSettings(horizon_s=1.0, dt=0.1))
+        lower_bound(np.array([[np.nan, 0.0]]), OracleSettings(horizon_s=1.0, u_max=4.0, v_max=4.0, dt=0.1))
 
 
 def _simulate(policy, arena, n, count, seed=0):
     starts, goals = generate_scenarios(arena, n, seed, count, 0.1, dtype=torch.float64)
     steps = int(round(arena.episode_s / SIM_DT))
-    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(), SIM_DT), policy, starts, goals, steps, 0.1, progress=False)
+    res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), SIM_DT), policy, starts, goals, steps, 0.1, progress=False)
     return (starts - goals).numpy(), res.cost
 
 
 @pytest.mark.parametrize("name", ["nominal", "bang_bang"])
 def test_bound_below_simulated_controllers_per_agent(name):
     arena = Arena("small", 1.0, 1.0)
-    policy = NominalPD(DoubleIntegrator(), 6.0, 4.9) if name == "nominal" else BangBang()
+    policy = NominalPD(DoubleIntegrator(u_max=4.0, v_max=4.0), 6.0, 4.9) if name == "nominal" else BangBang()
     offsets, cost = _simulate(policy, arena, n=4, count=3)
-    lb = lower_bound(offsets.reshape(-1, 2), OracleSettings(horizon_s=arena.episode_s, dt=0.025)).reshape(cost.shape)
+    lb = lower_bound(offsets.reshape(-1, 2), OracleSettings(horizon_s=arena.episode_s, u_max=4.0, v_max=4.0, dt=0.025)).reshape(cost.shape)
     assert (lb <= cost + 1e-4).all()          # simulator: trapezoid over 2.5 ms steps
     if name == "bang_bang":                   # near time-optimal: within a few % of the bound
         assert cost.mean() < 1.1 * lb.mean()
@@ -95,7 +95,7 @@ def test_scenario_bounds_match_the_scenarios_and_lie_below_mad_pinn(tmp_path):
 
     df = pd.read_parquet(tmp_path / "m.parquet")
     arena = Arena.from_config(cfg, "small")
-    ob = scenario_bounds(arena, 3, 0, 2, 0.1, OracleSettings(horizon_s=0.5, dt=0.025))
+    ob = scenario_bounds(arena, 3, 0, 2, 0.1, OracleSettings(horizon_s=0.5, u_max=4.0, v_max=4.0, dt=0.025))
     assert ob["scenario"].tolist() == [0, 1]
     assert (ob["oracle_cost"].to_numpy() <= df["cost_all_mean"].to_numpy() + 1e-4).all()
     assert ob["oracle_cost_time_avg"].to_numpy() == pytest.approx(ob["oracle_cost"].to_numpy() / 0.5)
@@ -107,7 +107,7 @@ def test_conflict_pattern_bounds_are_those_of_the_pattern_scenarios():
     from madpinn.scenarios import generate_scenario
 
     arena = Arena("small", 1.0, 0.5)
-    s = OracleSettings(horizon_s=0.5, dt=0.025)
+    s = OracleSettings(horizon_s=0.5, u_max=4.0, v_max=4.0, dt=0.025)
     ob = scenario_bounds(arena, 4, 0, 2, 0.1, s, pattern="circle_swap")
     assert set(ob["pattern"]) == {"circle_swap"}
     starts, goals = generate_scenario(arena, 4, 0, 1, 0.1, "circle_swap")

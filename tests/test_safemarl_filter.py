@@ -17,15 +17,14 @@ import yaml
 from madpinn.config import deep_merge, validate_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.marl.checkpoint import CheckpointError, save_checkpoint
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
-from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.env import EnvSettings, GoalReachingEnv
 from madpinn.marl.trainer import PPOTrainer
-from madpinn.observation import ObservationSpec
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.nominal import NominalPD
 from madpinn.policies.safemarl import CBVFFilter, SafetyFilteredPolicy
 from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
+from settings_helpers import observation_settings, ppo_settings, reward_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -125,9 +124,9 @@ def test_head_on_agents_do_not_collide_under_the_filter():
 
 
 def _tiny_model(models_dir: Path):
-    env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), ObservationSpec(), EnvConfig(0.05, 1, 2), seed=0)
-    ppo = PPOConfig(iterations=1, agents_per_batch=12, epochs=1, minibatch=64)
-    tr = PPOTrainer(env, ppo, RewardConfig(), (3,), hidden=8, seed=0)
+    env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), observation_settings(), EnvSettings(0.05, 1, 2), seed=0)
+    ppo = ppo_settings(iterations=1, agents_per_batch=12, epochs=1, minibatch=64)
+    tr = PPOTrainer(env, ppo, reward_settings(), (3,), hidden=8, seed=0)
     tr.train(progress=False)
     save_checkpoint(models_dir / "safemarl_nominal.pt", tr)
 
@@ -141,7 +140,7 @@ def test_unfiltered_variant_evaluates_end_to_end_and_missing_model_errors(tmp_pa
     cfg["paths"] = {"results": str(tmp_path), "figures": str(tmp_path / "figs")}
     cfg["tracking"]["enabled"] = False
     validate_config(cfg)
-    ctx = PolicyContext(method=policy_settings("safemarl", cfg["methods"]["safemarl"]), dynamics=DYN, obs_spec=ObservationSpec(),
+    ctx = PolicyContext(method=policy_settings("safemarl", cfg["methods"]["safemarl"]), dynamics=DYN, obs_spec=observation_settings(),
                         device=torch.device("cpu"), dtype=torch.float32, seed=0, sim_dt=0.0025, policy_period=1,
                         models={"nominal": tmp_path / "models" / "safemarl_nominal.pt"})
     with pytest.raises(CheckpointError, match="not found"):

@@ -10,12 +10,12 @@ import torch
 
 from madpinn.config import load_config, method_config
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.policies.nominal import NominalPD
 from madpinn.policies.safety_filter import CBVFFilter, SafetyFilteredPolicy
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 from test_safemarl_filter import BrakingBarrier
+from settings_helpers import observation_settings
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -102,7 +102,7 @@ def test_layered_variant_keeps_a_head_on_pair_apart_with_the_shipped_models():
     method, mcfg = method_config(cfg, "safemarl-layered")
     settings = policy_settings(method, mcfg)
     assert settings.cbvf.neighbour_control == "joint" and settings.cbvf.critical_neighbours == 1
-    spec = ObservationSpec()
+    spec = observation_settings()
     ctx = PolicyContext(method=settings, dynamics=DYN, obs_spec=spec, device=torch.device("cpu"), dtype=torch.float32,
                         seed=0, sim_dt=0.0025, policy_period=4,
                         models={"nominal": REPO / "models" / "safemarl_nominal.pt", "vs": REPO / "models" / "vs.pt"})

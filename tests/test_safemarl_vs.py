@@ -12,10 +12,8 @@ from madpinn.config import deep_merge, validate_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.dynamics.pair import PairSystem
 from madpinn.marl.checkpoint import save_checkpoint
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
-from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.env import EnvSettings, GoalReachingEnv
 from madpinn.marl.trainer import PPOTrainer
-from madpinn.observation import ObservationSpec
 from madpinn.policies.nominal import NominalPD
 from madpinn.policies.safemarl import CBVFFilter, SafetyFilteredPolicy
 from madpinn.scenarios import Arena
@@ -24,6 +22,7 @@ from madpinn.value_functions import load_vs
 from madpinn.value_functions.model import model_payload, save_atomic
 from madpinn.value_functions.problems import PairProblem
 from madpinn.value_functions.train import TrainSettings, train
+from settings_helpers import observation_settings, pair_system, ppo_settings, reward_settings
 
 DYN = DoubleIntegrator(4.0, 4.0)
 R = 0.1
@@ -36,13 +35,14 @@ def models(tmp_path_factory):
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("results") / "models"
     d.mkdir()
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     s = TrainSettings(iterations=300, batch_size=512, lr=1e-3, lr_final=1e-4, curriculum_fraction=0.5,
-                      checkpoint_every=10**6, network={"hidden": 64, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}, seed=0)
+                      checkpoint_every=10**6, network={"hidden": 64, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}, seed=0,
+                      loss="l1", output_scale=1.0, init_from=None, obstacle_weight=0.0)
     net, _ = train(problem, s, d / "vs.ckpt.pt", "test", progress=False)
     save_atomic(model_payload(problem, net, 1.0, {}), d / "vs.pt")
-    env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), ObservationSpec(), EnvConfig(0.05, 1, 2), seed=0)
-    tr = PPOTrainer(env, PPOConfig(iterations=1, agents_per_batch=12, epochs=1, minibatch=64), RewardConfig(), (3,), hidden=8, seed=0)
+    env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), observation_settings(), EnvSettings(0.05, 1, 2), seed=0)
+    tr = PPOTrainer(env, ppo_settings(iterations=1, agents_per_batch=12, epochs=1, minibatch=64), reward_settings(), (3,), hidden=8, seed=0)
     tr.train(progress=False)
     save_checkpoint(d / "safemarl_nominal.pt", tr)
     yield d

@@ -10,13 +10,13 @@ import inspect
 from conftest import REPO
 from madpinn.config import load_config, method_config
 from madpinn.policies import PolicyContext, policy_settings
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 
 PACKAGE = REPO / "madpinn"
 
 
 def test_settings_read_the_config(paper_cfg):
-    limits = AgentLimits.from_config(paper_cfg)
+    limits = AgentSettings.from_config(paper_cfg)
     assert (limits.collision_radius, limits.u_max, limits.v_max) == tuple(
         paper_cfg["agents"][k] for k in ("collision_radius", "u_max", "v_max"))
     dyn = limits.dynamics()
@@ -63,5 +63,5 @@ def test_backends_take_settings():
 
     assert list(inspect.signature(make_backend).parameters) == ["name", "sim", "limits", "device", "dtype"]
     cfg = load_config([REPO / "config.yaml"])
-    b = make_backend("double_integrator", SimSettings.from_config(cfg), AgentLimits.from_config(cfg), "cpu", None)
+    b = make_backend("double_integrator", SimSettings.from_config(cfg), AgentSettings.from_config(cfg), "cpu", None)
     assert b.dt == cfg["sim"]["dt"] and b.dynamics.u_max == cfg["agents"]["u_max"]

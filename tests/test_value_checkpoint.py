@@ -5,10 +5,10 @@ import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSpec
 from madpinn.value_functions import CheckpointError, load_vhat, load_vs
 from madpinn.value_functions.model import build_network, model_payload, save_atomic
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem
+from settings_helpers import epigraph_system, observation_settings, pair_system
 
 NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 
@@ -16,9 +16,9 @@ NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 @pytest.fixture()
 def files(tmp_path):
     torch.manual_seed(0)
-    spec = ObservationSpec()
-    pv = EpigraphProblem(EpigraphSystem(spec, horizon=0.2, z_max=21.45))
-    ps = PairProblem(PairSystem())
+    spec = observation_settings()
+    pv = EpigraphProblem(epigraph_system(spec=spec, z_max=21.45))
+    ps = PairProblem(pair_system())
     vh = save_atomic(model_payload(pv, build_network(pv, NET), 1.5, {"iterations": 7}), tmp_path / "vhat.pt")
     vs = save_atomic(model_payload(ps, build_network(ps, NET), 1.0, {"iterations": 9}), tmp_path / "vs.pt")
     return vh, vs
@@ -27,7 +27,7 @@ def files(tmp_path):
 def test_public_api(files):
     vh_path, vs_path = files
     vhat = load_vhat(vh_path)
-    assert vhat.horizon == 0.2 and vhat.z_max == 21.45 and vhat.obs_spec == ObservationSpec()
+    assert vhat.horizon == 0.2 and vhat.z_max == 21.45 and vhat.obs_spec == observation_settings()
     obs = torch.randn(10, 16)
     z = torch.rand(10) * 5
     v = vhat.value(obs, z, 0.0)
@@ -115,9 +115,9 @@ def test_resume_from_a_file_that_is_not_a_resume_checkpoint_refuses_and_keeps_it
     vh_path, vs_path = files
     bad = tmp_path / "mine.pt"
     bad.write_bytes(b"not a checkpoint at all")
-    problem = EpigraphProblem(EpigraphSystem(ObservationSpec(), horizon=0.2, z_max=21.45))
+    problem = EpigraphProblem(epigraph_system(z_max=21.45))
     s = TrainSettings(iterations=2, batch_size=16, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.0, checkpoint_every=1,
-                      output_scale=1.5, network=NET, seed=0)
+                      output_scale=1.5, network=NET, seed=0, loss="l1", init_from=None, obstacle_weight=0.0)
     for path, words in ((bad, "not a torch checkpoint"), (vs_path, "'vs' value function"), (vh_path, "finished vhat model")):
         before = path.read_bytes()
         with pytest.raises(CheckpointError, match=words) as exc:

@@ -12,13 +12,14 @@ from madpinn.value_functions.grid_reference import (
     GridSettings, compare_values, convergence, load_solution, solve_pair_grid,
 )
 from policy_models import tiny_model_dir
+from settings_helpers import pair_system
 
 CONFIGS = [str(REPO / "config.yaml"), str(SMOKE)]
 
 
 @pytest.fixture(scope="module")
 def grids():
-    system = PairSystem()
+    system = pair_system()
     fine = solve_pair_grid(system, 9, 1.0, 6.0, (0.0, 0.5), accuracy="low")
     coarse = solve_pair_grid(system, 5, 1.0, 6.0, (0.0, 0.5), accuracy="low")
     return system, fine, coarse
@@ -54,9 +55,9 @@ def test_convergence_and_metrics_on_nested_grids(grids):
     shifted = compare_values(fine.values[0], fine.values[0] + 10.0)    # everything called safe
     assert shifted["unsafe_called_safe"] == 1.0 and shifted["safe_called_unsafe"] == 0.0
     with pytest.raises(ValueError, match="odd"):
-        GridSettings(nodes=8)
+        GridSettings(nodes=8, p_range=1.0, v_range=6.0, interior_p=0.6, interior_v=3.0, times=(0.0,), accuracy="low")
     with pytest.raises(ValueError, match="interior"):
-        GridSettings(interior_p=2.0)
+        GridSettings(nodes=9, p_range=1.0, v_range=6.0, interior_p=2.0, interior_v=3.0, times=(0.0,), accuracy="low")
 
 
 def test_cli_solve_and_validate_vs_grid(tmp_path):

@@ -8,7 +8,8 @@ from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, load_yaml, validate_config
 from madpinn.observation import split_observation
 from madpinn.value_functions.build import problem_from_config
-from madpinn.value_functions.sampling import ConflictSampling
+from madpinn.value_functions.sampling import ConflictSamplingSettings
+from settings_helpers import pair_system
 
 
 def problem(fraction, radius=0.3, **speed_aware):
@@ -88,13 +89,13 @@ def test_speed_aware_conflicts_close_fast_and_late_in_the_horizon():
 
 def test_invalid_conflict_sampling_is_rejected():
     with pytest.raises(ValueError, match="tau"):
-        ConflictSampling(fraction=0.5, tau=(0.8, 0.2))
+        ConflictSamplingSettings(fraction=0.5, radius=0.3, tau=(0.8, 0.2), closing_speed=None)
     with pytest.raises(ValueError, match="closing_speed"):
-        ConflictSampling(fraction=0.5, closing_speed=(5.0, 1.0))
+        ConflictSamplingSettings(fraction=0.5, radius=0.3, tau=(0.0, 1.0), closing_speed=(5.0, 1.0))
     with pytest.raises(ValueError, match="fraction"):
-        ConflictSampling(fraction=1.5)
+        ConflictSamplingSettings(fraction=1.5, radius=0.3, tau=(0.0, 1.0), closing_speed=None)
     with pytest.raises(ValueError, match="radius"):
-        ConflictSampling(fraction=0.5, radius=0.0)
+        ConflictSamplingSettings(fraction=0.5, radius=0.0, tau=(0.0, 1.0), closing_speed=None)
     cfg = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vhat": {"conflict_sampling": {"fraction": 2.0}}}})
     with pytest.raises(ConfigError, match="conflict_sampling"):
         validate_config(cfg)
@@ -104,12 +105,12 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
     import math
 
     from madpinn.dynamics.pair import PairSystem
-    from madpinn.value_functions.sampling import ConflictSampling, place_pair_conflicts
+    from madpinn.value_functions.sampling import ConflictSamplingSettings, place_pair_conflicts
 
-    system = PairSystem()
+    system = pair_system()
     x = system.sample(4000, torch.Generator().manual_seed(101))
-    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSampling(0.0, 0.3), torch.Generator()), x)
-    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSampling(1.0, 0.3), torch.Generator().manual_seed(7))
+    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSamplingSettings(0.0, 0.3, (0.0, 1.0), None), torch.Generator()), x)
+    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSamplingSettings(1.0, 0.3, (0.0, 1.0), None), torch.Generator().manual_seed(7))
     assert torch.equal(out[:, 2:], x[:, 2:]) and out[:, :2].abs().max() <= system.p_range
     unclipped = out[:, :2].abs().amax(-1) < system.p_range
     # constant-velocity closest approach within [0, T] of the unclipped rows is inside the 0.3-m disk
@@ -120,7 +121,7 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
 
 
 def test_near_rows_fill_the_inner_box_and_leave_the_rest():
-    from madpinn.value_functions.sampling import NearSampling, place_near
+    from madpinn.value_functions.sampling import NearSamplingSettings, place_near
 
     cfg = load_config([REPO / "config.yaml"])
     cfg["value_functions"]["vs"]["conflict_sampling"] = {"fraction": 0.25, "radius": 0.3}
@@ -135,11 +136,28 @@ def test_near_rows_fill_the_inner_box_and_leave_the_rest():
     # the other rows are the uniform + conflict batch of the same generator stream (v beyond the box)
     assert float(rest[:, 2:].abs().max()) > 7.0
     x = p.system.sample(64, torch.Generator().manual_seed(1))
-    assert torch.equal(place_near(x, 2.0, 8.0, NearSampling(0.0), torch.Generator()), x)
+    assert torch.equal(place_near(x, 2.0, 8.0, NearSamplingSettings(0.0, 1.0, 3.0), torch.Generator()), x)
     a = p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32)
     assert torch.equal(a, p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32))
     with pytest.raises(ValueError, match="fraction"):
-        NearSampling(fraction=-0.1)
+        NearSamplingSettings(fraction=-0.1, p_range=1.0, v_range=3.0)
     bad = deep_merge(load_yaml(REPO / "config.yaml"), {"value_functions": {"vs": {"near_sampling": {"p_range": 0}}}})
     with pytest.raises(ConfigError, match="near_sampling"):
         validate_config(bad)
+
+
+def test_speed_aware_pair_conflicts_close_at_the_drawn_speed_late_in_the_horizon():
+    """V_s's pair sampler with tau [0.5, 1] and closing_speed [4, 8] m/s: relative speed in [4, 8]
+    (never clipped by the ±8 m/s box per axis), and the near miss at τ ≥ T/2 up to ρ / speed."""
+    from madpinn.value_functions.sampling import ConflictSamplingSettings, place_pair_conflicts
+
+    x = torch.rand(2000, 4, generator=torch.Generator().manual_seed(2), dtype=torch.float64) * 2 - 1
+    s = ConflictSamplingSettings(1.0, 0.3, (0.5, 1.0), (4.0, 8.0))
+    out = place_pair_conflicts(x, 1.0, 10.0, s, torch.Generator().manual_seed(3), v_range=8.0)
+    speed = out[:, 2:4].norm(dim=1)
+    assert bool(((speed >= 4.0 - 1e-9) & (speed <= 8.0 + 1e-9)).all())
+    p, v = out[:, 0:2], out[:, 2:4]
+    when = -(p * v).sum(1) / (v * v).sum(1)
+    assert bool((when >= 0.5 - 0.3 / 4.0 - 1e-9).all()) and bool((when <= 1.0 + 0.3 / 4.0 + 1e-9).all())
+    with pytest.raises(ValueError, match="v_range"):
+        place_pair_conflicts(x, 1.0, 10.0, s, torch.Generator())

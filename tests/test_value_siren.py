@@ -6,17 +6,17 @@ import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSpec
 from madpinn.value_functions.model import PairValue, VHat, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem, assemble
 from madpinn.value_functions.train import TrainSettings, make_head, training_batch
+from settings_helpers import epigraph_system, observation_settings, pair_system
 
 NET = {"hidden": 48, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0}
 
 
 def problems():
-    spec = ObservationSpec()
-    return [EpigraphProblem(EpigraphSystem(spec, z_max=21.45)), PairProblem(PairSystem())]
+    spec = observation_settings()
+    return [EpigraphProblem(epigraph_system(spec=spec, z_max=21.45)), PairProblem(pair_system())]
 
 
 @pytest.mark.parametrize("problem", problems(), ids=["vhat", "vs"])
@@ -25,7 +25,8 @@ def problems():
 def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss, obstacle):
     torch.manual_seed(0)
     st = TrainSettings(iterations=100, batch_size=300, lr=1e-4, lr_final=1e-4, curriculum_fraction=0.5,
-                       checkpoint_every=50, loss=loss, output_scale=2.0, network=NET)
+                       checkpoint_every=50, loss=loss, output_scale=2.0, network=NET, seed=0,
+                       init_from=None, obstacle_weight=0.0)
     net = build_network(problem, NET).double()
     # a first call on another batch: the reused workspace must not leak into the next call
     s0, t0 = training_batch(problem, st, 69, "cpu", torch.float64)
@@ -55,7 +56,7 @@ def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss,
 def test_obstacle_penalty_pulls_v_s_down_to_psi_inside_the_disk():
     """Where V_s > ψ and the VI's min picks the other branch, the paper's loss passes no gradient
     to ψ − V; the obstacle penalty does, and always towards V ≤ ψ (it is 0 where V ≤ ψ)."""
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     s = torch.tensor([[0.05, 0.0, 3.0, 0.0], [1.0, 1.0, 0.0, 0.0]], dtype=torch.float64)  # inside / far
     t = torch.tensor([0.5, 0.5], dtype=torch.float64)
     b, gb = problem.boundary_and_grad(s)

@@ -4,11 +4,11 @@ mirror-image controls, the policy accepts the setting."""
 import pytest
 import torch
 
-from madpinn.observation import ObservationSpec
 from madpinn.value_functions.symmetry import GROUPS, observation_transforms, symmetrize
 from policy_models import tiny_models
+from settings_helpers import observation_settings
 
-SPEC = ObservationSpec()
+SPEC = observation_settings()
 
 
 def random_obs(vhat, B=64, seed=0):

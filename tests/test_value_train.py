@@ -11,20 +11,22 @@ from madpinn.value_functions.problems import PairProblem
 from madpinn.value_functions.train import (
     TrainingDiverged, TrainSettings, curriculum_alpha, learning_rate, train, train_step, training_batch,
 )
+from settings_helpers import pair_system
 
 NET = {"hidden": 32, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 
 
 def settings(**kw):
     base = dict(iterations=24, batch_size=128, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.5,
-                checkpoint_every=5, output_scale=1.0, network=NET, seed=3)
+                checkpoint_every=5, output_scale=1.0, network=NET, seed=3, loss="l1", init_from=None,
+                obstacle_weight=0.0)
     base.update(kw)
     return TrainSettings(**base)
 
 
 def test_resume_after_interruption_gives_the_uninterrupted_model(tmp_path):
     torch.set_num_threads(1)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     full, info_full = train(problem, settings(), tmp_path / "a.ckpt", "h", progress=False)
     part, info = train(problem, settings(), tmp_path / "b.ckpt", "h", progress=False, stop_after=13)
     assert not info["completed"] and info["iterations"] == 13
@@ -40,7 +42,7 @@ def test_resume_after_interruption_gives_the_uninterrupted_model(tmp_path):
 
 def test_deterministic_and_learns():
     torch.set_num_threads(1)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     s = settings(iterations=150, checkpoint_every=1000, lr=1e-3, lr_final=1e-4, curriculum_fraction=0.0)
     a, ia = train(problem, s, "/nonexistent/dir/none.ckpt", "h", progress=False)
     b, ib = train(problem, s, "/nonexistent/dir/none.ckpt", "h", progress=False)
@@ -50,7 +52,7 @@ def test_deterministic_and_learns():
 
 
 def test_nan_guard_fails_with_a_clear_message(tmp_path):
-    problem = PairProblem(PairSystem(collision_radius=float("nan")))  # NaN target -> NaN loss
+    problem = PairProblem(pair_system(collision_radius=float("nan")))  # NaN target -> NaN loss
     with pytest.raises(TrainingDiverged, match="diverged at iteration 0: loss=nan.*Lower value_functions.vs.lr"):
         train(problem, settings(), tmp_path / "c.ckpt", "h", progress=False)
 
@@ -59,7 +61,7 @@ def test_curriculum_and_schedule():
     s = settings(iterations=100, curriculum_fraction=0.5, lr=1e-3, lr_final=1e-5)
     assert curriculum_alpha(0, s) == pytest.approx(0.02) and curriculum_alpha(49, s) == 1.0
     assert learning_rate(0, s) == pytest.approx(1e-3) and learning_rate(99, s) == pytest.approx(1e-5)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     _, t = training_batch(problem, s, 9, "cpu", torch.float32)
     assert t.min() >= problem.horizon * (1 - 0.2) - 1e-6 and t.max() <= problem.horizon
     x1, _ = training_batch(problem, s, 9, "cpu", torch.float32)
@@ -72,7 +74,7 @@ def test_fine_tuning_starts_from_the_model_and_continues_its_batch_stream(tmp_pa
     from madpinn.value_functions.model import CheckpointError, model_payload, save_atomic
 
     torch.set_num_threads(1)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     base, info = train(problem, settings(iterations=10), tmp_path / "base.ckpt", "h", progress=False)
     save_atomic(model_payload(problem, base, 1.0, {"iterations": info["iterations"]}), tmp_path / "base.pt")
     frozen = settings(iterations=1, lr=0.0, lr_final=0.0, init_from=str(tmp_path / "base.pt"))
@@ -103,7 +105,7 @@ def test_time_boxed_pieces_give_the_uninterrupted_model(tmp_path):
     import time
 
     torch.set_num_threads(1)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     full, info_full = train(problem, settings(), tmp_path / "a.ckpt", "h", progress=False)
     calls, info = 0, {"completed": False}
     while not info["completed"]:

@@ -10,12 +10,12 @@ from madpinn.commands import main
 from madpinn.config import ConfigError, REPO_ROOT, load_config, validate_config
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSpec
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.model import VHat, PairValue, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem
 from madpinn.value_functions.validation import HEATMAP, heatmap_observations, vs_rollouts
 from madpinn.value_functions.z_search import ZGrid, grid_value
+from settings_helpers import epigraph_system, observation_settings, pair_system
 
 NET = {"hidden": 16, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smoke.yaml")]
@@ -23,8 +23,8 @@ CONFIGS = [str(REPO_ROOT / "config.yaml"), str(REPO_ROOT / "workflow/configs/smo
 
 def test_min_feasible_z_is_a_crossing_of_the_deployed_grid():
     torch.manual_seed(0)
-    spec = ObservationSpec()
-    problem = EpigraphProblem(EpigraphSystem(spec, z_max=21.45))
+    spec = observation_settings()
+    problem = EpigraphProblem(epigraph_system(spec=spec, z_max=21.45))
     vhat = VHat(problem, build_network(problem, NET), 1.0)
     obs, _ = problem.system.sample(200, torch.Generator().manual_seed(1))
     z, ok = min_feasible_z(vhat, obs, 1e-3)
@@ -42,7 +42,7 @@ def test_min_feasible_z_is_a_crossing_of_the_deployed_grid():
 
 def test_rollouts_of_an_untrained_network_report_consistent_rates():
     torch.manual_seed(0)
-    problem = PairProblem(PairSystem())
+    problem = PairProblem(pair_system())
     vs = PairValue(problem, build_network(problem, NET), 1.0)
     r = vs_rollouts(vs, 500, 0.05, seed=0)
     assert r["samples"] == 500
@@ -52,7 +52,7 @@ def test_rollouts_of_an_untrained_network_report_consistent_rates():
 
 
 def test_heatmap_observation_is_the_papers_configuration():
-    spec = ObservationSpec()
+    spec = observation_settings()
     axis, obs = heatmap_observations(spec, 1.0, points=5)
     p = torch.stack(torch.meshgrid(axis, axis, indexing="ij")[::-1], -1).reshape(-1, 2)
     assert torch.allclose(obs[:, 0:2], torch.tensor(HEATMAP["ego_velocity"]).expand(25, 2))

@@ -13,7 +13,7 @@ from madpinn.observation import build_observation
 from madpinn.policies import policy_settings
 from madpinn.policies.madpinn import MadPinnPolicy
 from madpinn.policies.neighbours import make_selector
-from madpinn.value_functions.sampling import ConflictSampling
+from madpinn.value_functions.sampling import ConflictSamplingSettings
 from madpinn.value_functions.validation import heatmap_observations, heatmap_values
 from madpinn.value_functions.verification import ScenarioSettings, draw_safe_states, epsilon_bound, rollout, verify
 from madpinn.value_functions.z_search import ZGrid, cold_search, min_feasible_z
@@ -34,7 +34,7 @@ def test_epsilon_bound_is_the_binomial_tail():
     with pytest.raises(ValueError):
         epsilon_bound(11, 10, 0.1)
     with pytest.raises(ValueError, match="validation seeds"):
-        ScenarioSettings(seed=3)
+        ScenarioSettings(samples=10000, dt=0.005, substeps=4, seed=3, betas=(1e-3,), conflict_radius=0.3)
 
 
 def test_rollout_detects_a_certain_collision_and_a_clear_state():
@@ -53,7 +53,7 @@ def test_rollout_detects_a_certain_collision_and_a_clear_state():
 
 def test_verify_reports_consistent_counts_and_cli(tmp_path):
     vhat, _ = tiny_models()
-    s = ScenarioSettings(samples=50, dt=0.02, substeps=2, betas=(1e-3,))
+    s = ScenarioSettings(samples=50, dt=0.02, substeps=2, seed=100, betas=(1e-3,), conflict_radius=0.3)
     rep = verify(vhat, s, True, 1e-3)
     assert rep["samples"] == 50 and 0.0 < rep["acceptance_rate"] <= 1.0
     for key in ("safety", "budget"):
@@ -96,7 +96,7 @@ def test_verification_and_heatmap_search_the_deployed_grid():
     ref = cold_search(vhat, hobs, ZGrid.of(vhat.z_max, tol))
     assert torch.equal(hz.flatten(), ref.z) and torch.equal(hf.flatten(), ref.feasible)
     # the verification's draw: accepted states with their deployed cold-search budgets
-    obs, zs, _ = draw_safe_states(vhat, 40, ConflictSampling(fraction=1.0, radius=0.3),
+    obs, zs, _ = draw_safe_states(vhat, 40, ConflictSamplingSettings(fraction=1.0, radius=0.3, tau=(0.0, 1.0), closing_speed=None),
                                   torch.Generator().manual_seed(101), 100_000, tol)
     ref = cold_search(vhat, obs, ZGrid.of(vhat.z_max, settings.z_tolerance))
     assert ref.feasible.all() and torch.equal(zs, ref.z)

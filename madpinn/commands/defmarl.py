@@ -133,12 +133,12 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
 def _check_init(init: str | Path, mcfg: dict) -> None:
     """An ``--init`` model must be a DEF-MARL model of the same epigraph settings (z range, h)."""
     from madpinn.marl.checkpoint import CheckpointError, load_checkpoint
-    from madpinn.marl.defmarl.epigraph import EpigraphConfig
+    from madpinn.marl.defmarl.epigraph import EpigraphSettings
 
     meta = load_checkpoint(init)["meta"]
     if meta.get("method") != "defmarl":
         raise CheckpointError(f"--init {init} is not a DEF-MARL model (method {meta.get('method')!r})")
-    want = asdict(EpigraphConfig.from_config(mcfg["epigraph"]))
+    want = asdict(EpigraphSettings.from_config(mcfg["epigraph"]))
     if meta.get("epigraph") != want:
         raise CheckpointError(f"--init {init} was trained with epigraph settings {meta.get('epigraph')}, the config has {want}")
 

@@ -22,13 +22,14 @@ def _render_clip(args) -> int:
         raise FileNotFoundError(f"trajectory file not found: {traj}")
     out = Path(args.out)
     clip = out.with_suffix(".gif")
-    ok, detail = gl_context_available()
+    settings = MujocoSettings.from_config(cfg["sim"]["mujoco"])
+    ok, detail = gl_context_available(settings.spec)
     record = JobRecord(job_key=f"render_clip/{args.key or traj.stem}", rule="render_clip",
                        wildcards={"traj": str(traj)}, params={"traj": str(traj)})
     with job(cfg, record, ok and not args.no_track) as run:
         status = {"traj": str(traj), "rendered": ok, "detail": detail}
         if ok:
-            render_clip(traj, clip, altitude=MujocoSettings.from_config(cfg["sim"].get("mujoco")).altitude)
+            render_clip(traj, clip, settings)
             status["clip"] = str(clip)
         write_json(out, status)
         record.artifacts = [clip, out] if ok else [out]

@@ -45,8 +45,7 @@ def _oracle(args) -> int:
 
     cfg = config_of(args)
     arena = Arena.from_config(cfg, args.arena)
-    settings = OracleSettings(horizon_s=arena.episode_s, u_max=cfg["agents"]["u_max"], v_max=cfg["agents"]["v_max"],
-                              dt=arena.episode_s / cfg["oracle"]["steps"])
+    settings = OracleSettings.from_config(cfg, args.arena)
     wildcards = {"arena": args.arena, "n": args.n_agents, "seed": args.seed, "scenarios": args.scenarios}
     where = args.arena
     pattern = args.pattern or UNIFORM

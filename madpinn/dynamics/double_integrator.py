@@ -14,11 +14,12 @@ CONTROL_DIM = 2
 class DoubleIntegrator:
     """ṗ = v, v̇ = u, u ∈ [-u_max, u_max]², velocity components saturated to [-v_max, v_max].
 
-    All methods broadcast over any leading batch shape ``[..., 4]`` / ``[..., 2]``.
+    All methods broadcast over any leading batch shape ``[..., 4]`` / ``[..., 2]``. No defaults:
+    the package builds it from ``agents`` (:meth:`madpinn.settings.AgentSettings.dynamics`).
     """
 
-    u_max: float = 4.0
-    v_max: float = 4.0
+    u_max: float
+    v_max: float
 
     def clip_control(self, u: torch.Tensor) -> torch.Tensor:
         return u.clamp(-self.u_max, self.u_max)

@@ -25,7 +25,7 @@ term in the Hamiltonian is ``−u_max·|p|`` inside, ``−u_max·max(p, 0)`` at 
 the bang-bang choice would point outward. Off by default: every trained V̂ so far used the
 unbounded dynamics, and switching it on needs retraining.
 
-Sampling domain (per coordinate, uniform; matches :class:`~madpinn.observation.ObservationSpec`):
+Sampling domain (per coordinate, uniform; matches :class:`~madpinn.observation.ObservationSettings`):
 velocities ``±v_max``, goal offsets ``±goal_range``, neighbour position offsets
 ``±offset_range``, ``z ∈ [0, z_max]``, ``t ∈ [0, T]``.
 """
@@ -41,7 +41,7 @@ from madpinn.dynamics.system import BoxControlSystem
 from madpinn.observation import (
     EGO_DIM,
     NEIGHBOUR_DIM,
-    ObservationSpec,
+    ObservationSettings,
     constraint,
     running_cost,
     split_observation,
@@ -58,12 +58,12 @@ class EpigraphSystem(BoxControlSystem):
     velocity_saturation: controls pushing a velocity beyond ±v_max have no effect (module docstring).
     """
 
-    spec: ObservationSpec
-    u_max: float = 4.0
-    v_max: float = 4.0
-    horizon: float = 0.2
-    z_max: float = 20.0
-    velocity_saturation: bool = False
+    spec: ObservationSettings
+    u_max: float
+    v_max: float
+    horizon: float
+    z_max: float
+    velocity_saturation: bool
 
     control_mode = "min"   # the agents minimise the epigraph value (cost)
     control_ndim = 2       # one control per observed agent: [..., n+1, 2]
@@ -94,7 +94,7 @@ class EpigraphSystem(BoxControlSystem):
         return torch.tensor([self.v_max] * 2 + [s.goal_range] * 2 + nbr * s.n_neighbours, dtype=torch.float64)
 
     @staticmethod
-    def default_z_max(spec: ObservationSpec, v_max: float, u_max: float, horizon: float) -> float:
+    def default_z_max(spec: ObservationSettings, v_max: float, u_max: float, horizon: float) -> float:
         """Upper bound of the cost over the horizon on the sampled domain (cost units).
 
         Each agent's distance to its goal is at most its largest initial distance (ego:
@@ -197,7 +197,7 @@ class EpigraphSystem(BoxControlSystem):
 
     @classmethod
     def from_config(cls, cfg: dict) -> "EpigraphSystem":
-        spec = ObservationSpec.from_config(cfg).base_mapping()
+        spec = ObservationSettings.from_config(cfg).base_mapping()
         vcfg = cfg["value_functions"]["vhat"]
         u_max, v_max, T = float(cfg["agents"]["u_max"]), float(cfg["agents"]["v_max"]), float(vcfg["horizon"])
         z_max = vcfg.get("z_max", "auto")

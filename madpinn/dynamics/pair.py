@@ -22,11 +22,15 @@ STATE_DIM = 4
 
 @dataclass(frozen=True)
 class PairSystem(BoxControlSystem):
-    u_max: float = 4.0
-    collision_radius: float = 0.1
-    horizon: float = 1.0
-    p_range: float = 2.0
-    v_range: float = 8.0
+    """The relative state ``x = [p_i − p_j, v_i − v_j]`` of two agents: u_max (m/s²) per axis and
+    agent, collision_radius r (m), horizon T (s), sampled box ``|p| ≤ p_range``, ``|v| ≤ v_range``
+    (m, m/s). No defaults: :meth:`from_config` reads ``agents`` and ``value_functions.vs``."""
+
+    u_max: float
+    collision_radius: float
+    horizon: float
+    p_range: float
+    v_range: float
 
     control_mode = "max"   # the pair maximises its safety margin
 

@@ -19,10 +19,10 @@ import pandas as pd
 from madpinn.config import ConfigError, config_hash, job_config, method_config, run_observation
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import UNIFORM, Arena, generate_scenarios
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
 
@@ -44,11 +44,11 @@ class CellSettings:
     """the study's scenarios: ``uniform`` (SPEC §2) or a structured conflict (:mod:`madpinn.conflicts`)"""
     scenarios: int
     """scenarios per (N, seed) cell"""
-    limits: AgentLimits
+    limits: AgentSettings
     """agents' size and control limits"""
     sim: SimSettings
     """simulation settings"""
-    observation: ObservationSpec
+    observation: ObservationSettings
     """decentralized observation layout"""
     policy_period: int
     """simulation steps between policy queries (the method's own setting, else ``sim``'s)"""
@@ -73,8 +73,8 @@ class CellSettings:
         sim = SimSettings.from_config(cfg, study)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentLimits.from_config(cfg),
-            sim=sim, observation=ObservationSpec.from_config({**cfg, "observation": run_observation(cfg, run)}),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentSettings.from_config(cfg),
+            sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": run_observation(cfg, run)}),
             policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),
             collision_events=bool(st.get("collision_events", False)),

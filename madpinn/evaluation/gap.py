@@ -36,7 +36,7 @@ def switches(cfg: Mapping, run: str) -> dict:
     ``look_ahead`` (s), from its observation overrides and its method settings."""
     obs = run_observation(cfg, run)
     return {"carrot_margin": float(obs["carrot_margin"]), "neighbour_goal": str(obs["neighbour_goal"]),
-            "look_ahead": float(method_config(cfg, run)[1].get("look_ahead", 0.0))}
+            "look_ahead": float(method_config(cfg, run)[1]["look_ahead"])}   # required by the schema
 
 
 def row_name(backend: str, sw: Mapping, configured_margin: float) -> str:

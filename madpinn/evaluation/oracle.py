@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 import pandas as pd
@@ -42,9 +43,9 @@ class OracleSettings:
     """Limits (per axis) and grid of the oracle programmes."""
 
     horizon_s: float   # T (s)
-    u_max: float = 4.0  # m/s²
-    v_max: float = 4.0  # m/s
-    dt: float = 0.025   # h (s), grid of the programmes
+    u_max: float       # m/s² (``agents.u_max``)
+    v_max: float       # m/s (``agents.v_max``)
+    dt: float          # h (s), grid of the programmes: T / ``oracle.steps``
 
     def __post_init__(self):
         if self.horizon_s <= 0 or self.dt <= 0 or self.u_max <= 0 or self.v_max <= 0:
@@ -56,6 +57,13 @@ class OracleSettings:
     @property
     def steps(self) -> int:
         return int(round(self.horizon_s / self.dt))
+
+    @classmethod
+    def from_config(cls, cfg: Mapping, arena: str) -> "OracleSettings":
+        """The bound of one episode of ``arenas.<arena>``: T its length, h = T / ``oracle.steps``."""
+        episode_s = float(cfg["arenas"][arena]["episode_s"])
+        return cls(horizon_s=episode_s, u_max=float(cfg["agents"]["u_max"]), v_max=float(cfg["agents"]["v_max"]),
+                   dt=episode_s / int(cfg["oracle"]["steps"]))
 
 
 @lru_cache(maxsize=8)

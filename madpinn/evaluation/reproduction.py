@@ -66,14 +66,18 @@ def paper_row_of(ref_runs: Mapping[str, dict]) -> dict[str, dict]:
 def deployment(cfg: Mapping, runs: Iterable[str]) -> dict[str, dict]:
     """The deployment settings of our MAD-PINN runs that are not the paper's: ``{run: {look_ahead,
     safety_filter}}`` (look-ahead τ in s, 0 = the paper's measured state; safety_filter: the CBVF
-    extension is on), for every ``madpinn*`` run among ``runs``."""
+    extension is on), for every ``madpinn*`` run among ``runs``, read from the run's
+    :class:`~madpinn.policies.madpinn.MadPinnSettings`."""
+    from madpinn.policies import policy_settings
+
     out = {}
     for run in sorted(set(runs)):
         if run.partition("-")[0] != "madpinn" or "madpinn" not in cfg.get("methods", {}):
             continue
-        _, mcfg = method_config(cfg, run)
-        out[run] = {"label": str(mcfg.get("label", run)), "look_ahead": float(mcfg.get("look_ahead", 0.0) or 0.0),
-                    "safety_filter": bool(mcfg.get("safety_filter"))}
+        method, mcfg = method_config(cfg, run)
+        settings = policy_settings(method, mcfg)
+        out[run] = {"label": str(mcfg["label"]), "look_ahead": settings.look_ahead,
+                    "safety_filter": settings.safety_filter is not None}
     return out
 
 

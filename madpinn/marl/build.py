@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from madpinn.device import resolve_device, resolve_dtype
-from madpinn.marl.env import EnvConfig, GoalReachingEnv, RewardConfig
+from madpinn.marl.env import EnvSettings, GoalReachingEnv, RewardSettings
 from madpinn.marl.networks import DEFAULT_ENCODER
-from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.ppo import PPOSettings
 from madpinn.marl.trainer import PPOTrainer
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 from madpinn.scenarios import Arena
-from madpinn.settings import AgentLimits
+from madpinn.settings import AgentSettings
 
 CURVES = ("episode_return", "final_distance", "reached_rate", "collision_rate", "loss_policy", "loss_value",
           "entropy", "approx_kl", "clip_frac")
@@ -21,11 +21,11 @@ def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dt
     device = device or resolve_device(cfg["device"])
     dtype = dtype or resolve_dtype(cfg["dtype"])
     env = GoalReachingEnv(
-        AgentLimits.from_config(cfg).dynamics(), Arena.from_config(cfg, tcfg["arena"]), ObservationSpec.from_config(cfg),
-        EnvConfig.from_config(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
+        AgentSettings.from_config(cfg).dynamics(), Arena.from_config(cfg, tcfg["arena"]), ObservationSettings.from_config(cfg),
+        EnvSettings.from_config(tcfg["env"]), seed=int(tcfg["seed"]), device=device, dtype=dtype,
     )
     return trainer_cls(
-        env, PPOConfig.from_config(tcfg["ppo"]), RewardConfig.from_config(tcfg["reward"]),
+        env, PPOSettings.from_config(tcfg["ppo"]), RewardSettings.from_config(tcfg["reward"]),
         tcfg["agent_counts"], hidden=int(tcfg["network"]["hidden"]), seed=int(tcfg["seed"]),
         encoder=str(tcfg["network"].get("encoder", DEFAULT_ENCODER)),
     )

@@ -13,13 +13,13 @@ import torch
 from madpinn.marl.features import local_observation
 from madpinn.marl.networks import GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 
 
 class ActorPolicy:
     """accel ``[S, N, 2]`` = clip(μ(o_i), −1, 1)·u_max for every agent i in one batch."""
 
-    def __init__(self, actor: GaussianActor, obs_norm: ObsNormalizer, obs_spec: ObservationSpec, neighbours: int, u_max: float):
+    def __init__(self, actor: GaussianActor, obs_norm: ObsNormalizer, obs_spec: ObservationSettings, neighbours: int, u_max: float):
         self.actor = actor
         self.obs_norm = obs_norm
         self.obs_spec = obs_spec

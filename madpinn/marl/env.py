@@ -20,7 +20,7 @@ import torch
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.marl.features import LocalObs, local_observation
-from madpinn.observation import ObservationSpec, pairwise_distances
+from madpinn.observation import ObservationSettings, pairwise_distances
 from madpinn.scenarios import Arena, generate_scenarios
 
 # Training scenarios come from seeds disjoint from the evaluation seeds (small integers).
@@ -28,31 +28,31 @@ TRAIN_SEED_OFFSET = 1_000_000
 
 
 @dataclass(frozen=True)
-class EnvConfig:
+class EnvSettings:
     """train_dt: policy period in training (s); substeps: collision checks per period;
     neighbours: K neighbour slots in the local observation."""
 
-    train_dt: float = 0.05
-    substeps: int = 5
-    neighbours: int = 4
+    train_dt: float
+    substeps: int
+    neighbours: int
 
     @classmethod
-    def from_config(cls, d: dict) -> "EnvConfig":
+    def from_config(cls, d: dict) -> "EnvSettings":
         return cls(train_dt=float(d["train_dt"]), substeps=int(d["substeps"]), neighbours=int(d["neighbours"]))
 
 
 @dataclass(frozen=True)
-class RewardConfig:
+class RewardSettings:
     """Per-agent reward per period: ``progress·(d_prev − d) − distance·d·dt − control·‖u/u_max‖²·dt
     − collision·[collided during the period]`` (d: distance to goal, m; dt: train_dt, s)."""
 
-    progress: float = 1.0
-    distance: float = 1.0
-    control: float = 0.01
-    collision: float = 3.0
+    progress: float
+    distance: float
+    control: float
+    collision: float
 
     @classmethod
-    def from_config(cls, d: dict) -> "RewardConfig":
+    def from_config(cls, d: dict) -> "RewardSettings":
         return cls(**{k: float(d[k]) for k in ("progress", "distance", "control", "collision")})
 
 
@@ -69,8 +69,8 @@ class StepInfo:
     accel: torch.Tensor
 
 
-def goal_reward(info: StepInfo, w: RewardConfig, dt: float, u_max: float) -> torch.Tensor:
-    """Goal-reaching reward ``[E, N]`` of :class:`RewardConfig` (public-baseline style)."""
+def goal_reward(info: StepInfo, w: RewardSettings, dt: float, u_max: float) -> torch.Tensor:
+    """Goal-reaching reward ``[E, N]`` of :class:`RewardSettings` (public-baseline style)."""
     control = ((info.accel / u_max) ** 2).sum(-1)
     return (
         w.progress * (info.dist_prev - info.dist)
@@ -87,8 +87,8 @@ class GoalReachingEnv:
         self,
         dynamics: DoubleIntegrator,
         arena: Arena,
-        obs_spec: ObservationSpec,
-        cfg: EnvConfig,
+        obs_spec: ObservationSettings,
+        cfg: EnvSettings,
         seed: int,
         device: torch.device | str = "cpu",
         dtype: torch.dtype = torch.float32,

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, ObservationSpec, build_observation, nearest_neighbours
+from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, ObservationSettings, build_observation, nearest_neighbours
 
 EGO_FEATURES = EGO_DIM
 NEIGHBOUR_FEATURES = NEIGHBOUR_DIM
@@ -47,7 +47,7 @@ class LocalObs:
         return LocalObs(self.ego[idx], self.neighbours[idx], self.mask[idx])
 
 
-def local_observation(state: torch.Tensor, goals: torch.Tensor, spec: ObservationSpec, k: int) -> LocalObs:
+def local_observation(state: torch.Tensor, goals: torch.Tensor, spec: ObservationSettings, k: int) -> LocalObs:
     """Global state ``[S, N, 4]``, goals ``[S, N, 2]`` -> :class:`LocalObs` with K = ``k`` slots."""
     if k < 1:
         raise ValueError(f"need at least one neighbour slot, got {k}")

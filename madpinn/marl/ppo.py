@@ -12,29 +12,30 @@ from madpinn.marl.networks import GaussianActor
 
 
 @dataclass(frozen=True)
-class PPOConfig:
+class PPOSettings:
     """iterations: rollouts (one episode per env each); agents_per_batch: E·N per rollout (E is
     chosen per agent count); epochs / minibatch: passes and samples per gradient step; lr: Adam
     step; discount γ and gae_lambda λ per policy period; clip ε; entropy_coef, value_coef: loss
     weights; max_grad_norm: global gradient clipping; init_log_std: initial log σ of the actor."""
 
-    iterations: int = 200
-    agents_per_batch: int = 1024
-    epochs: int = 4
-    minibatch: int = 4096
-    lr: float = 3e-4
-    discount: float = 0.99
-    gae_lambda: float = 0.95
-    clip: float = 0.2
-    entropy_coef: float = 1e-3
-    value_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    init_log_std: float = -0.5
+    iterations: int
+    agents_per_batch: int
+    epochs: int
+    minibatch: int
+    lr: float
+    discount: float
+    gae_lambda: float
+    clip: float
+    entropy_coef: float
+    value_coef: float
+    max_grad_norm: float
+    init_log_std: float
 
     @classmethod
-    def from_config(cls, d: dict) -> "PPOConfig":
+    def from_config(cls, d: dict) -> "PPOSettings":
         """All fields required (the schema enforces them); ints stay ints."""
-        return cls(**{f.name: type(f.default)(d[f.name]) for f in fields(cls)})
+        ints = ("iterations", "agents_per_batch", "epochs", "minibatch")
+        return cls(**{f.name: (int if f.name in ints else float)(d[f.name]) for f in fields(cls)})
 
 
 @dataclass
@@ -57,7 +58,7 @@ def ppo_update(
     critic: nn.Module,
     optimizer: torch.optim.Optimizer,
     batch: PPOBatch,
-    cfg: PPOConfig,
+    cfg: PPOSettings,
     generator: torch.Generator,
     value_weights: torch.Tensor | None = None,
 ) -> dict:

@@ -33,12 +33,12 @@ import torch
 from tqdm.auto import tqdm
 
 from madpinn.marl.buffer import RolloutBuffer
-from madpinn.marl.env import GoalReachingEnv, RewardConfig, StepInfo, goal_reward
+from madpinn.marl.env import GoalReachingEnv, RewardSettings, StepInfo, goal_reward
 from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
 from madpinn.marl.gae import gae
 from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor, ValueCritic
 from madpinn.marl.normalize import ObsNormalizer, ReturnNormalizer
-from madpinn.marl.ppo import PPOBatch, PPOConfig, ppo_update
+from madpinn.marl.ppo import PPOBatch, PPOSettings, ppo_update
 
 REACHED_M = 0.05  # goal "reached" in the learning-curve statistics (m)
 
@@ -50,8 +50,8 @@ class PPOTrainer:
     def __init__(
         self,
         env: GoalReachingEnv,
-        ppo: PPOConfig,
-        reward: RewardConfig,
+        ppo: PPOSettings,
+        reward: RewardSettings,
         agent_counts: Sequence[int],
         hidden: int,
         seed: int,

@@ -22,7 +22,7 @@ import torch
 
 from madpinn.config import ConfigError
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 
 
 class Policy(Protocol):
@@ -39,7 +39,7 @@ class PolicyContext:
     """the method's settings (its registered settings class, built by :func:`policy_settings`)"""
     dynamics: DoubleIntegrator
     """the agents' double integrator (control bound ``u_max``)"""
-    obs_spec: ObservationSpec
+    obs_spec: ObservationSettings
     """decentralized observation layout and ranges"""
     device: torch.device
     dtype: torch.dtype

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import torch
 
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.observation import ObservationSettings, build_observation
 
 
 def predict_states(state: torch.Tensor, accel: torch.Tensor | None, horizon: float) -> torch.Tensor:
@@ -29,7 +29,7 @@ def predict_states(state: torch.Tensor, accel: torch.Tensor | None, horizon: flo
 
 
 def observation_with_own_state(
-    own: torch.Tensor, others: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSpec
+    own: torch.Tensor, others: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSettings
 ) -> torch.Tensor:
     """Observations ``[S, N, D]`` in which agent i sees itself at ``own[:, i]`` and its neighbours
     at ``others`` (both ``[S, N, 4]``); goals ``[S, N, 2]``, neighbour indices ``[S, N, n]``
@@ -45,7 +45,7 @@ def observation_with_own_state(
 
 def look_ahead_observation(
     state: torch.Tensor, last_command: torch.Tensor | None, goals: torch.Tensor, neighbours: torch.Tensor,
-    spec: ObservationSpec, horizon: float,
+    spec: ObservationSettings, horizon: float,
 ) -> torch.Tensor:
     """Observations ``[S, N, D]`` τ = ``horizon`` s ahead: own state under ``last_command``
     ``[S, N, 2]`` (None, e.g. at the first step: zero acceleration), the others' at constant

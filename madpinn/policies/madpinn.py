@@ -34,10 +34,10 @@ from pathlib import Path
 
 import torch
 
-from madpinn.observation import ObservationSpec, build_observation
+from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
-from madpinn.policies.neighbours import STRATEGIES, make_selector
+from madpinn.policies.neighbours import make_selector
 from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
 from madpinn.policies.z_search import newton_search, predict_index, warm_search
 from madpinn.value_functions import load_vhat, load_vs
@@ -60,32 +60,25 @@ class MadPinnSettings:
     (:func:`newton_search`, fewer V̂ rows; may return another verified crossing where V̂ is not
     monotone in z, so not the default and not read from the config yet, issue 37)."""
 
-    strategy: str = "value"
-    update_every: int | None = 5
-    z_tolerance: float = 1e-3
-    warm_start: bool = True
-    pair_batch: int = 65536
-    symmetry: str = "none"
-    safety_filter: CBVFSettings | None = None
-    look_ahead: float = 0.0
-    z_newton: bool = False
+    strategy: str
+    update_every: int | None
+    z_tolerance: float
+    warm_start: bool
+    pair_batch: int
+    symmetry: str
+    safety_filter: CBVFSettings | None
+    look_ahead: float
+    z_newton: bool = False   # not a config key (issue 37)
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
+        """Every key from the validated ``methods.madpinn`` (variant merged); its bounds are the schema's."""
         k = mcfg["update_every"]
-        update_every = None if k == INF_UPDATE else int(k)
-        if update_every is not None and update_every < 1:
-            raise ValueError(f"methods.madpinn.update_every must be ≥ 1 or '{INF_UPDATE}', got {k}")
-        strategy = str(mcfg["neighbours"])
-        if strategy not in STRATEGIES:
-            raise ValueError(f"methods.madpinn.neighbours must be one of {STRATEGIES}, got '{strategy}'")
-        look_ahead = float(mcfg.get("look_ahead", 0.0))
-        if not (0.0 <= look_ahead < 1.0):
-            raise ValueError(f"methods.madpinn.look_ahead must be in [0, 1) s, got {look_ahead}")
-        return cls(strategy=strategy, update_every=update_every, z_tolerance=float(mcfg["z_tolerance"]),
-                   warm_start=bool(mcfg["warm_start"]), pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
+        return cls(strategy=str(mcfg["neighbours"]), update_every=None if k == INF_UPDATE else int(k),
+                   z_tolerance=float(mcfg["z_tolerance"]), warm_start=bool(mcfg["warm_start"]),
+                   pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
-                   look_ahead=look_ahead)
+                   look_ahead=float(mcfg["look_ahead"]))
 
 
 def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
@@ -94,7 +87,7 @@ def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
     return r.z, r.feasible
 
 
-def check_compatible(vhat, vs, spec: ObservationSpec, u_max: float) -> None:
+def check_compatible(vhat, vs, spec: ObservationSettings, u_max: float) -> None:
     """Fail early when the trained models do not match the deployment configuration."""
     m = vhat.obs_spec
     for name in ("n_neighbours", "goal_range", "offset_range", "collision_radius"):
@@ -115,7 +108,7 @@ class MadPinnPolicy:
     prediction) and the V̂ network rows of the z search and control (value only / with gradient).
     """
 
-    def __init__(self, vhat, selector, spec: ObservationSpec, settings: MadPinnSettings, sim_dt: float):
+    def __init__(self, vhat, selector, spec: ObservationSettings, settings: MadPinnSettings, sim_dt: float):
         self.vhat = vhat
         self.selector = selector
         self.spec = spec

@@ -30,14 +30,14 @@ from dataclasses import dataclass
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import ObservationSpec, build_observation, nearest_neighbours, split_observation
+from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours, split_observation
 from madpinn.policies.base import PolicyContext, register_policy
 
 _KNOT_EPS = 1e-9  # s; guards floor(t / plan_dt) against round-off at knot times
 
 
 @dataclass(frozen=True)
-class MPPIParams:
+class MPPISettings:
     """MPPI hyperparameters (``methods.mppi`` in config.yaml).
 
     samples: K sampled acceleration sequences per agent; horizon: H knots of ``plan_dt`` s;
@@ -54,9 +54,9 @@ class MPPIParams:
     temperature: float
     penalty_weight: float
     margin: float
-    terminal_weight: float = 1.0
-    dual_lr: float = 0.0
-    penalty_max: float = 1.0e4
+    terminal_weight: float
+    dual_lr: float
+    penalty_max: float
 
     def __post_init__(self):
         if self.samples < 1 or self.horizon < 1:
@@ -68,7 +68,7 @@ class MPPIParams:
             raise ValueError("MPPI penalty_weight, margin and dual_lr must be ≥ 0")
 
     @classmethod
-    def from_config(cls, mcfg: dict) -> "MPPIParams":
+    def from_config(cls, mcfg: dict) -> "MPPISettings":
         dual = mcfg["dual_ascent"]
         return cls(
             samples=int(mcfg["samples"]),
@@ -98,7 +98,7 @@ class MPPIPlanner:
     Holds the plan ``U`` ``[B, H, 2]`` (m/s²), its knot index, and the per-agent λ ``[B]``.
     """
 
-    def __init__(self, params: MPPIParams, dynamics: DoubleIntegrator, collision_radius: float,
+    def __init__(self, params: MPPISettings, dynamics: DoubleIntegrator, collision_radius: float,
                  generator: torch.Generator):
         self.p = params
         self.dynamics = dynamics
@@ -176,7 +176,7 @@ class MPPIPlanner:
 class MPPIPolicy:
     """Policy protocol around :class:`MPPIPlanner`: observation, neighbours, one batched plan."""
 
-    def __init__(self, planner: MPPIPlanner, spec: ObservationSpec, dynamics: DoubleIntegrator):
+    def __init__(self, planner: MPPIPlanner, spec: ObservationSettings, dynamics: DoubleIntegrator):
         self.planner = planner
         self.spec = spec
         self.dynamics = dynamics
@@ -208,7 +208,7 @@ def make_generator(device, seed: int) -> torch.Generator:
     return gen
 
 
-@register_policy("mppi", MPPIParams)
+@register_policy("mppi", MPPISettings)
 def make_mppi(ctx: PolicyContext) -> MPPIPolicy:
     params = ctx.method
     planner = MPPIPlanner(params, ctx.dynamics, ctx.obs_spec.collision_radius, make_generator(ctx.device, ctx.seed))

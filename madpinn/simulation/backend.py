@@ -14,7 +14,7 @@ import torch
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import pairwise_distances
-from madpinn.settings import AgentLimits, SimSettings
+from madpinn.settings import AgentSettings, SimSettings
 
 
 class SimBackend(Protocol):
@@ -85,7 +85,7 @@ _BACKENDS = {}
 
 def register_backend(name: str):
     """Decorator: register a backend factory ``factory(sim, limits, device, dtype) -> SimBackend``
-    taking :class:`~madpinn.settings.SimSettings` and :class:`~madpinn.settings.AgentLimits`."""
+    taking :class:`~madpinn.settings.SimSettings` and :class:`~madpinn.settings.AgentSettings`."""
 
     def deco(factory):
         _BACKENDS[name] = factory
@@ -95,12 +95,12 @@ def register_backend(name: str):
 
 
 @register_backend("double_integrator")
-def _make_double_integrator(sim: SimSettings, limits: AgentLimits, device, dtype):
+def _make_double_integrator(sim: SimSettings, limits: AgentSettings, device, dtype):
     return DoubleIntegratorBackend(limits.dynamics(), dt=sim.dt,
                                    freeze_radius=limits.collision_radius if sim.contacts else None)
 
 
-def make_backend(name: str, sim: SimSettings, limits: AgentLimits, device, dtype) -> SimBackend:
+def make_backend(name: str, sim: SimSettings, limits: AgentSettings, device, dtype) -> SimBackend:
     """The backend ``name`` (``sim.backend`` or an override) for ``sim`` and the agents' ``limits``."""
     if name not in _BACKENDS:
         _load_optional_backends()

@@ -53,7 +53,7 @@ class TrackingSettings:
         from madpinn.config import config_hash
 
         return cls(
-            enabled=bool((cfg.get("tracking") or {}).get("enabled", True)),
+            enabled=bool(cfg["tracking"]["enabled"]),
             uri=tracking_uri(cfg),
             experiment=str(cfg["experiment"]),
             pending_dir=Path(cfg["paths"]["results"]) / "tracking" / "pending",

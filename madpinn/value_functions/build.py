@@ -16,13 +16,13 @@ def problem_from_config(cfg: dict, kind: str):
     from madpinn.dynamics.epigraph import EpigraphSystem
     from madpinn.dynamics.pair import PairSystem
     from madpinn.value_functions.problems import EpigraphProblem, PairProblem
-    from madpinn.value_functions.sampling import ConflictSampling, NearSampling
+    from madpinn.value_functions.sampling import ConflictSamplingSettings, NearSamplingSettings
 
     if kind == "vhat":
         return EpigraphProblem(EpigraphSystem.from_config(cfg),
-                               ConflictSampling.from_config(cfg["value_functions"]["vhat"]))
+                               ConflictSamplingSettings.from_config(cfg["value_functions"]["vhat"]))
     vs = cfg["value_functions"]["vs"]
-    return PairProblem(PairSystem.from_config(cfg), ConflictSampling.from_config(vs), NearSampling.from_config(vs))
+    return PairProblem(PairSystem.from_config(cfg), ConflictSamplingSettings.from_config(vs), NearSamplingSettings.from_config(vs))
 
 
 def training_hash(cfg: dict, kind: str) -> str:

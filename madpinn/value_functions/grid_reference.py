@@ -29,13 +29,13 @@ class GridSettings:
     interior_p / interior_v: half-widths of the box the metrics use (m, m/s); times: the
     times t (s) of the comparison; accuracy: hj_reachability scheme (``very_high`` = WENO5 + TVD-RK3)."""
 
-    nodes: int = 41
-    p_range: float = 1.0
-    v_range: float = 6.0
-    interior_p: float = 0.6
-    interior_v: float = 3.0
-    times: tuple = (0.0, 0.25, 0.5, 0.75)
-    accuracy: str = "very_high"
+    nodes: int
+    p_range: float
+    v_range: float
+    interior_p: float
+    interior_v: float
+    times: tuple
+    accuracy: str
 
     def __post_init__(self):
         if self.nodes < 5 or self.nodes % 2 == 0:

@@ -19,9 +19,9 @@ import torch
 
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
-from madpinn.observation import ObservationSpec
+from madpinn.observation import TRAINING_MAPPING, ObservationSettings
 from madpinn.value_functions.sampling import (
-    ConflictSampling, NearSampling, place_conflicts, place_near, place_pair_conflicts,
+    ConflictSamplingSettings, NearSamplingSettings, place_conflicts, place_near, place_pair_conflicts,
 )
 
 
@@ -84,9 +84,9 @@ class EpigraphProblem(PINNProblem):
 
     kind = "vhat"
 
-    def __init__(self, system: EpigraphSystem, conflict: ConflictSampling | None = None):
+    def __init__(self, system: EpigraphSystem, conflict: ConflictSamplingSettings | None = None):
         self.system = system
-        self.conflict = conflict or ConflictSampling()
+        self.conflict = conflict   # None: no share of the batch on conflicts
         self.horizon = system.horizon
         hw = system.half_widths()
         centre = torch.cat([torch.zeros_like(hw), torch.tensor([system.z_max / 2.0], dtype=torch.float64)])
@@ -102,8 +102,10 @@ class EpigraphProblem(PINNProblem):
         (:mod:`madpinn.value_functions.sampling`)."""
         s = self.sample_states(batch, generator, dtype)
         sy = self.system
-        obs = place_conflicts(s[:, :-1], sy.spec.n_neighbours, sy.horizon, sy.spec.offset_range,
-                              self.conflict, generator, v_max=sy.v_max)
+        obs = s[:, :-1]
+        if self.conflict is not None:
+            obs = place_conflicts(obs, sy.spec.n_neighbours, sy.horizon, sy.spec.offset_range, self.conflict, generator,
+                                  v_max=sy.v_max)
         return torch.cat([obs, s[:, -1:]], dim=-1)
 
     def boundary_and_grad(self, s):
@@ -126,7 +128,7 @@ class EpigraphProblem(PINNProblem):
 
     @classmethod
     def from_description(cls, d: dict) -> "EpigraphProblem":
-        return cls(EpigraphSystem(spec=ObservationSpec(**d["spec"]), u_max=d["u_max"], v_max=d["v_max"],
+        return cls(EpigraphSystem(spec=ObservationSettings(**{**TRAINING_MAPPING, **d["spec"]}), u_max=d["u_max"], v_max=d["v_max"],
                                   horizon=d["horizon"], z_max=d["z_max"], velocity_saturation=bool(d.get("velocity_saturation", False))))
 
 
@@ -135,10 +137,10 @@ class PairProblem(PINNProblem):
 
     kind = "vs"
 
-    def __init__(self, system: PairSystem, conflict: ConflictSampling | None = None, near: NearSampling | None = None):
+    def __init__(self, system: PairSystem, conflict: ConflictSamplingSettings | None = None, near: NearSamplingSettings | None = None):
         self.system = system
-        self.conflict = conflict or ConflictSampling()
-        self.near = near or NearSampling()
+        self.conflict = conflict   # None: none of the batch on conflicts / from the inner box
+        self.near = near
         self.horizon = system.horizon
         hw = system.half_widths()
         super().__init__(torch.zeros_like(hw), hw)
@@ -152,8 +154,9 @@ class PairProblem(PINNProblem):
         from the inner box (:func:`madpinn.value_functions.sampling.place_near`)."""
         sy = self.system
         s = self.sample_states(batch, generator, dtype)
-        s = place_pair_conflicts(s, sy.horizon, sy.p_range, self.conflict, generator)
-        return place_near(s, sy.p_range, sy.v_range, self.near, generator)
+        if self.conflict is not None:
+            s = place_pair_conflicts(s, sy.horizon, sy.p_range, self.conflict, generator, v_range=sy.v_range)
+        return s if self.near is None else place_near(s, sy.p_range, sy.v_range, self.near, generator)
 
     def boundary_and_grad(self, s):
         return self.system.target_and_grad(s)

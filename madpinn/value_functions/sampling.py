@@ -26,7 +26,7 @@ from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, split_observation
 
 
 @dataclass(frozen=True)
-class ConflictSampling:
+class ConflictSamplingSettings:
     """fraction: share of each batch on a near-collision course; radius: ρ (m) of the disk the
     pair's constant-velocity relative position reaches within the horizon.
 
@@ -37,10 +37,10 @@ class ConflictSampling:
     pair's mean velocity (both then clipped to ±v_max per axis). ``None`` / ``(0, 1)`` draw exactly
     what the plain sampler draws."""
 
-    fraction: float = 0.0
-    radius: float = 0.3
-    tau: tuple[float, float] = (0.0, 1.0)
-    closing_speed: tuple[float, float] | None = None
+    fraction: float
+    radius: float
+    tau: tuple[float, float]
+    closing_speed: tuple[float, float] | None
 
     def __post_init__(self):
         if not 0.0 <= self.fraction <= 1.0:
@@ -54,11 +54,11 @@ class ConflictSampling:
             raise ValueError(f"conflict sampling closing_speed must be 0 <= lo <= hi (m/s), got {self.closing_speed}")
 
     @classmethod
-    def from_config(cls, vcfg: dict) -> "ConflictSampling":
-        c = vcfg.get("conflict_sampling") or {}
-        speed = c.get("closing_speed")
-        return cls(fraction=float(c.get("fraction", 0.0)), radius=float(c.get("radius", 0.3)),
-                   tau=tuple(float(x) for x in c.get("tau", (0.0, 1.0))),
+    def from_config(cls, vcfg: dict) -> "ConflictSamplingSettings":
+        c = vcfg["conflict_sampling"]
+        speed = c.get("closing_speed")   # absent: schema default (null: the uniform velocities)
+        return cls(fraction=float(c["fraction"]), radius=float(c["radius"]),
+                   tau=tuple(float(x) for x in c.get("tau", (0.0, 1.0))),   # absent: schema default [0, 1]
                    closing_speed=None if speed is None else tuple(float(x) for x in speed))
 
 
@@ -87,7 +87,7 @@ def _redraw_closing(out: torch.Tensor, a, c, va, vc, speed: tuple[float, float],
 
 
 def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset_range: float,
-                    sampling: ConflictSampling, generator: torch.Generator, v_max: float | None = None) -> torch.Tensor:
+                    sampling: ConflictSamplingSettings, generator: torch.Generator, v_max: float | None = None) -> torch.Tensor:
     """Return ``obs [B, D]`` with the first ``round(fraction·B)`` rows moved onto a
     near-collision course of one pair (uniform over the ``(n+1)n/2`` pairs; the moved agent is
     always a neighbour, so the ego stays at the origin). ``v_max`` (m/s per axis) bounds the
@@ -122,35 +122,45 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     return out
 
 
-def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampling: ConflictSampling,
-                         generator: torch.Generator) -> torch.Tensor:
+def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampling: ConflictSamplingSettings,
+                         generator: torch.Generator, v_range: float | None = None) -> torch.Tensor:
     """Return the relative pair states ``x [B, 4] = [p, v]`` with the first ``round(fraction·B)``
-    rows moved onto a near-collision course: ``p = −v·τ + d``, ``τ ~ U[0, T]``, ``d`` uniform in
-    the disk of radius ρ, clipped to ``|p| ≤ p_range`` (V_s's training domain). Velocities stay
-    uniform; ``fraction = 0`` returns ``x`` unchanged. Pure function of the generator state."""
+    rows moved onto a near-collision course: ``p = −v·τ + d``, ``τ ~ U[lo·T, hi·T]`` (``sampling.tau``),
+    ``d`` uniform in the disk of radius ρ, clipped to ``|p| ≤ p_range`` (V_s's training domain).
+    Velocities stay uniform unless ``sampling.closing_speed`` redraws them (speed ``U[lo, hi]`` m/s,
+    uniform direction, clipped to ``±v_range``, required then); ``fraction = 0`` returns ``x``
+    unchanged. Pure function of the generator state."""
     m = int(round(sampling.fraction * x.shape[0]))
     if m == 0:
         return x
+    if sampling.closing_speed is not None and v_range is None:
+        raise ValueError("conflict sampling with closing_speed needs v_range (the velocity bound of the domain)")
     dtype, device = x.dtype, x.device
-    tau = horizon * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    lo, hi = sampling.tau
+    tau = horizon * (lo + (hi - lo) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
     radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
     angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
     d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
     out = x.clone()
-    out[:m, 0:2] = (-x[:m, 2:4] * tau[:, None] + d).clamp(-p_range, p_range)
+    if sampling.closing_speed is not None:
+        w0, w1 = sampling.closing_speed
+        w = (w0 + (w1 - w0) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+        phi = (2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+        out[:m, 2:4] = torch.stack([w * torch.cos(phi), w * torch.sin(phi)], -1).clamp(-v_range, v_range)
+    out[:m, 0:2] = (-out[:m, 2:4] * tau[:, None] + d).clamp(-p_range, p_range)
     return out
 
 
 @dataclass(frozen=True)
-class NearSampling:
+class NearSamplingSettings:
     """fraction: share of each V_s training batch drawn uniformly from the inner box
     ``|p| ≤ p_range``, ``|v| ≤ v_range`` per axis (m, m/s), where nearby, slow pairs sit — a small
     corner of the uniform training box (|p| ≤ 2, |v| ≤ 8: the inner box 1 × 3 holds 3.5 % of it)
     that carries the collision disk, the kink of ψ and most of the grid reference's unsafe states."""
 
-    fraction: float = 0.0
-    p_range: float = 1.0
-    v_range: float = 3.0
+    fraction: float
+    p_range: float
+    v_range: float
 
     def __post_init__(self):
         if not 0.0 <= self.fraction <= 1.0:
@@ -159,13 +169,12 @@ class NearSampling:
             raise ValueError(f"near sampling box must be positive, got p {self.p_range} m, v {self.v_range} m/s")
 
     @classmethod
-    def from_config(cls, vcfg: dict) -> "NearSampling":
-        c = vcfg.get("near_sampling") or {}
-        return cls(fraction=float(c.get("fraction", 0.0)), p_range=float(c.get("p_range", 1.0)),
-                   v_range=float(c.get("v_range", 3.0)))
+    def from_config(cls, vcfg: dict) -> "NearSamplingSettings":
+        c = vcfg["near_sampling"]
+        return cls(fraction=float(c["fraction"]), p_range=float(c["p_range"]), v_range=float(c["v_range"]))
 
 
-def place_near(x: torch.Tensor, p_range: float, v_range: float, sampling: NearSampling,
+def place_near(x: torch.Tensor, p_range: float, v_range: float, sampling: NearSamplingSettings,
                generator: torch.Generator) -> torch.Tensor:
     """Return the relative pair states ``x [B, 4]`` with the last ``round(fraction·B)`` rows redrawn
     uniformly from the inner box (clipped to the training box ``p_range``, ``v_range``); the first

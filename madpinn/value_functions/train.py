@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -43,12 +43,13 @@ class TrainSettings:
     lr_final: float
     curriculum_fraction: float
     checkpoint_every: int
-    loss: str = "l1"
-    output_scale: float = 1.0
-    network: dict = field(default_factory=lambda: {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0})
-    seed: int = 0
-    init_from: str | None = None
-    obstacle_weight: float = 0.0
+    loss: str
+    output_scale: float
+    network: dict
+    seed: int
+    init_from: str | None
+    """fine-tune from this model (None: from scratch; absent key: the schema's ``default``)"""
+    obstacle_weight: float
     """Weight of the obstacle penalty ``mean(relu-violation)`` (same norm as the residual) added to
     the residual loss; 0 = the paper's loss. The VI's min passes its gradient to one branch only, so
     without it nothing pulls V_s down to ψ where the other branch is smaller (docs/value_functions.md)."""
@@ -57,10 +58,10 @@ class TrainSettings:
     def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":
         return cls(
             iterations=int(vcfg["iterations"]), batch_size=int(vcfg["batch_size"]), lr=float(vcfg["lr"]),
-            lr_final=float(vcfg.get("lr_final", vcfg["lr"])), curriculum_fraction=float(vcfg["curriculum_fraction"]),
-            checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg.get("loss", "l1")),
+            lr_final=float(vcfg["lr_final"]), curriculum_fraction=float(vcfg["curriculum_fraction"]),
+            checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg["loss"]),
             output_scale=float(vcfg["output_scale"]), network=dict(vcfg["network"]), seed=int(seed),
-            init_from=vcfg.get("init_from"), obstacle_weight=float(vcfg.get("obstacle_weight", 0.0)),
+            init_from=vcfg.get("init_from"), obstacle_weight=float(vcfg.get("obstacle_weight", 0.0)),   # absent: schema default
         )
 
 

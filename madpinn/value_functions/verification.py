@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import torch
 
 from madpinn.observation import split_observation
-from madpinn.value_functions.sampling import ConflictSampling, place_conflicts
+from madpinn.value_functions.sampling import ConflictSamplingSettings, place_conflicts
 from madpinn.value_functions.z_search import min_feasible_z
 
 
@@ -32,13 +32,13 @@ class ScenarioSettings:
     betas: confidence parameters β; conflict_radius: ρ (m) of the conflict distribution;
     max_draws_factor: give up after drawing this many × samples candidates."""
 
-    samples: int = 10000
-    dt: float = 0.005
-    substeps: int = 4
-    seed: int = 100
-    betas: tuple = (1e-3, 1e-6)
-    conflict_radius: float = 0.3
-    max_draws_factor: int = 50
+    samples: int
+    dt: float
+    substeps: int
+    seed: int
+    betas: tuple
+    conflict_radius: float
+    max_draws_factor: int = 50   # not a config key
 
     def __post_init__(self):
         if self.samples < 1 or self.dt <= 0 or self.substeps < 1:
@@ -68,7 +68,7 @@ def epsilon_bound(violations: int, samples: int, beta: float) -> float:
     return float(beta_dist.ppf(1.0 - beta, violations + 1, samples - violations))
 
 
-def draw_safe_states(vhat, n: int, conflict: ConflictSampling, generator: torch.Generator, max_draws: int,
+def draw_safe_states(vhat, n: int, conflict: ConflictSamplingSettings, generator: torch.Generator, max_draws: int,
                      z_tolerance: float):
     """Rejection sampling: ``(obs [n, D], z* [n], acceptance rate)`` of states with
     ``V̂(0, o, z*) ≤ 0`` from the uniform domain, rewritten by ``conflict`` (fraction 1: every
@@ -136,7 +136,8 @@ def verify(vhat, settings: ScenarioSettings, conflict: bool, z_tolerance: float,
     distribution (every state on a near-collision course of radius ``settings.conflict_radius``),
     at the budgets of the deployed search on the grid of ``z_tolerance`` (the policy's
     ``z_tolerance``, a fraction of z_max)."""
-    sampling = ConflictSampling(fraction=1.0 if conflict else 0.0, radius=settings.conflict_radius)
+    sampling = ConflictSamplingSettings(fraction=1.0 if conflict else 0.0, radius=settings.conflict_radius,
+                                        tau=(0.0, 1.0), closing_speed=None)
     gen = torch.Generator().manual_seed(int(settings.seed) * 7919 + (1 if conflict else 0))
     obs, z, acceptance = draw_safe_states(vhat, settings.samples, sampling, gen,
                                           settings.max_draws_factor * settings.samples, z_tolerance)

@@ -1,9 +1,7 @@
 # MuJoCo backend extras (issue 5). With sim.backend: mujoco and sim.mujoco.render_clips: true,
 # one GIF per (study, run) of `all` — the smallest N, first seed — rendered offscreen from the evaluation
 # job's trajectory and logged to MLflow; without a GL context the job records why and succeeds.
-_MUJOCO = config["sim"].get("mujoco") or {}
-
-if BACKEND == "mujoco" and _MUJOCO.get("render_clips", False):
+if BACKEND == "mujoco" and config["sim"]["mujoco"]["render_clips"]:
 
     rule render_clip:
         input:

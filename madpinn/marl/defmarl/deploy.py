@@ -19,7 +19,7 @@ from madpinn.marl.defmarl.root import CONSENSUS, agree, smallest_safe_z
 from madpinn.marl.features import EGO_FEATURES, local_observation
 from madpinn.marl.networks import DEFAULT_ENCODER, GaussianActor, ValueCritic
 from madpinn.marl.normalize import CLIP, ObsNormalizer
-from madpinn.observation import ObservationSpec
+from madpinn.observation import ObservationSettings
 
 FORMAT_METHOD = "defmarl"
 
@@ -38,7 +38,7 @@ class BudgetStats:
 
 
 class DefMarlPolicy:
-    def __init__(self, actor: GaussianActor, critic: ValueCritic, obs_norm: ObsNormalizer, obs_spec: ObservationSpec,
+    def __init__(self, actor: GaussianActor, critic: ValueCritic, obs_norm: ObsNormalizer, obs_spec: ObservationSettings,
                  neighbours: int, u_max: float, z_min: float, z_max: float, iterations: int = 20, level: float = 0.0,
                  root_period: int = 1, consensus: str = "global"):
         if root_period < 1:
@@ -102,7 +102,7 @@ class DefMarlPolicy:
         return self.actor(xn).view(S, N, 2).clamp(-1.0, 1.0) * self.u_max
 
 
-def load_defmarl(path, obs_spec: ObservationSpec, u_max: float, collision_radius: float, device="cpu",
+def load_defmarl(path, obs_spec: ObservationSettings, u_max: float, collision_radius: float, device="cpu",
                  dtype=torch.float32, iterations: int = 20, level: float = 0.0, root_period: int = 1,
                  consensus: str = "global") -> DefMarlPolicy:
     """Policy from a ``train-defmarl`` checkpoint; refuses a model trained for other limits or radius."""

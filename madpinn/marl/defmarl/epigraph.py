@@ -23,18 +23,18 @@ import torch
 
 
 @dataclass(frozen=True)
-class EpigraphConfig:
+class EpigraphSettings:
     """z_min, z_max: training range of the budget z (team cost units); end_mass: probability
     that an episode starts exactly at z_min or z_max (half each), the rest uniform; h_clip:
     separation margin (m) beyond which h saturates at −1; h_margin: the jump ±m of h at the
     collision boundary (0 ≤ m < 1); cost_lr: Adam step of the cost critic."""
 
-    z_min: float = -2.0
-    z_max: float = 3.0
-    end_mass: float = 0.2
-    h_clip: float = 0.2
-    cost_lr: float = 1e-3
-    h_margin: float = 0.5
+    z_min: float
+    z_max: float
+    end_mass: float
+    h_clip: float
+    cost_lr: float
+    h_margin: float
 
     def __post_init__(self):
         if not self.z_min < self.z_max:
@@ -43,11 +43,11 @@ class EpigraphConfig:
             raise ValueError(f"need 0 ≤ end_mass ≤ 1, h_clip > 0, cost_lr > 0, 0 ≤ h_margin < 1 (got {self})")
 
     @classmethod
-    def from_config(cls, d: dict) -> "EpigraphConfig":
+    def from_config(cls, d: dict) -> "EpigraphSettings":
         return cls(**{k: float(d[k]) for k in ("z_min", "z_max", "end_mass", "h_clip", "cost_lr", "h_margin")})
 
 
-def sample_z(n: int, cfg: EpigraphConfig, generator: torch.Generator, dtype=torch.float32) -> torch.Tensor:
+def sample_z(n: int, cfg: EpigraphSettings, generator: torch.Generator, dtype=torch.float32) -> torch.Tensor:
     """Initial budgets ``[n]``: z_min or z_max with probability end_mass/2 each, else uniform."""
     u = torch.rand(n, generator=generator, dtype=torch.float64)
     x = torch.rand(n, generator=generator, dtype=torch.float64)
@@ -57,7 +57,7 @@ def sample_z(n: int, cfg: EpigraphConfig, generator: torch.Generator, dtype=torc
     return z.to(dtype)
 
 
-def update_z(z: torch.Tensor, cost: torch.Tensor, cfg: EpigraphConfig) -> torch.Tensor:
+def update_z(z: torch.Tensor, cost: torch.Tensor, cfg: EpigraphSettings) -> torch.Tensor:
     """z dynamics along a rollout: ``z' = clip(z − l, z_min, z_max)`` (``[E]``)."""
     return (z - cost).clamp(cfg.z_min, cfg.z_max)
 

@@ -25,12 +25,12 @@ from torch import nn
 from madpinn.marl.buffer import RolloutBuffer
 from madpinn.marl.defmarl.critics import TeamCostCritic, team_rows
 from madpinn.marl.defmarl.epigraph import (
-    EpigraphConfig, collision_constraint, epigraph_lambda_returns, epigraph_value, sample_z, update_z,
+    EpigraphSettings, collision_constraint, epigraph_lambda_returns, epigraph_value, sample_z, update_z,
 )
-from madpinn.marl.env import GoalReachingEnv, RewardConfig, StepInfo, goal_reward
+from madpinn.marl.env import GoalReachingEnv, RewardSettings, StepInfo, goal_reward
 from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
 from madpinn.marl.networks import DEFAULT_ENCODER
-from madpinn.marl.ppo import PPOConfig
+from madpinn.marl.ppo import PPOSettings
 from madpinn.marl.trainer import PPOTrainer
 
 
@@ -43,8 +43,8 @@ class DefMarlTrainer(PPOTrainer):
     critic_heads = 1  # V_h(o_i, z)
 
     def __init__(
-        self, env: GoalReachingEnv, ppo: PPOConfig, reward: RewardConfig, agent_counts: Sequence[int], hidden: int,
-        seed: int, epigraph: EpigraphConfig, encoder: str = DEFAULT_ENCODER,
+        self, env: GoalReachingEnv, ppo: PPOSettings, reward: RewardSettings, agent_counts: Sequence[int], hidden: int,
+        seed: int, epigraph: EpigraphSettings, encoder: str = DEFAULT_ENCODER,
     ):
         if reward.collision != 0.0:
             raise ValueError(

@@ -19,7 +19,7 @@ if "mujoco" not in sys.modules and "MUJOCO_GL" not in os.environ and ctypes.util
 
 from madpinn.simulation.backend import register_backend
 from madpinn.simulation.mujoco.backend import MujocoBackend, PhysicsDivergedError
-from madpinn.simulation.mujoco.controller import CascadedController, ControllerGains
+from madpinn.simulation.mujoco.controller import CascadedController, ControllerSettings
 from madpinn.simulation.mujoco.model import CrazyflieSpec, compile_world, mixer_matrix, world_xml
 from madpinn.simulation.mujoco.settings import MujocoSettings
 
@@ -27,13 +27,14 @@ from madpinn.simulation.mujoco.settings import MujocoSettings
 @register_backend("mujoco")
 def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
     """The MuJoCo backend for :class:`~madpinn.settings.SimSettings` ``sim`` (its ``mujoco``
-    section; absent: the defaults) and :class:`~madpinn.settings.AgentLimits` ``limits``."""
-    settings = sim.mujoco if sim.mujoco is not None else MujocoSettings.from_config(None)
-    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=settings, device=device, dtype=dtype,
+    section) and :class:`~madpinn.settings.AgentSettings` ``limits``."""
+    if sim.mujoco is None:
+        raise ValueError("the mujoco backend needs sim.mujoco settings")
+    return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=sim.mujoco, device=device, dtype=dtype,
                          contacts=sim.contacts)
 
 
 __all__ = [
-    "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerGains", "CrazyflieSpec",
+    "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerSettings", "CrazyflieSpec",
     "MujocoSettings", "compile_world", "mixer_matrix", "world_xml", "make_mujoco_backend",
 ]

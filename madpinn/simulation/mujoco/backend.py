@@ -39,7 +39,7 @@ class PhysicsDivergedError(RuntimeError):
 class MujocoBackend:
     """Batched Crazyflie simulation; ``dt`` (s) is the step of :meth:`step`."""
 
-    def __init__(self, dynamics: DoubleIntegrator, dt: float, settings: MujocoSettings = MujocoSettings(),
+    def __init__(self, dynamics: DoubleIntegrator, dt: float, settings: MujocoSettings,
                  device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32, contacts: bool = False):
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"sim.dt must be positive, got {dt}")

@@ -30,19 +30,19 @@ from madpinn.simulation.mujoco.rotations import body_z_axis, euler_zyx
 
 
 @dataclass(frozen=True)
-class ControllerGains:
+class ControllerSettings:
     """Loop gains (all 1/s, i.e. per-loop bandwidths) and limits."""
 
-    pos_xy: float = 6.0
-    pos_z: float = 6.0
-    vel_xy: float = 12.0
-    vel_z: float = 12.0
-    att_rp: float = 25.0
-    att_yaw: float = 10.0
-    rate_rp: float = 100.0
-    rate_yaw: float = 60.0
-    max_tilt_deg: float = 45.0  # deg, tilt limit of the thrust vector
-    max_vel_correction: float = 1.0  # m/s, per-axis bound of the position loop's correction
+    pos_xy: float
+    pos_z: float
+    vel_xy: float
+    vel_z: float
+    att_rp: float
+    att_yaw: float
+    rate_rp: float
+    rate_yaw: float
+    max_tilt_deg: float  # deg, tilt limit of the thrust vector
+    max_vel_correction: float  # m/s, per-axis bound of the position loop's correction
 
     def validate(self) -> None:
         for name in ("pos_xy", "pos_z", "vel_xy", "vel_z", "att_rp", "att_yaw", "rate_rp", "rate_yaw", "max_vel_correction"):
@@ -56,7 +56,7 @@ class ControllerGains:
 class CascadedController:
     """Rotor thrusts for M drones from their state and setpoints (all numpy float64)."""
 
-    def __init__(self, gains: ControllerGains, spec: CrazyflieSpec = CrazyflieSpec()):
+    def __init__(self, gains: ControllerSettings, spec: CrazyflieSpec):
         gains.validate()
         spec.validate()
         self.gains, self.spec = gains, spec

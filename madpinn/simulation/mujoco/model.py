@@ -39,12 +39,13 @@ SCENARIO_SPACING = 100.0
 
 @dataclass(frozen=True)
 class CrazyflieSpec:
-    """Crazyflie 2.x physical parameters (SI units)."""
+    """Crazyflie 2.x physical parameters (SI units): ``thrust_to_weight`` from ``sim.mujoco``
+    (:attr:`MujocoSettings.spec`, no default), the rest the airframe's published constants."""
 
+    thrust_to_weight: float
     mass: float = 0.027  # kg
     arm: float = 0.0397  # m, centre to rotor axis
     inertia: tuple[float, float, float] = (1.4e-5, 1.4e-5, 2.17e-5)  # kg·m², principal
-    thrust_to_weight: float = 2.25
     km_over_kf: float = 0.025  # m, yaw reaction moment per newton of rotor thrust
 
     @property
@@ -112,7 +113,7 @@ def _drone_xml(index: int, spec: CrazyflieSpec, actuated: bool, contacts: bool =
     return body, "".join(acts)
 
 
-def world_xml(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec(), actuated: bool = False,
+def world_xml(count: int, timestep: float, spec: CrazyflieSpec, actuated: bool = False,
               contacts: bool = False, visual: bool = True) -> str:
     """MJCF of a world holding ``count`` Crazyflies (all at the origin; :class:`MujocoBackend`
     places them through ``qpos``), physics step ``timestep`` (s), semi-implicit Euler; without
@@ -151,7 +152,7 @@ def world_xml(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec()
 
 
 @functools.lru_cache(maxsize=8)
-def compile_world(count: int, timestep: float, spec: CrazyflieSpec = CrazyflieSpec(), actuated: bool = False,
+def compile_world(count: int, timestep: float, spec: CrazyflieSpec, actuated: bool = False,
                   contacts: bool = False, visual: bool = True) -> mujoco.MjModel:
     """Compiled (and cached per process) :func:`world_xml`. Models are read-only to callers."""
     return mujoco.MjModel.from_xml_string(world_xml(count, timestep, spec, actuated, contacts, visual))

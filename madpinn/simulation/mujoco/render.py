@@ -20,22 +20,24 @@ import numpy as np
 SIZE = (480, 360)  # width, height (pixels)
 
 
-def gl_context_available() -> tuple[bool, str]:
-    """Try to open an offscreen renderer; returns ``(ok, description or reason)``."""
+def gl_context_available(spec) -> tuple[bool, str]:
+    """Try to open an offscreen renderer on one drone of ``spec`` (a ``CrazyflieSpec``); returns
+    ``(ok, description or reason)``."""
     try:
         import mujoco
 
         from madpinn.simulation.mujoco.model import compile_world
 
-        renderer = mujoco.Renderer(compile_world(1, 0.01), 32, 32)
+        renderer = mujoco.Renderer(compile_world(1, 0.01, spec), 32, 32)
         renderer.close()
         return True, f"MUJOCO_GL={os.environ.get('MUJOCO_GL', '<unset>')}"
     except Exception as exc:  # noqa: BLE001 - any GL failure means: no clip
         return False, f"no offscreen GL context (MUJOCO_GL={os.environ.get('MUJOCO_GL', '<unset>')}): {type(exc).__name__}: {exc}"
 
 
-def render_clip(traj_path: str | Path, out_path: str | Path, altitude: float = 1.0, max_frames: int = 300) -> Path:
-    """Render ``traj_path`` (an evaluation ``*_traj.npz``) to the GIF ``out_path``."""
+def render_clip(traj_path: str | Path, out_path: str | Path, settings, max_frames: int = 300) -> Path:
+    """Render ``traj_path`` (an evaluation ``*_traj.npz``) to the GIF ``out_path``; ``settings``
+    (:class:`~madpinn.simulation.mujoco.settings.MujocoSettings`) give the drones and their altitude (m)."""
     import mujoco
     from PIL import Image
 
@@ -50,7 +52,8 @@ def render_clip(traj_path: str | Path, out_path: str | Path, altitude: float = 1
     step_dt = float(traj["dt"])
     frames_idx = np.unique(np.linspace(0, len(positions) - 1, min(max_frames, len(positions))).round().astype(int))
     n = positions.shape[1]
-    model = compile_world(n, 0.01)
+    model = compile_world(n, 0.01, settings.spec)
+    altitude = settings.altitude
     data = mujoco.MjData(model)
     width, height = SIZE
     renderer = mujoco.Renderer(model, height, width)

@@ -1,11 +1,11 @@
-"""``sim.mujoco`` configuration: defaults here equal ``config.yaml`` (a test keeps them equal)."""
+"""``sim.mujoco`` configuration: every value from ``config.yaml``, no defaults here (issue 32)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 
-from madpinn.simulation.mujoco.controller import ControllerGains
+from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.forces import FORCE_MODES
 from madpinn.simulation.mujoco.model import MAX_DRONES_PER_WORLD, CrazyflieSpec
 
@@ -18,14 +18,14 @@ class MujocoSettings:
     limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend;
     render_clips: the workflow renders one GIF per (study, run) where offscreen GL exists."""
 
-    substeps: int = 2
-    force_application: str = "qfrc"
-    drones_per_world: int = 1024
-    altitude: float = 1.0
-    thrust_to_weight: float = 2.25
-    max_drones: int = 65536
-    render_clips: bool = False
-    gains: ControllerGains = field(default_factory=ControllerGains)
+    substeps: int
+    force_application: str
+    drones_per_world: int
+    altitude: float
+    thrust_to_weight: float
+    max_drones: int
+    render_clips: bool
+    gains: ControllerSettings
 
     @property
     def spec(self) -> CrazyflieSpec:
@@ -46,18 +46,18 @@ class MujocoSettings:
         self.gains.validate()
 
     @classmethod
-    def from_config(cls, section: dict | None) -> "MujocoSettings":
-        """Build from the ``sim.mujoco`` mapping (missing keys take the defaults)."""
-        section = dict(section or {})
+    def from_config(cls, section: dict) -> "MujocoSettings":
+        """Build from the ``sim.mujoco`` mapping (every key, as the schema requires)."""
+        section = dict(section)
         known = {f.name for f in fields(cls)}
         unknown = set(section) - known
         if unknown:
             raise ValueError(f"unknown sim.mujoco keys {sorted(unknown)} (known: {sorted(known)})")
-        gains = dict(section.pop("gains", None) or {})
-        gain_names = {f.name for f in fields(ControllerGains)}
+        gains = dict(section.pop("gains"))
+        gain_names = {f.name for f in fields(ControllerSettings)}
         if set(gains) - gain_names:
             raise ValueError(f"unknown sim.mujoco.gains keys {sorted(set(gains) - gain_names)} (known: {sorted(gain_names)})")
-        settings = cls(**section, gains=ControllerGains(**{k: float(v) for k, v in gains.items()}))
+        settings = cls(**section, gains=ControllerSettings(**{k: float(v) for k, v in gains.items()}))
         settings.validate()
         return settings
 
