@@ -12,7 +12,7 @@ from madpinn.config import ConfigError, load_config, method_config, validate_con
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.policies.mppi import MPPISettings, segment_distance
+from madpinn.policies.mppi import MPPIPlanner, MPPISettings, perturbation_cost, segment_distance
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
 
 REPO = Path(__file__).resolve().parents[1]
@@ -159,4 +159,58 @@ def test_bad_parameters_fail_early(cfg):
         validate_config(bad)
     with pytest.raises(ValueError, match="samples"):
         MPPISettings(samples=0, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0, margin=0.0,
-                      terminal_weight=1.0, dual_lr=0.0, penalty_max=1.0e4)
+                      terminal_weight=1.0, dual_lr=0.0, penalty_max=1.0e4, penalty_check="segment", action_cost=False)
+    with pytest.raises(ValueError, match="penalty_check"):
+        MPPISettings(samples=4, horizon=4, plan_dt=0.1, noise_sigma=1.0, temperature=0.1, penalty_weight=1.0,
+                     margin=0.0, terminal_weight=1.0, dual_lr=0.0, penalty_max=1.0e4, penalty_check="midpoint", action_cost=False)
+    bad = copy.deepcopy(cfg)
+    bad["methods"]["mppi"]["penalty_check"] = "midpoint"
+    with pytest.raises(ConfigError, match="penalty_check"):
+        validate_config(bad)
+
+
+def _flyby_lambda(cfg, penalty_check: str) -> float:
+    """λ after one dual-ascent plan of an ego at 4 m/s, 0.2 m head-on from a neighbour at −4 m/s.
+
+    The pair closes at 8 m/s, so the first 0.1 s knot interval takes it straight through the
+    neighbour while both knot positions stay ≥ 0.2 − 0.02 m apart (±4 m/s² moves either agent by
+    ≤ 0.02 m in 0.1 s, and the relative speed stays > 0 over the 0.8 s horizon): every sample
+    violates r + margin = 0.15 m on the segment and none at the knots.
+    """
+    _, mcfg = method_config(cfg, "mppi")
+    params = policy_settings("mppi", {**mcfg, **FAST, "penalty_check": penalty_check, "penalty_weight": 10.0,
+                                      "dual_ascent": {"lr": 1.0e6, "max": 1.0e4}})
+    planner = MPPIPlanner(params, DoubleIntegrator(u_max=4.0, v_max=4.0), cfg["agents"]["collision_radius"],
+                          torch.Generator().manual_seed(0))
+    planner.reset(1, torch.device("cpu"), torch.float32)
+    planner.plan(ego_vel=torch.tensor([[4.0, 0.0]]), goal=torch.tensor([[0.8, 0.0]]),
+                 nbr_pos=torch.tensor([[[0.2, 0.0]]]), nbr_vel=torch.tensor([[[-4.0, 0.0]]]),
+                 nbr_mask=torch.tensor([[True]]), t=0.0)
+    return float(planner.penalty[0])
+
+
+def test_knot_check_misses_a_crossing_that_the_segment_check_sees(cfg):
+    assert _flyby_lambda(cfg, "knots") == 10.0  # no violation seen: λ stays at its floor
+    # violation seen: ≈ 0.1 s · (0.15 − 0.02 m) per sample, so λ ≈ 10 + 1e6 · 0.013 (capped at 1e4)
+    assert _flyby_lambda(cfg, "segment") >= 1.0e3
+
+
+def test_perturbation_cost_is_pytorch_mppis():
+    # pytorch_mppi (noise_abs_cost=False): lambda_ · Σ_t U_t · (ε_t @ Σ⁻¹), Σ = σ²·I here
+    gen = torch.Generator().manual_seed(5)
+    B, H, K, sigma, temperature = 3, 4, 6, 2.0, 0.3
+    U = torch.randn(B, H, 2, generator=gen, dtype=torch.float64)
+    V = torch.randn(H, B, K, 2, generator=gen, dtype=torch.float64)
+    sigma_inv = torch.linalg.inv(sigma ** 2 * torch.eye(2, dtype=torch.float64))
+    ref = torch.empty(B, K, dtype=torch.float64)
+    for b in range(B):
+        for k in range(K):
+            eps = V[:, b, k] - U[b]                                   # [H, 2]
+            ref[b, k] = temperature * torch.sum(U[b] * (eps @ sigma_inv))
+    torch.testing.assert_close(perturbation_cost(U, V, temperature, sigma), ref)
+
+
+@pytest.mark.parametrize("overrides", [{"penalty_check": "knots"}, {"action_cost": True, "terminal_weight": 0.0}])
+def test_pytorch_mppi_style_options_still_reach_the_goal(cfg, overrides):
+    result = episode(cfg, [[[-0.7, -0.5]]], [[[0.6, 0.7]]], seconds=2.5, **overrides)
+    assert result.final_distance[0, 0] < 0.05

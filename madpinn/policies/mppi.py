@@ -15,8 +15,9 @@ horizon knots):
    plan. Rollouts use the exact double-integrator step; neighbours move at constant velocity.
 4. Cost of a sample (m·s and m): ``∫ ‖p − g‖ dt + w_T·‖p(t_H) − g‖ + λ·∫ Σ_j max(0, r + margin − d_j) dt``
    where ``d_j`` is the smallest ego–neighbour distance on each segment (relative motion linearised
-   within the segment, so fast crossings between knots are not missed). The neighbours' own goal
-   terms of ``l_d`` do not depend on the ego's controls and are dropped.
+   within the segment, so fast crossings between knots are not missed; ``penalty_check: knots``
+   reads it at the knots only). The neighbours' own goal terms of ``l_d`` do not depend on the
+   ego's controls and are dropped. ``action_cost`` adds ``temperature·Σ_h U_h·ε_h/σ²``.
 5. Update: ``U ← Σ_k w_k·clip(U + ε_k)`` with ``w = softmax(−(J − min J)/temperature)`` — a convex
    combination of in-box sequences, so the plan stays in the control box. The first knot is applied.
 6. Dual ascent on a per-agent λ (configured; ``dual_ascent.lr: 0`` = fixed λ):
@@ -34,6 +35,7 @@ from madpinn.observation import ObservationSettings, build_observation, nearest_
 from madpinn.policies.base import PolicyContext, register_policy
 
 _KNOT_EPS = 1e-9  # s; guards floor(t / plan_dt) against round-off at knot times
+PENALTY_CHECKS = ("segment", "knots")  # where the collision penalty reads the ego–neighbour distance
 
 
 @dataclass(frozen=True)
@@ -44,7 +46,11 @@ class MPPISettings:
     noise_sigma: σ of the sampling noise (m/s², per axis); temperature: of the importance weights
     (units of cost, m·s); penalty_weight: λ (1/s — penalty integral per m of violation);
     margin: added to r in the penalty (m); terminal_weight: w_T; dual_lr: η of the dual ascent
-    (0 = fixed λ); penalty_max: upper bound of λ under dual ascent.
+    (0 = fixed λ); penalty_max: upper bound of λ under dual ascent; penalty_check: ``segment`` (the
+    smallest distance over each segment) or ``knots`` (the distance at the knots only, as a running
+    cost of the rolled-out states, e.g. pytorch_mppi's, sees it); action_cost: add the
+    information-theoretic perturbation cost ``temperature·Σ_h U_h·ε_h/σ²`` of Williams et al. (2017)
+    and pytorch_mppi (``noise_abs_cost=False``).
     """
 
     samples: int
@@ -57,6 +63,8 @@ class MPPISettings:
     terminal_weight: float
     dual_lr: float
     penalty_max: float
+    penalty_check: str
+    action_cost: bool
 
     def __post_init__(self):
         if self.samples < 1 or self.horizon < 1:
@@ -66,6 +74,8 @@ class MPPISettings:
                 raise ValueError(f"MPPI {name} must be > 0, got {getattr(self, name)}")
         if self.penalty_weight < 0 or self.margin < 0 or self.dual_lr < 0:
             raise ValueError("MPPI penalty_weight, margin and dual_lr must be ≥ 0")
+        if self.penalty_check not in PENALTY_CHECKS:
+            raise ValueError(f"MPPI penalty_check must be one of {PENALTY_CHECKS}, got {self.penalty_check!r}")
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MPPISettings":
@@ -81,6 +91,8 @@ class MPPISettings:
             terminal_weight=float(mcfg["terminal_weight"]),
             dual_lr=float(dual["lr"]),
             penalty_max=float(dual["max"]),
+            penalty_check=str(mcfg["penalty_check"]),
+            action_cost=bool(mcfg["action_cost"]),
         )
 
 
@@ -90,6 +102,13 @@ def segment_distance(ax: torch.Tensor, ay: torch.Tensor, bx: torch.Tensor, by: t
     dx, dy = bx - ax, by - ay
     s = (-(ax * dx + ay * dy) / (dx * dx + dy * dy).clamp_min(1e-12)).clamp(0.0, 1.0)
     return torch.hypot(ax + s * dx, ay + s * dy)
+
+
+def perturbation_cost(U: torch.Tensor, V: torch.Tensor, temperature: float, sigma: float) -> torch.Tensor:
+    """Information-theoretic perturbation cost ``temperature·Σ_h U_h·ε_h/σ²`` ``[B, K]`` (cost units)
+    of the plan U ``[B, H, 2]`` and its clipped samples V ``[H, B, K, 2]``, with ``ε = V − U`` (the
+    noise left after clipping, as pytorch_mppi with ``noise_abs_cost=False`` and Σ = σ²·I)."""
+    return (temperature / sigma ** 2) * torch.einsum("bhd,hbkd->bk", U, V - U.transpose(0, 1).unsqueeze(2))
 
 
 class MPPIPlanner:
@@ -152,6 +171,7 @@ class MPPIPlanner:
         cost = torch.zeros(B, K, device=U.device, dtype=U.dtype)
         violation = torch.zeros_like(cost)
         elapsed = 0.0
+        segment = p.penalty_check == "segment"
         for h in range(H):
             dt = first_dt if h == 0 else p.plan_dt
             elapsed += dt
@@ -160,11 +180,14 @@ class MPPIPlanner:
             cost += dt * torch.hypot(px - gx, py - gy)
             rx = px.unsqueeze(-1) - (nx + elapsed * nvx)  # [B, K, n]
             ry = py.unsqueeze(-1) - (ny + elapsed * nvy)
-            depth = (reach - segment_distance(rx_prev, ry_prev, rx, ry)).clamp_min(0.0) * mask
+            d = segment_distance(rx_prev, ry_prev, rx, ry) if segment else torch.hypot(rx, ry)
+            depth = (reach - d).clamp_min(0.0) * mask
             violation += dt * depth.sum(-1)
             rx_prev, ry_prev = rx, ry
         cost += p.terminal_weight * torch.hypot(state[..., 0] - gx, state[..., 1] - gy)
         total = cost + self.penalty.unsqueeze(1) * violation
+        if p.action_cost:
+            total = total + perturbation_cost(U, V, p.temperature, p.noise_sigma)
         weights = torch.softmax(-(total - total.amin(dim=1, keepdim=True)) / p.temperature, dim=1)
         self.U = torch.einsum("bk,hbkd->bhd", weights, V)
         if p.dual_lr > 0:
