@@ -23,6 +23,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
+from madpinn.config import load_config
 from madpinn.evaluation.metrics import scenario_intervals, seed_summary
 
 REPO = Path(__file__).resolve().parents[1]
@@ -52,10 +53,13 @@ def parse(argv):
 
 
 def overlay(cells, seed: int, folder: Path) -> Path:
-    """A config overlay putting each study of ``cells`` on ``seed`` with its scenario count."""
+    """A config overlay adding ``seed`` to each study of ``cells`` with its scenario count (the
+    study's own seeds stay listed, so settings that name them stay valid; only ``seed`` runs)."""
+    base = load_config([REPO / "config.yaml"])["studies"]
     studies = {}
     for study, _, k in cells:
-        studies[study] = {"seeds": [seed], "scenarios": max(k, studies.get(study, {}).get("scenarios", 0))}
+        seeds = sorted(set(base[study]["seeds"]) | {seed})
+        studies[study] = {"seeds": seeds, "scenarios": max(k, studies.get(study, {}).get("scenarios", 0))}
     path = folder / "validation_cells.yaml"
     path.write_text(yaml.safe_dump({"studies": studies}))
     return path
