@@ -132,7 +132,7 @@ def conflict_scenario(pattern: str, n_agents: int, half_width: float, collision_
         starts, goals = starts @ rot.T, goals @ rot.T
     nominal = min(_min_distance(starts), _min_distance(goals))
     if nominal < min_sep:
-        raise _infeasible(f"{pattern}: agents only {nominal:.3f} m apart (< 2r = {min_sep} m) with N = {n_agents} "
+        raise _infeasible(f"{pattern}: agents only {nominal:.3f} m apart (< separation {min_sep} m) with N = {n_agents} "
                           f"in an arena of half width {w} m; use fewer agents or a larger arena")
     amp = min(JITTER * w, (nominal - min_sep) / 3.0)   # |Δ| ≤ 2√2·amp < the margin: jitter keeps the separation
     if math.isfinite(amp):
@@ -143,6 +143,6 @@ def conflict_scenario(pattern: str, n_agents: int, half_width: float, collision_
             raise _infeasible(f"{pattern}: {name} leave the arena (half width {w} m) for N = {n_agents}")
         sep = _min_distance(pts)
         if sep < min_sep:
-            raise _infeasible(f"{pattern}: {name} only {sep:.3f} m apart (< 2r = {min_sep} m) with N = {n_agents} "
+            raise _infeasible(f"{pattern}: {name} only {sep:.3f} m apart (< separation {min_sep} m) with N = {n_agents} "
                               f"in an arena of half width {w} m; use fewer agents or a larger arena")
     return starts, goals

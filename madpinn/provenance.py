@@ -278,7 +278,8 @@ READS = {
     "solve-vs-grid": _keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
                            "value_functions.vs.v_range", "value_functions.vs.validation.grid"),
     "validate-vs-grid": _keys(*_VF_RUN),
-    "oracle": lambda cfg, arena: {"oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena]},
+    "oracle": lambda cfg, arena: {"oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena],
+               "start_separation": cfg["sim"]["start_separation"]},
     "table": lambda cfg, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study)},
     "figure": lambda cfg, name, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study),
                                         **({"trajectories": cfg["figures"]["trajectories"]}

@@ -102,7 +102,8 @@ UNIFORM = "uniform"
 
 def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, collision_radius: float,
                       pattern: str = UNIFORM):
-    """Return ``(starts [N,2], goals [N,2])`` float64 numpy arrays (m)."""
+    """Return ``(starts [N,2], goals [N,2])`` float64 numpy arrays (m); starts (and goals) are at
+    least ``2·collision_radius`` apart (the evaluation passes ``sim.start_separation / 2``)."""
     if n_agents < 1:
         raise ScenarioInfeasibleError(f"need at least one agent, got {n_agents}")
     min_sep = 2.0 * collision_radius

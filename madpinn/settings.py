@@ -49,6 +49,9 @@ class SimSettings:
     """simulation steps between policy queries (a method may set its own)"""
     scenario_batch: int
     """scenarios simulated together in one batch"""
+    start_separation: float
+    """smallest distance (m) among a scenario's starts and among its goals (SPEC §2: 2r); its own
+    key so that a reading with another collision radius keeps the same scenarios"""
     record_every: int
     """trajectory recording period in simulation steps (first batch only)"""
     contacts: bool
@@ -69,6 +72,7 @@ class SimSettings:
         s = study_sim(cfg, study)
         mujoco = MujocoSettings.from_config(s["mujoco"])
         return cls(backend=str(s["backend"]), dt=float(s["dt"]), policy_period_steps=int(s["policy_period_steps"]),
-                   scenario_batch=int(s["scenario_batch"]), record_every=int(s["record_every"]),
+                   scenario_batch=int(s["scenario_batch"]), start_separation=float(s["start_separation"]),
+                   record_every=int(s["record_every"]),
                    contacts=bool(s["contacts"]), mujoco=mujoco)
 

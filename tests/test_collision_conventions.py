@@ -95,7 +95,7 @@ def test_contacts_keep_scenarios_whole_in_each_world():
 
 def test_double_integrator_freezes_collided_agents_and_keeps_them_as_obstacles():
     limits = AgentSettings(collision_radius=R, u_max=4.0, v_max=4.0)
-    sim = SimSettings(backend="double_integrator", dt=DT, policy_period_steps=1, scenario_batch=1,
+    sim = SimSettings(backend="double_integrator", dt=DT, policy_period_steps=1, scenario_batch=1, start_separation=0.2,
                       record_every=1, contacts=True, mujoco=None)
     frozen, _ = _head_on(make_backend("double_integrator", sim, limits, "cpu", torch.float64))
     passing, _ = _head_on(make_backend("double_integrator", dataclasses.replace(sim, contacts=False), limits,

@@ -121,7 +121,7 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
     one loop of :func:`run_cell` (with the collision probe where the study asks for it) and of
     ``scripts/defmarl_consensus.py``: ``wrap(policy, first)`` replaces the policy (e.g. by a probe
     around it), ``record`` keeps the first batch's trajectories."""
-    r = cs.limits.collision_radius
+    r = cs.sim.start_separation / 2.0   # the generator separates starts (and goals) by 2·this
     total = cs.scenarios
     batch = cs.sim.scenario_batch
     for b, first in enumerate(range(0, total, batch)):

@@ -1,0 +1,5 @@
+#!/usr/bin/env bash
+# Train vs for the disc convention (collision at 0.2 m; workflow/configs/reading_2r.yaml, issue 38 reading (b))
+# in resumable 20-minute pieces; the checkpoint beside this script is committed, so any machine resumes.
+exec "$(dirname "$0")/../run_pieces.sh" train-value --config config.yaml workflow/configs/reading_2r.yaml --kind vs \
+    --out training/vs_2r/vs.pt --checkpoint training/vs_2r/vs.ckpt.pt --time-limit 1200 --no-track --no-progress --threads 1
