@@ -41,7 +41,7 @@ if SHIPPED.get("enabled") and SHIPPED.get("names"):
 
         ruleorder: install_shipped_model > train_vhat
 
-    if VHAT_VARIANTS and any(n.startswith("vhat_") for n in SHIPPED["names"]):
+    if vhat_variants_used() and any(n.startswith("vhat_") for n in SHIPPED["names"]):   # rule train_vhat_variant exists
 
         ruleorder: install_shipped_model > train_vhat_variant
 
