@@ -73,10 +73,10 @@ def test_train_value_variant_trains_the_merged_settings(tmp_path, one_thread):
 
 # --- real small cells: the smoke V̂ and V_s, double integrator, the large arena -------------------
 
+RUNS = ["madpinn", "madpinn-carrot05", "madpinn-vmax2", "madpinn-vmax1"]
 CELL_OVERLAY = {"sim": {"backend": "double_integrator", "record_every": 1},
                 "arenas": {"large": {"half_width": 4.0, "episode_s": 0.6}},
-                "studies": {"large_arena_frontier": {"agent_counts": [4, 64], "scenarios": 2}}}
-RUNS = ["madpinn", "madpinn-carrot05", "madpinn-vmax2", "madpinn-vmax1"]
+                "studies": {"large_arena_frontier": {"agent_counts": [4, 64], "scenarios": 2, "runs": [*RUNS, "madpinn-h04"]}}}
 
 
 @pytest.fixture(scope="module")
