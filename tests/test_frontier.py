@@ -162,3 +162,25 @@ def test_workflow_plans_a_variant_training_only_where_a_study_uses_it(tmp_path):
     assert "--run madpinn-vmax1" in out and "vhat=results/smoke/models/vhat.pt" in out   # ... the governor the base V̂
     # `all` of the tiny configuration (large_arena_frontier in_all: false there) plans no variant training
     assert "train_vhat_variant" not in planned_jobs(run_in(copy, "-n", "all", configfiles=("smoke.yaml", "tiny.yaml")))
+
+
+def test_speed_bound_of_a_run_is_the_global_bound_of_the_earlier_overlay(cells, tmp_path):
+    """madpinn-vmax1's cell equals the plain run's cell under an `agents: {v_max: 1}` overlay (the
+    diagnostic of docs/madpinn_policy.md), scenario for scenario: the per-run governor is that mechanism."""
+    import pandas as pd
+
+    cfg, paths = cells
+    overlay = write_overlay(tmp_path / "vmax1.yaml", CELL_OVERLAY, {"agents": {"v_max": 1.0}},   # no variant above the bound
+                            {"methods": {"madpinn": {"variants": {"vmax2": {"agents": {"v_max": 1.0}}}}}})
+    models = tiny_model_dir()
+    out = tmp_path / "madpinn" / "n4_seed100.parquet"
+    assert main(["evaluate", "--config", str(REPO / "config.yaml"), str(SMOKE), str(overlay), "--study",
+                 "large_arena_frontier", "--run", "madpinn", "--n-agents", "4", "--seed", "100", "--out", str(out),
+                 "--model", f"vhat={models / 'vhat.pt'}", "--model", f"vs={models / 'vs.pt'}", "--no-track",
+                 "--no-progress", "--threads", "1"]) == 0
+    governed = pd.read_parquet(paths[0].parent.parent / "madpinn-vmax1" / "n4_seed100.parquet")
+    overlaid = pd.read_parquet(out)
+    cols = ["safety_rate", "cost_safe_mean", "min_separation", "final_distance_mean"]
+    pd.testing.assert_frame_equal(governed[cols], overlaid[cols])
+    free = pd.read_parquet(paths[0])
+    assert not np.allclose(free["final_distance_mean"], governed["final_distance_mean"])   # the bound changed the motion

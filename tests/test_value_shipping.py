@@ -102,7 +102,7 @@ def test_committed_models_were_trained_for_config_yaml(paper_cfg):
         assert shipped[name]["training_config_hash"] == expected, name
         assert verify(REPO / "models", name).stat().st_size == shipped[name]["bytes"]
     assert {"safemarl_nominal", "defmarl_n3", "defmarl_n8"} <= set(names)   # the baselines' policies too
-    assert {"vhat_h04", "vhat_speed"} <= set(names)   # V̂ variants (issue 33): their merged settings' hashes
+    assert {"vhat_h04", "vhat_h03", "vhat_speed"} <= set(names)   # V̂ variants (issue 33): their merged settings' hashes
     assert model_training_hash(paper_cfg, "vhat") == training_hash(paper_cfg, "vhat") != shipped["vhat_h04"]["training_config_hash"]
 
 
