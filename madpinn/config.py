@@ -127,6 +127,8 @@ def validate_config(cfg: Mapping[str, Any]) -> None:
         else:
             lines.append(f"  - '{_key_path(err)}': {err.message}")
     if not lines:
+        lines = _vf_variant_errors(cfg, validator)
+    if not lines:
         lines = _cross_field_errors(cfg) + _infeasible_agent_counts(cfg) + _infeasible_patterns(cfg)
     if lines:
         raise ConfigError("invalid configuration:\n" + "\n".join(lines))
@@ -232,6 +234,49 @@ def _gap_errors(cfg: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _variant_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """Deployment overrides of MAD-PINN runs name an existing V̂ variant and only lower the speed
+    bound (a governor: V̂ and V_s are trained at ``agents.v_max``)."""
+    lines = []
+    madpinn = cfg["methods"].get("madpinn")
+    if madpinn is None:
+        return lines
+    known = sorted(cfg["value_functions"].get("vhat_variants") or {})
+    for variant in [None, *madpinn.get("variants", {})]:
+        where = "methods.madpinn" + (f".variants.{variant}" if variant else "")
+        mcfg = madpinn if variant is None else madpinn["variants"][variant]
+        if "vhat" in mcfg and mcfg["vhat"] not in known:
+            lines.append(f"  - '{where}.vhat': unknown V̂ variant '{mcfg['vhat']}' (value_functions.vhat_variants: "
+                         f"{', '.join(known) or 'none'})")
+        v_max = (mcfg.get("agents") or {}).get("v_max")
+        if v_max is not None and v_max > cfg["agents"]["v_max"]:
+            lines.append(f"  - '{where}.agents.v_max': {v_max} exceeds agents.v_max = {cfg['agents']['v_max']} "
+                         "(a run may only lower the speed bound its models were trained with)")
+    return lines
+
+
+def _vf_variant_errors(cfg: Mapping[str, Any], validator) -> list[str]:
+    """Schema errors of each value-function variant merged over its base (a variant is a partial
+    section: what it yields must be a valid ``value_functions.<kind>``)."""
+    lines = []
+    for kind, section in VF_VARIANTS.items():
+        for variant in cfg["value_functions"].get(section) or {}:
+            merged = with_vf_variant(cfg, kind, variant)
+            for err in validator.iter_errors(merged):
+                path = list(map(str, err.absolute_path))
+                if path[:2] != ["value_functions", kind]:
+                    continue
+                key = ".".join(["value_functions", section, variant, *path[2:]])
+                message = err.message
+                if err.validator == "unevaluatedProperties":
+                    unknown = _unknown_keys(err, validator.schema)
+                    if not unknown:   # only a sibling error (reported on its own) left the known keys unevaluated
+                        continue
+                    message = f"unknown keys {', '.join(map(repr, unknown))}"
+                lines.append(f"  - '{key}' (merged over value_functions.{kind}): {message}")
+    return lines
+
+
 def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
     lines = []
     arenas = cfg["arenas"]
@@ -246,6 +291,7 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
             elif variant and variant not in methods[method].get("variants", {}):
                 lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
     lines += _gap_errors(cfg)
+    lines += _variant_errors(cfg)
     traj = cfg["figures"]["trajectories"]
     study = cfg["studies"].get(traj["study"])
     if study is None:
@@ -323,6 +369,54 @@ def run_observation(cfg: Mapping[str, Any], run: str) -> dict:
     the gap decomposition's old mapping) merged over it; the plain ``observation`` without them."""
     override = method_config(cfg, run)[1].get("observation")
     return deep_merge(cfg["observation"], override) if override else dict(cfg["observation"])
+
+
+def run_agents(cfg: Mapping[str, Any], run: str) -> dict:
+    """The ``agents`` section run ``method[-variant]``'s cells simulate with: ``agents`` with the
+    run's own deployment override (``methods.<method>[.variants.<v>].agents``, e.g. a lower
+    ``v_max``: the speed governor of issue 33) merged over it; V̂ and V_s are trained on ``agents``."""
+    override = method_config(cfg, run)[1].get("agents")
+    return deep_merge(cfg["agents"], override) if override else dict(cfg["agents"])
+
+
+VF_VARIANTS = {"vhat": "vhat_variants"}
+"""value-function kind -> its section of variants (``value_functions.<section>.<name>``, each
+deep-merged over ``value_functions.<kind>``; trained model ``<kind>_<name>``)"""
+
+
+def vf_model_name(kind: str, variant: str | None = None) -> str:
+    """The model name of value function ``kind`` (``vhat``) or of its variant (``vhat_h04``)."""
+    return f"{kind}_{variant}" if variant else kind
+
+
+def split_vf_model(name: str) -> tuple[str, str | None] | None:
+    """``(kind, variant)`` of a value-function model name (``vhat`` -> ``("vhat", None)``,
+    ``vhat_h04`` -> ``("vhat", "h04")``); None for any other name."""
+    if name in ("vhat", "vs"):
+        return name, None
+    kind, _, variant = name.partition("_")
+    return (kind, variant) if kind in VF_VARIANTS and variant else None
+
+
+def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> dict:
+    """``cfg`` with ``value_functions.<kind>`` replaced by variant ``variant`` deep-merged over it
+    (``variant`` None: ``cfg`` itself). What a variant's training, its training hash and its checks
+    read: every other key is the base configuration's."""
+    if not variant:
+        return cfg
+    section = VF_VARIANTS.get(kind)
+    variants = (cfg["value_functions"].get(section) or {}) if section else {}
+    if variant not in variants:
+        raise ConfigError(f"unknown {kind} variant '{variant}' (value_functions.{section or kind + '_variants'}: "
+                          f"{sorted(variants) or 'none'})")
+    vf = {**cfg["value_functions"], kind: deep_merge(cfg["value_functions"][kind], variants[variant])}
+    return {**cfg, "value_functions": vf}
+
+
+def run_vhat(cfg: Mapping[str, Any], run: str) -> str:
+    """The V̂ model a MAD-PINN run ``madpinn[-variant]`` loads: ``vhat``, or ``vhat_<name>`` when
+    its settings select a V̂ variant (``vhat: <name>``, a key of ``value_functions.vhat_variants``)."""
+    return vf_model_name("vhat", method_config(cfg, run)[1].get("vhat"))
 
 
 def study_backend(cfg: Mapping[str, Any], study: str) -> str:

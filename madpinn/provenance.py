@@ -235,16 +235,35 @@ def _labels(cfg: Mapping, *studies: str) -> dict:
             for st in studies}
 
 
-def _training(cfg: Mapping, kind: str) -> str:
+def _training(cfg: Mapping, kind: str, variant: str | None = None) -> str:
+    from madpinn.config import with_vf_variant
     from madpinn.value_functions.build import training_hash
 
-    return training_hash(cfg, kind)
+    return training_hash(with_vf_variant(cfg, kind, variant), kind)
+
+
+def model_training_hash(cfg: Mapping, name: str) -> str | None:
+    """The training hash of value-function model ``name`` (``vhat``, ``vs``, ``vhat_<variant>``:
+    its variant's merged settings), None for any other name (the shipped overlay's check)."""
+    from madpinn.config import split_vf_model
+
+    split = split_vf_model(name)
+    return _training(cfg, *split) if split else None
 
 
 def _marl(cfg: Mapping, name: str) -> str:
     from madpinn.marl_hash import marl_training_hash
 
     return marl_training_hash(cfg, name)
+
+
+def _governors(cfg: Mapping, study: str) -> dict:
+    """What fig_large_arena_frontier reads of each run of ``study`` besides its cells: its V̂, carrot
+    and speed bound (:class:`madpinn.figures.frontier.FrontierRun`)."""
+    from madpinn.config import run_agents, run_observation, run_vhat
+
+    return {run: {"vhat": run_vhat(cfg, run), "observation": run_observation(cfg, run), "agents": run_agents(cfg, run)}
+            for run in cfg["studies"][study]["runs"]}
 
 
 def _cell(cfg: Mapping, study: str, run: str) -> dict:
@@ -267,7 +286,7 @@ def _gap_rows(cfg: Mapping) -> dict:
 _VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
 _Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search
 READS = {
-    "train-value": lambda cfg, kind: _training(cfg, kind),
+    "train-value": lambda cfg, kind, variant=None: _training(cfg, kind, variant),
     "train-safemarl-nominal": lambda cfg: _marl(cfg, "safemarl_nominal"),
     "train-defmarl": lambda cfg, variant: _marl(cfg, f"defmarl_{variant}"),
     "evaluate": _cell,
@@ -283,7 +302,9 @@ READS = {
     "table": lambda cfg, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study)},
     "figure": lambda cfg, name, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study),
                                         **({"trajectories": cfg["figures"]["trajectories"]}
-                                           if name == "fig_trajectories" else {})},
+                                           if name == "fig_trajectories" else {}),
+                                        **({"governors": _governors(cfg, study)}
+                                           if name == "fig_large_arena_frontier" else {})},
     "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "render-clip": _keys("sim.mujoco", "arenas"),

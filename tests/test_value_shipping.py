@@ -10,8 +10,9 @@ from conftest import REPO, SMOKE, run_snakemake
 from madpinn.commands import main
 from madpinn.config import load_config
 from madpinn.marl_hash import is_marl_model, marl_training_hash
+from madpinn.provenance import model_training_hash
 from madpinn.value_functions import load_vs
-from madpinn.value_functions.build import KINDS, training_hash
+from madpinn.value_functions.build import training_hash
 from madpinn.value_functions.shipping import ShippedModelError, install, read_manifest, sha256, verify
 from policy_models import tiny_model_dir
 
@@ -97,10 +98,12 @@ def test_committed_models_were_trained_for_config_yaml(paper_cfg):
     names = yaml.safe_load((REPO / "workflow" / "configs" / "shipped.yaml").read_text())["shipped_models"]["names"]
     assert set(names) <= set(shipped)
     for name in names:
-        expected = training_hash(paper_cfg, name) if name in KINDS else marl_training_hash(paper_cfg, name)
+        expected = marl_training_hash(paper_cfg, name) if is_marl_model(name) else model_training_hash(paper_cfg, name)
         assert shipped[name]["training_config_hash"] == expected, name
         assert verify(REPO / "models", name).stat().st_size == shipped[name]["bytes"]
     assert {"safemarl_nominal", "defmarl_n3", "defmarl_n8"} <= set(names)   # the baselines' policies too
+    assert {"vhat_h04", "vhat_h03", "vhat_speed"} <= set(names)   # V̂ variants (issue 33): their merged settings' hashes
+    assert model_training_hash(paper_cfg, "vhat") == training_hash(paper_cfg, "vhat") != shipped["vhat_h04"]["training_config_hash"]
 
 
 def _ship_policy(tmp_path, configs, extra=()):

@@ -34,10 +34,13 @@ def evaluate(
     ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
     from dataclasses import replace
 
-    from madpinn.config import ConfigError, method_config, run_observation, study_backend, study_sim
+    from madpinn.config import ConfigError, method_config, run_agents, run_observation, study_backend, study_sim
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
+    from madpinn.settings import AgentLimits
 
-    cs = CellSettings.from_config(cfg, study, run)
+    # the run's agents override (a speed governor: a lower v_max, issue 33) is applied here and not in
+    # CellSettings.from_config, whose edit would change the source hash of every cell of every method
+    cs = replace(CellSettings.from_config(cfg, study, run), limits=AgentLimits.from_config({**cfg, "agents": run_agents(cfg, run)}))
     method, mcfg = method_config(cfg, run)
     if collision_events and not cs.collision_events:
         if method != "madpinn":
@@ -48,7 +51,8 @@ def evaluate(
         job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
         wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
         params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
-                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": run_observation(cfg, run)},
+                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": run_observation(cfg, run),
+                "agents": run_agents(cfg, run)},
     )
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)

@@ -27,6 +27,14 @@ def _figure(args) -> int:
             from madpinn.figures.cost_safety import plot_cost_safety
 
             files = plot_cost_safety(args.inputs, cfg, Path(args.out_dir) / args.name, oracle_paths=args.oracle or ())
+        elif args.name == "fig_large_arena_frontier":
+            from madpinn.config import ConfigError
+            from madpinn.figures.frontier import FrontierRun, plot_large_arena_frontier
+
+            if not args.study or args.study not in cfg["studies"]:
+                raise ConfigError(f"fig_large_arena_frontier needs --study STUDY of this configuration, got {args.study!r}")
+            runs = [FrontierRun.from_config(cfg, run) for run in cfg["studies"][args.study]["runs"]]
+            files = plot_large_arena_frontier(args.inputs, runs, Path(args.out_dir) / args.name)
         else:  # fig_trajectories (argparse restricts the choices)
             from madpinn.evaluation.tables import label_of
             from madpinn.figures.trajectories import plot_trajectories
@@ -150,7 +158,8 @@ def register(sub) -> None:
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")
     add_config_arg(p)
-    p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories"])
+    p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories", "fig_large_arena_frontier"])
+    p.add_argument("--study", default=None, help="fig_large_arena_frontier: the study whose runs it shows")
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
     p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)

@@ -67,10 +67,14 @@ def figure_of(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
 def _train(args) -> int:
     from madpinn.value_functions.build import training_hash
 
-    cfg = config_of(args)
-    kind = args.kind
+    from madpinn.config import vf_model_name, with_vf_variant
+
+    kind, variant = args.kind, args.variant
+    cfg = with_vf_variant(config_of(args), kind, variant)   # the variant's settings, before anything reads them
+    name = vf_model_name(kind, variant)
     vcfg = _training_settings(cfg, kind)
-    record = JobRecord(job_key=f"train/{kind}", rule=f"train_{kind}", wildcards={"kind": kind},
+    record = JobRecord(job_key=f"train/{name}", rule="train_vhat_variant" if variant else f"train_{kind}",
+                       wildcards={"kind": kind, **({"variant": variant} if variant else {})},
                        params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
                                "config_hash": training_hash(cfg, kind)})
     with job(cfg, record, not args.no_track) as run:
@@ -113,7 +117,7 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     if "init" in models:   # the workflow resolves value_functions.<kind>.init_from and passes it in
         settings.init_from = str(models["init"])
     out = Path(args.out)
-    ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{kind}.ckpt.pt"
+    ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{out.stem}.ckpt.pt"
     chash = record.params["config_hash"]
     progress = not args.no_progress
     total = settings.iterations + int((vcfg.get("fine_tune") or {}).get("iterations", 0))
@@ -331,8 +335,11 @@ def register(sub) -> None:
     p = sub.add_parser("train-value", help="train V̂ or V_s (resumes from its checkpoint)")
     common(p, None)
     p.add_argument("--kind", required=True, choices=KINDS)
+    p.add_argument("--variant", default=None, metavar="NAME",
+                   help="train V̂ variant NAME: value_functions.vhat_variants.NAME deep-merged over value_functions.vhat "
+                        "(its settings and training hash; issue 33)")
     p.add_argument("--out", required=True, help="final model file (.pt)")
-    p.add_argument("--checkpoint", default=None, help="resume checkpoint (default <out dir>/checkpoints/<kind>.ckpt.pt)")
+    p.add_argument("--checkpoint", default=None, help="resume checkpoint (default <out dir>/checkpoints/<out stem>.ckpt.pt)")
     p.add_argument("--stop-after", type=int, default=None, help="stop after this many iterations (testing resume)")
     p.add_argument("--time-limit", type=_seconds, default=None, metavar="SECONDS",
                    help=f"stop after the first iteration that ends past this many seconds, keeping a checkpoint, "

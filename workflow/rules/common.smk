@@ -321,22 +321,47 @@ def out_dir_of(key):
     return lambda wildcards, output: os.path.dirname(output[key])
 
 
-def init_model(kind):
-    """The model a ``value_functions.<kind>.init_from`` fine-tuning run starts from (or nothing)."""
-    path = config["value_functions"][kind].get("init_from")
+def init_model(kind, variant=None):
+    """The model a ``value_functions.<kind>.init_from`` fine-tuning run (of V̂ variant ``variant``:
+    its merged settings) starts from (or nothing)."""
+    from madpinn.config import with_vf_variant
+
+    path = with_vf_variant(config, kind, variant)["value_functions"][kind].get("init_from")
     if not path:
         return []
     return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
 
 
-def init_arg(kind):
+def init_arg(kind, variant=None):
     """``--model init=PATH`` when the run fine-tunes a trained model (a list: ``{params.init:q}``)."""
-    return [a for p in init_model(kind) for a in ("--model", f"init={p}")]
+    return [a for p in init_model(kind, variant) for a in ("--model", f"init={p}")]
 
 
-def train_runtime(kind):
+def vhat_variants_used():
+    """The V̂ variants (value_functions.vhat_variants) that a configured study's MAD-PINN run loads:
+    only their trainings are planned."""
+    from madpinn.config import run_vhat, split_vf_model
+
+    return sorted({split_vf_model(run_vhat(config, run))[1] for st in config["studies"].values() for run in st["runs"]
+                   if run.partition("-")[0] == "madpinn"} - {None})
+
+
+def madpinn_models(wildcards):
+    """The trained files a MAD-PINN run loads: its V̂ (the base's, or the variant's its settings name)
+    and V_s. Plain strings (run_models)."""
+    from madpinn.config import run_vhat, split_vf_model
+
+    variant = split_vf_model(run_vhat(config, wildcards.run))[1]
+    vhat = (str(rules.train_vhat_variant.output.model).format(variant=variant) if variant
+            else str(rules.train_vhat.output.model))
+    return {"vhat": vhat, "vs": str(rules.train_vs.output.model)}
+
+
+def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
-    v = config["value_functions"][kind]
+    from madpinn.config import with_vf_variant
+
+    v = with_vf_variant(config, kind, variant)["value_functions"][kind]
     its = int(v["iterations"]) + int((v.get("fine_tune") or {}).get("iterations", 0))
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
@@ -433,12 +458,12 @@ def check_shipped_models(shipped):
     missing, unreadable, of another kind (V̂ and V_s swapped), not the manifest's bytes (sha256), or
     trained for another configuration than this one (madpinn.value_functions.shipping.check_shipped)."""
     from madpinn.commands.errors import stop_workflow
-    from madpinn.value_functions.build import KINDS, training_hash
+    from madpinn.provenance import model_training_hash
     from madpinn.value_functions.shipping import check_shipped
 
     try:
-        check_shipped(shipped["dir"], {name: training_hash(config, name) if name in KINDS
-                                       else marl_training_hash(config, name) if is_marl_model(name) else None
+        check_shipped(shipped["dir"], {name: marl_training_hash(config, name) if is_marl_model(name)
+                                       else model_training_hash(config, name)   # V̂, V_s, V̂ variants; else None
                                        for name in shipped["names"]})
     except Exception as exc:
         stop_workflow(exc)

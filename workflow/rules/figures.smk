@@ -59,3 +59,36 @@ rule fig_trajectories:
 
 
 register_targets(*expand(f"{FIGURES}/fig_trajectories.{{ext}}", ext=FIG_EXTS))
+
+
+# The large arena's safety–cost frontier (issue 33 item 4, not in the paper): every V̂ and speed
+# governor of study large_arena_frontier at Table II's agent counts, the paper's points overlaid.
+if "large_arena_frontier" in config["studies"]:
+
+    rule fig_large_arena_frontier:
+        input:
+            tracking=TRACKING,
+            results=study_results("large_arena_frontier"),
+        output:
+            png=report(f"{FIGURES}/fig_large_arena_frontier.png", caption="../report/fig_large_arena_frontier.rst",
+                       category=REPORT_SECTIONS["our_tables"],
+                       labels={"Item": "fig_large_arena_frontier", "Shows": "large-arena safety vs cost"}),
+            pdf=f"{FIGURES}/fig_large_arena_frontier.pdf",
+        params:
+            config=RESOLVED,
+            settings=settings_hash("figure", name="fig_large_arena_frontier", study="large_arena_frontier"),
+            source=source_hash("figure"),
+            out_dir=out_dir_of("png"),
+        resources:
+            mem_mb=2000,
+            runtime=15,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/fig_large_arena_frontier.log",
+        shell:
+            "python -m madpinn figure --config {params.config:q} --name fig_large_arena_frontier"
+            " --study large_arena_frontier --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+
+    if "large_arena_frontier" in studies_in_all():   # in_all: false: built by its own target only
+        register_targets(*expand(f"{FIGURES}/fig_large_arena_frontier.{{ext}}", ext=FIG_EXTS))

@@ -41,6 +41,10 @@ if SHIPPED.get("enabled") and SHIPPED.get("names"):
 
         ruleorder: install_shipped_model > train_vhat
 
+    if vhat_variants_used() and any(n.startswith("vhat_") for n in SHIPPED["names"]):   # rule train_vhat_variant exists
+
+        ruleorder: install_shipped_model > train_vhat_variant
+
     if "safemarl_nominal" in SHIPPED["names"]:
 
         ruleorder: install_shipped_model > train_safemarl_nominal

@@ -62,6 +62,43 @@ rule train_vs:
         " 2>&1 | tee {log:q}"
 
 
+# V̂ variants (issue 33; value_functions.vhat_variants, each merged over value_functions.vhat): one
+# training per variant a configured MAD-PINN run loads (`vhat: <name>`), by the same command with
+# --variant, which merges the variant before anything reads the settings (its training hash too).
+VHAT_VARIANTS = vhat_variants_used()
+if VHAT_VARIANTS:
+
+    rule train_vhat_variant:
+        input:
+            tracking=TRACKING,
+            init=lambda wildcards: init_model("vhat", wildcards.variant),
+        output:
+            model=f"{RESULTS}/models/vhat_{{variant}}.pt",
+            loss=f"{RESULTS}/models/vhat_{{variant}}_loss.csv",
+            summary=f"{RESULTS}/models/vhat_{{variant}}_train.json",
+        wildcard_constraints:
+            variant="|".join(VHAT_VARIANTS),
+        params:
+            config=RESOLVED,
+            init=lambda wildcards: init_arg("vhat", wildcards.variant),
+            settings=settings_hash("train-value", "variant", kind="vhat"),
+            source=source_hash("train-value"),
+        threads: VF_THREADS
+        resources:
+            mem_mb=4000,
+            runtime=lambda wildcards: train_runtime("vhat", wildcards.variant),
+            **TRAIN_GPU,
+        priority: 100
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/train_vhat_{{variant}}.log",
+        shell:
+            "python -m madpinn train-value --config {params.config:q} --kind vhat --variant {wildcards.variant:q}"
+            " --out {output.model:q} {params.init:q} --threads {threads}"
+            " 2>&1 | tee {log:q}"
+
+
 rule validate_vs:
     input:
         tracking=TRACKING,

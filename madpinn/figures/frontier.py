@@ -1,0 +1,157 @@
+"""fig_large_arena_frontier (issue 33 item 4, not in the paper): the large arena's safety–cost
+frontier. One panel per agent count; x: time-averaged cost over the collision-free agents (cost ÷ T,
+SPEC §3, the quantity of the paper's Table II cost column), y: safety rate. One marker per run (a V̂
+or a deployment-only speed governor), with 95 % bootstrap intervals over scenarios on both axes when
+a cell has one seed (:func:`madpinn.evaluation.metrics.scenario_intervals`), else ± one standard
+deviation over seeds. Each governor sweep of one V̂ (goal-carrot length, speed bound ``v_max``) is
+joined by a line through that V̂'s own point, ordered from the longest carrot / highest speed; the
+paper's Table II points (``paper_values.yaml``) are overlaid as black stars with their numbers, so a
+reader sees whether they lie on any frontier we reach (up and left is better).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from madpinn.evaluation.metrics import across_seeds
+from madpinn.evaluation.reproduction import paper_values
+from madpinn.evaluation.tables import load_results, per_seed
+from madpinn.figures import style
+
+PAPER_TABLE = "table_ours_scaling"     # Table II of paper_values.yaml
+PAPER_RUN = "madpinn"
+MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "h", "p", "*")
+SWEEP_STYLE = {"carrot": "-", "v_max": "--"}
+SWEEP_NAME = {"carrot": "carrot sweep", "v_max": "v_max sweep"}
+PAPER_LABEL = "Paper (Table II)"
+
+
+@dataclass(frozen=True)
+class FrontierRun:
+    """How one run of the study deploys (what places it on a sweep).
+
+    run: run name ``madpinn[-variant]``; label: its display name; vhat: the V̂ model it loads
+    (``vhat`` or ``vhat_<variant>``); carrot: goal-carrot bound per coordinate (m, goal_range −
+    carrot_margin); v_max: speed bound per axis of its cells (m/s); neighbour_goal: the neighbour
+    goal mapping (runs of another mapping are on no sweep with the others)."""
+
+    run: str
+    label: str
+    vhat: str
+    carrot: float
+    v_max: float
+    neighbour_goal: str = "neighbour"
+
+    @classmethod
+    def from_config(cls, cfg: Mapping, run: str) -> "FrontierRun":
+        from madpinn.config import method_config, run_agents, run_observation, run_vhat
+
+        obs = run_observation(cfg, run)
+        return cls(run=run, label=str(method_config(cfg, run)[1].get("label", run)), vhat=run_vhat(cfg, run),
+                   carrot=float(obs["goal_range"]) - float(obs["carrot_margin"]),
+                   v_max=float(run_agents(cfg, run)["v_max"]), neighbour_goal=str(obs["neighbour_goal"]))
+
+
+def sweeps(runs: Sequence[FrontierRun]) -> list[tuple[str, list[str]]]:
+    """The governor sweeps among ``runs``: ``(kind, [run, ...])`` for each V̂ (and neighbour goal
+    mapping) whose runs differ in the carrot only (kind ``carrot``, longest carrot first) or in the
+    speed bound only (``v_max``, fastest first), at least two runs each."""
+    out = []
+    for kind, fixed in (("carrot", "v_max"), ("v_max", "carrot")):
+        groups: dict[tuple, list[FrontierRun]] = {}
+        for r in runs:
+            groups.setdefault((r.vhat, r.neighbour_goal, getattr(r, fixed)), []).append(r)
+        for group in groups.values():
+            values = {getattr(r, kind) for r in group}
+            if len(values) >= 2:
+                out.append((kind, [r.run for r in sorted(group, key=lambda r: -getattr(r, kind))]))
+    return out
+
+
+def frontier_data(result_paths: Iterable[str | Path]) -> pd.DataFrame:
+    """Per (run, N): seed figures' mean and std and, with one seed, the bootstrap intervals
+    (:func:`madpinn.evaluation.metrics.across_seeds` columns ``safety_rate_*``, ``cost_time_avg_*``)."""
+    return across_seeds(per_seed(load_results(result_paths)), ["run", "n_agents"])
+
+
+def paper_points(counts: Iterable[int]) -> dict[int, dict]:
+    """The paper's Table II MAD-PINN cells at ``counts``: N -> {cost (time-averaged), safety (fraction)}."""
+    cells = paper_values()[PAPER_TABLE]["runs"][PAPER_RUN]["n"]
+    return {int(n): cells[int(n)] for n in counts if int(n) in cells}
+
+
+def plot_large_arena_frontier(result_paths: Iterable[str | Path], runs: Sequence[FrontierRun],
+                              out_prefix: str | Path) -> list[Path]:
+    """Draw the figure from evaluation result files of ``runs``; writes ``<out_prefix>.pdf`` and
+    ``.png`` and returns both paths."""
+    agg = frontier_data(result_paths)
+    return style.save(draw_large_arena_frontier(agg, runs, paper_points(agg["n_agents"].unique())), out_prefix)
+
+
+def _interval(r, metric: str, scale: float = 1.0) -> tuple[float, float]:
+    """Lower and upper bar lengths of ``metric`` around its mean: the bootstrap interval when the
+    cell has one, else ± std (both ≥ 0)."""
+    mean, lo, hi = r[f"{metric}_mean"], r.get(f"{metric}_ci_lo", np.nan), r.get(f"{metric}_ci_hi", np.nan)
+    if np.isfinite(lo) and np.isfinite(hi):
+        return scale * max(mean - lo, 0.0), scale * max(hi - mean, 0.0)
+    sd = r[f"{metric}_std"] if np.isfinite(r[f"{metric}_std"]) else 0.0
+    return scale * sd, scale * sd
+
+
+def draw_large_arena_frontier(agg: pd.DataFrame, runs: Sequence[FrontierRun], paper: Mapping[int, Mapping]) -> plt.Figure:
+    """The figure from :func:`frontier_data`'s frame, the runs' deployments (their order: legend and
+    colours) and the paper's points (N -> {cost, safety}). One panel per N of ``agg``."""
+    style.setup()
+    known = {r.run: r for r in runs}
+    missing = sorted(set(agg["run"]) - set(known))
+    if missing:
+        raise ValueError(f"no deployment given for runs {missing}")
+    order = [r.run for r in runs if r.run in set(agg["run"])]
+    colours = style.palette(order)
+    counts = sorted(int(n) for n in agg["n_agents"].unique())
+    lines = sweeps([known[r] for r in order])
+    fig, axes = plt.subplots(1, len(counts), figsize=(3.8 * len(counts), 3.9), squeeze=False)
+    for ax, n in zip(axes[0], counts):
+        rows = {r["run"]: r for _, r in agg[agg["n_agents"] == n].iterrows()}
+        for kind, members in lines:
+            pts = [(rows[m]["cost_time_avg_mean"], 100 * rows[m]["safety_rate_mean"]) for m in members if m in rows]
+            if len(pts) >= 2:
+                xs, ys = zip(*pts)
+                ax.plot(xs, ys, SWEEP_STYLE[kind], color="0.55", lw=1.1, zorder=1, label=SWEEP_NAME[kind])
+        for i, run in enumerate(order):
+            if run not in rows:
+                continue
+            r = rows[run]
+            x, y = r["cost_time_avg_mean"], 100 * r["safety_rate_mean"]
+            xerr = np.array([_interval(r, "cost_time_avg")]).T
+            yl, yh = _interval(r, "safety_rate", 100.0)
+            yerr = np.array([[min(yl, y)], [min(yh, 100.0 - y)]])      # clipped to [0, 100] %
+            ax.errorbar(x, y, xerr=xerr, yerr=yerr, fmt="none", capsize=2.0, elinewidth=0.9, color=colours[run], zorder=2)
+            ax.plot(x, y, MARKERS[i % len(MARKERS)], ms=7, mfc="white", mew=1.5, color=colours[run],
+                    label=known[run].label, zorder=3 + i)
+        if n in paper:
+            p = paper[n]
+            ax.plot(p["cost"], 100 * p["safety"], "*", ms=14, color="black", zorder=50, label=PAPER_LABEL)
+            ax.annotate(f"paper\n{100 * p['safety']:.4g} %, {p['cost']:.3g}", (p["cost"], 100 * p["safety"]),
+                        textcoords="offset points", xytext=(8, -4), fontsize=7.5, va="top", zorder=51)
+        ax.set_title(f"{n} agents")
+        ax.set_xlabel("cost ÷ T (time-averaged)")
+        ax.set_ylim(top=100.8)
+    axes[0][0].set_ylabel("safety rate (%)")
+    handles = {}
+    for ax in axes.ravel():
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    last = [*SWEEP_NAME.values(), PAPER_LABEL]                    # runs first, then the sweeps and the paper
+    handles = {**{k: h for k, h in handles.items() if k not in last}, **{k: handles[k] for k in last if k in handles}}
+    ncol = min(len(handles), 3)
+    legend_in = 0.25 * -(-len(handles) // max(ncol, 1)) + 0.2
+    fig.tight_layout(rect=(0, legend_in / fig.get_figheight(), 1, 1))
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=ncol, frameon=False, bbox_to_anchor=(0.5, 0.0))
+    return fig
