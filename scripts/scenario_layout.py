@@ -23,7 +23,7 @@ import argparse
 import numpy as np
 
 from madpinn.config import REPO_ROOT, load_config
-from madpinn.scenarios import Arena, _sample_separated, generate_scenario, scenario_rng
+from madpinn.scenarios import Arena, ScenarioInfeasibleError, _sample_separated, generate_scenario, scenario_rng
 
 LAYOUTS = ("ours", "sep0.5", "swap", "short")
 
@@ -78,8 +78,12 @@ def main() -> None:
     for n in args.counts:
         for name in LAYOUTS:
             trips, near, enc = [], [], []
-            for i in range(args.scenarios):
-                s, g = layout(name, arena, n, args.seed, i, r)
+            try:
+                drawn = [layout(name, arena, n, args.seed, i, r) for i in range(args.scenarios)]
+            except ScenarioInfeasibleError as exc:   # e.g. 0.5 m spacing of 256 agents jams the sampler
+                print(f"| {n} | {name} | {n / (2 * arena.half_width) ** 2:.1f} | infeasible: {exc} | | |")
+                continue
+            for s, g in drawn:
                 trips.append(np.linalg.norm(g - s, axis=1))
                 dist = np.linalg.norm(s[:, None] - s[None], axis=-1)
                 np.fill_diagonal(dist, np.inf)

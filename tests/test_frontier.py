@@ -121,7 +121,7 @@ def test_frontier_figure_draws_every_run_sweep_and_the_papers_point(cells, tmp_p
     from madpinn.figures.frontier import plot_large_arena_frontier
 
     cfg, paths = cells
-    runs = [FrontierRun.from_config(cfg, r) for r in cfg["studies"]["large_arena_frontier"]["runs"]]
+    runs = [FrontierRun.of_run(cfg, r) for r in cfg["studies"]["large_arena_frontier"]["runs"]]
     by = {r.run: r for r in runs}
     assert by["madpinn-carrot05"].carrot == pytest.approx(0.5) and by["madpinn"].carrot == pytest.approx(1.8)
     assert by["madpinn-vmax1"].v_max == 1.0 and by["madpinn-h04"].vhat == "vhat_h04"

@@ -33,7 +33,7 @@ def _figure(args) -> int:
 
             if not args.study or args.study not in cfg["studies"]:
                 raise ConfigError(f"fig_large_arena_frontier needs --study STUDY of this configuration, got {args.study!r}")
-            runs = [FrontierRun.from_config(cfg, run) for run in cfg["studies"][args.study]["runs"]]
+            runs = [FrontierRun.of_run(cfg, run) for run in cfg["studies"][args.study]["runs"]]
             files = plot_large_arena_frontier(args.inputs, runs, Path(args.out_dir) / args.name)
         else:  # fig_trajectories (argparse restricts the choices)
             from madpinn.evaluation.tables import label_of

@@ -49,7 +49,7 @@ class FrontierRun:
     neighbour_goal: str = "neighbour"
 
     @classmethod
-    def from_config(cls, cfg: Mapping, run: str) -> "FrontierRun":
+    def of_run(cls, cfg: Mapping, run: str) -> "FrontierRun":
         from madpinn.config import method_config, run_agents, run_observation, run_vhat
 
         obs = run_observation(cfg, run)
