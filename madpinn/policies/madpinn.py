@@ -56,7 +56,8 @@ class MadPinnSettings:
     safety_filter: CBVF filter parameters (None: the paper's policy, unfiltered);
     look_ahead: τ (s) of the actuator-lag compensation: V̂ sees each agent's own state predicted
     τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
-    the measured state); z_newton: the warm search takes a Newton step on ∂V̂/∂z
+    the measured state); vs_band: V_s clamped into its exact band [free-drift bound, ψ]
+    (:meth:`madpinn.value_functions.PairValue.banded`, issue 37); z_newton: the warm search takes a Newton step on ∂V̂/∂z
     (:func:`newton_search`, fewer V̂ rows; may return another verified crossing where V̂ is not
     monotone in z, so not the default and not read from the config yet, issue 37)."""
 
@@ -68,6 +69,7 @@ class MadPinnSettings:
     symmetry: str
     safety_filter: CBVFSettings | None
     look_ahead: float
+    vs_band: bool
     z_newton: bool = False   # not a config key (issue 37)
 
     @classmethod
@@ -78,7 +80,7 @@ class MadPinnSettings:
                    z_tolerance=float(mcfg["z_tolerance"]), warm_start=bool(mcfg["warm_start"]),
                    pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
-                   look_ahead=float(mcfg["look_ahead"]))
+                   look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]))
 
 
 def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
@@ -213,7 +215,7 @@ def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy | FilteredMadPinnPolicy:
     settings = ctx.method
     vhat = symmetrize(load_vhat(ctx.model("vhat", "madpinn"), device=ctx.device, dtype=ctx.dtype), settings.symmetry)
     needs_vs = settings.strategy == "value" or settings.safety_filter is not None
-    vs = load_vs(ctx.model("vs", "madpinn"), device=ctx.device, dtype=ctx.dtype) if needs_vs else None
+    vs = load_vs(ctx.model("vs", "madpinn"), device=ctx.device, dtype=ctx.dtype, band=settings.vs_band) if needs_vs else None
     check_compatible(vhat, vs, ctx.obs_spec, ctx.dynamics.u_max)
     gen = torch.Generator(device=ctx.device).manual_seed(int(ctx.seed))
     selector = make_selector(settings.strategy, ctx.obs_spec.n_neighbours, vs=vs, radius=ctx.obs_spec.sensing_radius,

@@ -26,10 +26,12 @@ class SafeMarlSettings:
     """filter the nominal actor through the CBVF QP (false: variant ``unfiltered``)"""
     cbvf: CBVFSettings
     """the CBVF filter (``cbvf_gamma``, ``critical_neighbours``, ``candidates``, ``threshold``)"""
+    vs_band: bool
+    """V_s clamped into its exact band [free-drift bound, ψ] (:meth:`madpinn.value_functions.PairValue.banded`)"""
 
     @classmethod
     def from_config(cls, m: Mapping) -> "SafeMarlSettings":
-        return cls(filter=bool(m["filter"]), cbvf=CBVFSettings.from_config(m))
+        return cls(filter=bool(m["filter"]), cbvf=CBVFSettings.from_config(m), vs_band=bool(m["vs_band"]))
 
 
 def load_nominal(path, ctx: PolicyContext) -> ActorPolicy:
@@ -51,5 +53,5 @@ def make_safemarl(ctx: PolicyContext) -> SafetyFilteredPolicy:
     nominal = load_nominal(ctx.model("nominal", "safemarl"), ctx)
     if not m.filter:
         return SafetyFilteredPolicy(nominal, None)
-    vs = load_vs(ctx.model("vs", "safemarl"), device=ctx.device, dtype=ctx.dtype)
+    vs = load_vs(ctx.model("vs", "safemarl"), device=ctx.device, dtype=ctx.dtype, band=m.vs_band)
     return SafetyFilteredPolicy(nominal, make_cbvf_filter(vs, m.cbvf, ctx.dynamics.u_max, ctx.obs_spec.sensing_radius))

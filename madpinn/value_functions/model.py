@@ -100,7 +100,21 @@ class VHat(PINNValueFunction):
 
 
 class PairValue(PINNValueFunction):
-    """Pairwise safety value V_s(x, t) (SPEC §5), m; ≤ 0 means collision unavoidable."""
+    """Pairwise safety value V_s(x, t) (SPEC §5), m; ≤ 0 means collision unavoidable.
+
+    ``band``: the network's value is clamped into ``[free-drift bound, ψ]`` (issue 37), the band
+    the exact V_s lies in — doing nothing is one admissible relative control, so V_s is at least
+    the free-drift margin over the remaining horizon, and the minimum over the horizon includes
+    τ = t, so V_s ≤ ψ = ‖p‖ − r. The clamp can only move the network toward the exact value (grid
+    reference: −35 % mean error, docs/performance.md); the gradient is the active bound's where
+    the clamp acts. Set by :meth:`banded`, a deployment choice (no retraining)."""
+
+    band: bool = False
+
+    def banded(self) -> "PairValue":
+        """This V_s with its value clamped into the exact band (see the class docstring)."""
+        self.band = True
+        return self
 
     @property
     def collision_radius(self) -> float:
@@ -111,11 +125,24 @@ class PairValue(PINNValueFunction):
         return self.problem.system
 
     def value(self, x_rel: torch.Tensor, t=0.0) -> torch.Tensor:
-        return self.state_value(x_rel, t)
+        v = self.state_value(x_rel, t)
+        if not self.band:
+            return v
+        x = x_rel.to(v.dtype)
+        lo, _ = self.system.free_drift_and_grad(x, self.horizon - as_time(t, x.shape[0], x))
+        return torch.minimum(torch.maximum(v, lo), self.system.target(x))
 
     def value_and_grad(self, x_rel: torch.Tensor, t=0.0):
         """``(V_s [B], ∂V_s/∂x [B, 4])``."""
         v, _, g = self.state_value_and_grads(x_rel, t)
+        if not self.band:
+            return v, g
+        x = x_rel.to(v.dtype)
+        lo, glo = self.system.free_drift_and_grad(x, self.horizon - as_time(t, x.shape[0], x))
+        hi, ghi = self.system.target_and_grad(x)
+        below, above = v < lo, v > hi
+        v = torch.where(below, lo, torch.where(above, hi, v))
+        g = torch.where(below[:, None], glo, torch.where(above[:, None], ghi, g))
         return v, g
 
 
@@ -190,6 +217,8 @@ def load_vhat(path, device="cpu", dtype=torch.float32) -> VHat:
     return load_value_function(path, "vhat", device, dtype)
 
 
-def load_vs(path, device="cpu", dtype=torch.float32) -> PairValue:
-    """Load a trained V_s (``results/models/vs.pt``)."""
-    return load_value_function(path, "vs", device, dtype)
+def load_vs(path, device="cpu", dtype=torch.float32, band: bool = False) -> PairValue:
+    """Load a trained V_s (``results/models/vs.pt``); ``band``: clamp it into the exact band
+    (:meth:`PairValue.banded`)."""
+    vs = load_value_function(path, "vs", device, dtype)
+    return vs.banded() if band else vs
