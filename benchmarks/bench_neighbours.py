@@ -13,7 +13,10 @@ Selections are compared agent by agent against the exhaustive scores selected by
 (the reference), and against today's ``topk`` selection. The margin calibration (once per model,
 ≈ 1 s) is timed separately, not in the per-update time.
 
-    PYTHONPATH=$PWD python benchmarks/bench_neighbours.py --states /tmp/states.pt
+    PYTHONPATH=$PWD python benchmarks/bench_neighbours.py --states /tmp/states.pt [--band]
+
+``--band``: both methods score with V_s clamped into its exact band (``methods.madpinn.vs_band``, the
+protocol since 2026-11-26); the calibrated margin then shrinks to its pad.
 
 Last lines: ``neighbour_scoring_speedup_at_256: X`` and ``identical_selection_share: Y``.
 """
@@ -41,6 +44,7 @@ def main() -> None:
     ap.add_argument("--states", default="/tmp/madpinn_recorded_states.pt")
     ap.add_argument("--batch", type=int, default=4, help="recorded 256-agent states scored together (a scenario batch)")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--band", action="store_true", help="score with V_s clamped into its exact band (the protocol's vs_band)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     if not Path(args.states).is_file():
@@ -48,7 +52,7 @@ def main() -> None:
         subprocess.run([sys.executable, str(here / "record_states.py"), "--vhat", args.vhat, "--vs", args.vs,
                         "--out", args.states], check=True)
     data = torch.load(args.states, weights_only=True)
-    vs = load_vs(args.vs)
+    vs = load_vs(args.vs, band=args.band)
     t = time.perf_counter()
     margins = calibrate_drift_margins(vs)
     calib = time.perf_counter() - t
