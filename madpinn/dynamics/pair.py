@@ -70,17 +70,8 @@ class PairSystem(BoxControlSystem):
         return norm[..., 0] - self.collision_radius, torch.cat([grad_p, torch.zeros_like(p)], dim=-1)
 
     def free_drift_and_grad(self, x: torch.Tensor, remaining: float | torch.Tensor):
-        """``min_{τ∈[0, T']} ‖p + v·τ‖ − r`` ``[B]`` and its gradient ``[B, 4]`` for pair states
-        ``x [B, 4]`` over the remaining horizon ``T'`` (s): the safety margin with no relative
-        control, a lower bound of the exact V_s (which maximises over controls); ``≤ ψ`` (τ = 0).
-        Gradient by the envelope theorem at the minimiser τ*: ``(u, τ*·u)``, u the unit closest offset."""
-        p, v = x[..., 0:2], x[..., 2:4]
-        tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(min=0.0)
-        tau = torch.minimum(tau, torch.as_tensor(remaining, dtype=x.dtype, device=x.device).expand_as(tau))
-        d = p + v * tau[..., None]
-        norm = torch.linalg.vector_norm(d, dim=-1, keepdim=True)
-        u = d / norm.clamp_min(1e-12)
-        return norm[..., 0] - self.collision_radius, torch.cat([u, tau[..., None] * u], dim=-1)
+        """:func:`free_drift_and_grad` of this system's collision radius."""
+        return free_drift_and_grad(x, remaining, self.collision_radius)
 
     def f(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """Vector field ``[..., 4]`` for the relative control ``u [..., 2]`` (clipped to ±2u_max)."""
@@ -108,3 +99,17 @@ class PairSystem(BoxControlSystem):
             u_max=float(cfg["agents"]["u_max"]), collision_radius=float(cfg["agents"]["collision_radius"]),
             horizon=float(v["horizon"]), p_range=float(v["p_range"]), v_range=float(v["v_range"]),
         )
+
+
+def free_drift_and_grad(x: torch.Tensor, remaining: float | torch.Tensor, radius: float):
+    """``min_{τ∈[0, T']} ‖p + v·τ‖ − r`` ``[B]`` and its gradient ``[B, 4]`` for pair states
+    ``x [B, 4]`` over the remaining horizon ``T'`` (s): the safety margin with no relative
+    control, a lower bound of the exact V_s (which maximises over controls); ``≤ ψ`` (τ = 0).
+    Gradient by the envelope theorem at the minimiser τ*: ``(u, τ*·u)``, u the unit closest offset."""
+    p, v = x[..., 0:2], x[..., 2:4]
+    tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(min=0.0)
+    tau = torch.minimum(tau, torch.as_tensor(remaining, dtype=x.dtype, device=x.device).expand_as(tau))
+    d = p + v * tau[..., None]
+    norm = torch.linalg.vector_norm(d, dim=-1, keepdim=True)
+    u = d / norm.clamp_min(1e-12)
+    return norm[..., 0] - radius, torch.cat([u, tau[..., None] * u], dim=-1)

@@ -36,6 +36,7 @@ from typing import Callable
 
 import torch
 
+from madpinn.dynamics.pair import free_drift_and_grad
 from madpinn.observation import PHANTOM, nearest_neighbours, pairwise_distances
 
 STRATEGIES = ("value", "nearest", "random")
@@ -143,12 +144,8 @@ def pair_scores(state: torch.Tensor, vs, chunk: int = 65536) -> torch.Tensor:
 
 def free_drift_lower_bound(x: torch.Tensor, horizon: float, radius: float) -> torch.Tensor:
     """``min_{τ∈[0,T]} ‖p + v·τ‖ − r`` ``[B]`` for pair states ``x [B, 4]``: the pair's safety
-    margin with no relative control (a lower bound of the exact V_s, which maximises over controls;
-    ``≤ ψ = ‖p‖ − r``, its value at τ = 0)."""
-    p, v = x[:, 0:2], x[:, 2:4]
-    vv = (v * v).sum(-1)
-    tau = (-(p * v).sum(-1) / vv.clamp_min(1e-12)).clamp(0.0, horizon)
-    return torch.linalg.vector_norm(p + v * tau[:, None], dim=-1) - radius
+    margin with no relative control (:func:`madpinn.dynamics.pair.free_drift_and_grad`)."""
+    return free_drift_and_grad(x, horizon, radius)[0]
 
 
 @dataclass(frozen=True)
