@@ -60,7 +60,7 @@ def main(argv=None) -> int:
     device, dtype = resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
     arena = Arena.from_config(cfg, "small")
-    starts, goals = generate_scenarios(arena, args.agents, 0, args.scenarios, cfg["agents"]["collision_radius"], device, dtype)
+    starts, goals = generate_scenarios(arena, args.agents, 0, args.scenarios, cfg["sim"]["start_separation"], device, dtype)
     # mid-flight state: agents moving towards their goals at 1 m/s
     heading = torch.nn.functional.normalize(goals - starts, dim=-1)
     state = torch.cat([starts, heading], dim=-1)

@@ -70,7 +70,7 @@ def models(vhat_path: str | None, vs_path: str | None, tmp: Path):
 
 def layout(N: int, seed: int = 0):
     hw = 4.0 * math.sqrt(N / 256.0)
-    starts, goals = generate_scenarios(Arena("bench", hw, 1.0), N, seed, 1, 0.1, torch.device("cpu"), torch.float32)
+    starts, goals = generate_scenarios(Arena("bench", hw, 1.0), N, seed, 1, 0.2, torch.device("cpu"), torch.float32)
     vel = 4.0 * torch.rand(1, N, 2, generator=torch.Generator().manual_seed(seed)) - 2.0
     return torch.cat([starts, vel], -1), goals, hw
 

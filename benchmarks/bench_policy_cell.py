@@ -104,7 +104,7 @@ def main() -> None:
     torch.set_num_threads(1)
     vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
     arena = Arena("large", 4.0, args.episode_s)
-    starts, goals = generate_scenarios(arena, args.agents, args.seed, args.scenarios, SPEC.collision_radius)
+    starts, goals = generate_scenarios(arena, args.agents, args.seed, args.scenarios, 2 * SPEC.collision_radius)
     steps = int(round(args.episode_s / DT))
     print(f"{args.agents} agents, large arena, {args.scenarios} scenarios of seed {args.seed}, {steps} steps "
           f"({args.episode_s} s), double integrator, torch 1 thread", flush=True)

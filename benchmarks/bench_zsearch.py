@@ -110,7 +110,7 @@ class NewtonComparedPolicy(MadPinnPolicy):
 
 def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bool, verify: bool,
              newton: bool = False, compare_newton: bool = False) -> dict:
-    starts, goals = generate_scenarios(arena, N, seed, scenarios, SPEC.collision_radius)
+    starts, goals = generate_scenarios(arena, N, seed, scenarios, 2 * SPEC.collision_radius)
     cls = VerifiedPolicy if (warm and verify) else MadPinnPolicy
     if warm and compare_newton and not newton:
         cls = NewtonComparedPolicy

@@ -46,7 +46,7 @@ def record(vhat, vs, n_agents: int, arena: Arena, seed: int, scenarios: int, kee
         calls[0] += 1
         return inner(state)
 
-    starts, goals = generate_scenarios(arena, n_agents, seed, scenarios, SPEC.collision_radius)
+    starts, goals = generate_scenarios(arena, n_agents, seed, scenarios, 2 * SPEC.collision_radius)
     pol = MadPinnPolicy(vhat, selector, SPEC, BASE_SETTINGS, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     run_episode(backend, pol, starts, goals, int(round(arena.episode_s / DT)), SPEC.collision_radius, progress=False)

@@ -181,7 +181,7 @@ def _infeasible_agent_counts(cfg: Mapping[str, Any]) -> list[str]:
     for path, arena, counts in _agent_count_settings(cfg):
         if arena not in cfg["arenas"]:
             continue  # reported by _cross_field_errors
-        limit = max_agents(float(cfg["arenas"][arena]["half_width"]), sep / 2.0)
+        limit = max_agents(float(cfg["arenas"][arena]["half_width"]), sep)
         for n in counts:
             if n > limit and (path, n) not in seen:
                 seen.add((path, n))
@@ -205,7 +205,7 @@ def _infeasible_patterns(cfg: Mapping[str, Any]) -> list[str]:
         arena = Arena.from_config(cfg, study["arena"])
         for n in study["agent_counts"]:
             try:
-                generate_scenario(arena, n, min(study["seeds"]), 0, float(study_sim(cfg, name)["start_separation"]) / 2.0, pattern)
+                generate_scenario(arena, n, min(study["seeds"]), 0, float(study_sim(cfg, name)["start_separation"]), pattern)
             except ScenarioInfeasibleError as exc:
                 lines.append(f"  - 'studies.{name}.agent_counts': {exc}")
     return lines
@@ -508,13 +508,13 @@ def check_cell(cfg: Mapping[str, Any], n_agents: int, seed: int, study: str | No
             raise TargetError(str(exc)) from exc
     if arena not in cfg["arenas"]:
         raise TargetError(f"unknown arena '{arena}' (this configuration's arenas: {', '.join(sorted(cfg['arenas']))})")
-    r = float(cfg["sim"]["start_separation"]) / 2.0   # the generator separates starts by 2·r
-    limit = max_agents(float(cfg["arenas"][arena]["half_width"]), r)
+    sep = float(cfg["sim"]["start_separation"])
+    limit = max_agents(float(cfg["arenas"][arena]["half_width"]), sep)
     if pattern in (None, UNIFORM) and not 1 <= n_agents <= limit:
-        raise TargetError(f"{n_agents} agents do not fit in arena '{arena}' with start separation {2 * r:g} m (1 to "
+        raise TargetError(f"{n_agents} agents do not fit in arena '{arena}' with start separation {sep:g} m (1 to "
                           f"{limit}: the scenario sampler's coverage limit)")
     if pattern not in (None, UNIFORM):   # as _infeasible_patterns: the pattern's first scenario
         try:
-            generate_scenario(Arena.from_config(cfg, arena), n_agents, seed, 0, r, pattern)
+            generate_scenario(Arena.from_config(cfg, arena), n_agents, seed, 0, sep, pattern)
         except (ScenarioInfeasibleError, ValueError) as exc:   # ValueError: an unknown pattern
             raise TargetError(str(exc)) from exc

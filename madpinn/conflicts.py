@@ -117,12 +117,12 @@ def _min_distance(p: np.ndarray) -> float:
     return float(np.min(d[np.triu_indices(len(p), 1)]))
 
 
-def conflict_scenario(pattern: str, n_agents: int, half_width: float, collision_radius: float,
+def conflict_scenario(pattern: str, n_agents: int, half_width: float, min_separation: float,
                       rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """``(starts [N, 2], goals [N, 2])`` float64 (m) of one scenario of ``pattern`` (module docstring)."""
     if pattern not in PATTERNS:
         raise ValueError(f"unknown scenario pattern '{pattern}' (have uniform, {', '.join(PATTERNS)})")
-    w, min_sep = float(half_width), 2.0 * float(collision_radius)
+    w, min_sep = float(half_width), float(min_separation)
     if pattern == "head_on_pairs":
         starts, goals = _head_on_pairs(n_agents, w, rng, min_sep)
     else:

@@ -47,20 +47,21 @@ def _coverage(n: int, half_width: float, min_sep: float) -> float:
     return n * math.pi * (min_sep / 2.0) ** 2 / side**2
 
 
-def max_agents(half_width: float, collision_radius: float) -> int:
-    """Most agents the sampler places in ``[-half_width, half_width]²`` with separation ``2r``.
+def max_agents(half_width: float, min_separation: float) -> int:
+    """Most agents the sampler places in ``[-half_width, half_width]²`` at least ``min_separation`` (m,
+    = 2ρ) apart.
 
-    Disks of radius r around the points lie in the square inflated by r (side ``2·half_width + 2r``).
+    Disks of radius ρ around the points lie in the square inflated by ρ (side ``2·half_width + 2ρ``).
     Any packing covers at most π/√12 ≈ 91 % of it (hexagonal); random sequential addition jams near
     54.7 %, so the sampler stops at ``_MAX_RSA_COVERAGE`` (45 %): about half the packing bound.
     Config validation rejects larger agent counts before any job runs.
     """
-    min_sep = 2.0 * collision_radius
+    min_sep = float(min_separation)
     return int(_MAX_RSA_COVERAGE * (2.0 * half_width + min_sep) ** 2 / (math.pi * (min_sep / 2.0) ** 2))
 
 
 def _check_feasible(n: int, half_width: float, min_sep: float) -> None:
-    max_n = max_agents(half_width, min_sep / 2.0)
+    max_n = max_agents(half_width, min_sep)
     if n > max_n:
         raise ScenarioInfeasibleError(
             f"cannot place {n} agents with separation {min_sep} m in [-{half_width}, {half_width}]²: "
@@ -100,18 +101,18 @@ UNIFORM = "uniform"
 """the SPEC §2 scenarios; any other pattern is one of :data:`madpinn.conflicts.PATTERNS`"""
 
 
-def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, collision_radius: float,
+def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, min_separation: float,
                       pattern: str = UNIFORM):
     """Return ``(starts [N,2], goals [N,2])`` float64 numpy arrays (m); starts (and goals) are at
-    least ``2·collision_radius`` apart (the evaluation passes ``sim.start_separation / 2``)."""
+    least ``min_separation`` (m) apart (the evaluation passes ``sim.start_separation``)."""
     if n_agents < 1:
         raise ScenarioInfeasibleError(f"need at least one agent, got {n_agents}")
-    min_sep = 2.0 * collision_radius
+    min_sep = float(min_separation)
     if pattern != UNIFORM:   # its own random stream (the uniform scenarios' streams are unchanged)
         from madpinn.conflicts import conflict_scenario
 
         rng = scenario_rng(f"{arena.name}/{pattern}", n_agents, seed, index)
-        return conflict_scenario(pattern, n_agents, arena.half_width, collision_radius, rng)
+        return conflict_scenario(pattern, n_agents, arena.half_width, min_sep, rng)
     _check_feasible(n_agents, arena.half_width, min_sep)
     rng = scenario_rng(arena.name, n_agents, seed, index)
     starts = _sample_separated(rng, n_agents, arena.half_width, min_sep)
@@ -124,7 +125,7 @@ def generate_scenarios(
     n_agents: int,
     seed: int,
     count: int,
-    collision_radius: float,
+    min_separation: float,
     device: torch.device | str = "cpu",
     dtype: torch.dtype | None = None,
     first_index: int = 0,
@@ -137,7 +138,7 @@ def generate_scenarios(
     dtype = torch.float32 if dtype is None else dtype
     if count < 1:
         raise ValueError(f"scenario count must be ≥ 1, got {count}")
-    pairs = [generate_scenario(arena, n_agents, seed, first_index + i, collision_radius, pattern) for i in range(count)]
+    pairs = [generate_scenario(arena, n_agents, seed, first_index + i, min_separation, pattern) for i in range(count)]
     starts = torch.as_tensor(np.stack([p[0] for p in pairs]), dtype=dtype, device=device)
     goals = torch.as_tensor(np.stack([p[1] for p in pairs]), dtype=dtype, device=device)
     return starts, goals

@@ -33,7 +33,7 @@ def main() -> None:
     cfg = yaml.safe_load(open(a.config))
     arena = Arena.from_config(cfg, a.arena)
     r, u, v = cfg["agents"]["collision_radius"], cfg["agents"]["u_max"], cfg["agents"]["v_max"]
-    off = np.concatenate([np.subtract(*generate_scenario(arena, a.n_agents, a.seed, i, r)) for i in range(a.scenarios)])
+    off = np.concatenate([np.subtract(*generate_scenario(arena, a.n_agents, a.seed, i, cfg["sim"]["start_separation"])) for i in range(a.scenarios)])
     T = arena.episode_s
     print(f"{a.arena} arena, N={a.n_agents}, seed {a.seed}, scenarios 0..{a.scenarios - 1} ({len(off)} agents), T = {T} s")
     for h in a.dt:

@@ -31,7 +31,7 @@ LAYOUTS = ("ours", "sep0.5", "swap", "short")
 def layout(name: str, arena: Arena, n: int, seed: int, index: int, r: float) -> tuple[np.ndarray, np.ndarray]:
     """``(starts [N, 2], goals [N, 2])`` of scenario ``index`` under layout ``name`` (m)."""
     if name == "ours":
-        return generate_scenario(arena, n, seed, index, r)
+        return generate_scenario(arena, n, seed, index, 2 * r)
     rng = scenario_rng(arena.name + "/" + name, n, seed, index)
     hw = arena.half_width
     if name == "sep0.5":

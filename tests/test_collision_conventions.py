@@ -110,7 +110,7 @@ def test_double_integrator_freezes_collided_agents_and_keeps_them_as_obstacles()
 def _nominal_episode(cfg, radius: float, contacts: bool = False, record_every: int = 0):
     cs = CellSettings.from_config(cfg, "main", "nominal")
     arena = Arena.from_config(cfg, "small")
-    starts, goals = generate_scenarios(arena, 12, 100, 8, R, "cpu", torch.float32)
+    starts, goals = generate_scenarios(arena, 12, 100, 8, 2 * R, "cpu", torch.float32)
     policy = make_policy("nominal", PolicyContext(method=policy_settings("nominal", cfg["methods"]["nominal"]),
                                                   dynamics=cs.limits.dynamics(), obs_spec=cs.observation,
                                                   device="cpu", dtype=torch.float32, seed=0, sim_dt=DT,
@@ -221,3 +221,24 @@ def test_the_reproduction_report_names_the_collision_convention():
     assert "d ≤ r = 0.1 m" in collision_convention(cfg) and "contact physics" in collision_convention(cfg)
     cfg["sim"]["contacts"] = False
     assert "pass through" in collision_convention(cfg) and "d ≤ 2r = 0.2 m" in collision_convention(cfg)
+
+
+def test_a_cell_counts_collisions_at_the_agents_radius_not_the_start_separation():
+    """Reading (b) (``workflow/configs/reading_2r.yaml``): ``agents.collision_radius`` 0.2 m with the
+    scenarios' ``sim.start_separation`` unchanged. The safety-blind nominal policy flies the same
+    scenarios either way, so (pass-through) the 0.2 m cell's safety is the 0.1 m cell's safety at 2r, and it is lower
+    on these scenarios (validation seed 100, double integrator, 12 agents × 6 scenarios, 3 s)."""
+    from madpinn.evaluation.cell import run_cell
+
+    cfg = load_config(["config.yaml"])
+    cfg["sim"]["backend"], cfg["sim"]["contacts"] = "double_integrator", False   # pass-through: same paths
+    cfg["arenas"]["small"]["episode_s"] = 3.0
+    cfg["studies"]["main"]["scenarios"] = 6
+    wide = load_config(["config.yaml", "workflow/configs/reading_2r.yaml"])
+    wide["sim"], wide["arenas"], wide["studies"] = cfg["sim"], cfg["arenas"], cfg["studies"]
+    assert wide["agents"]["collision_radius"] == DISC_FACTOR * R and wide["sim"]["start_separation"] == 2 * R
+    at_r = run_cell(CellSettings.from_config(cfg, "main", "nominal"), 12, 100, progress=False)
+    at_2r = run_cell(CellSettings.from_config(wide, "main", "nominal"), 12, 100, progress=False)
+    assert at_2r.collision_radius == DISC_FACTOR * R
+    np.testing.assert_array_equal(at_2r.frame["safety_rate"], at_r.frame["safety_rate_2r"])
+    assert at_2r.summary["safety_rate"] < at_r.summary["safety_rate"]

@@ -148,22 +148,22 @@ def _scenario_settings(cfg):
 def test_agent_count_bound_admits_every_shipped_config_and_the_sampler_meets_it(paper_cfg, smoke_cfg):
     from madpinn.scenarios import Arena, generate_scenario, max_agents
 
-    r = paper_cfg["agents"]["collision_radius"]
+    sep = paper_cfg["sim"]["start_separation"]
     # the bound is the sampler's own limit: validation accepts N = limit and rejects limit + 1 ...
-    limit = max_agents(paper_cfg["arenas"]["small"]["half_width"], r)
+    limit = max_agents(paper_cfg["arenas"]["small"]["half_width"], sep)
     ablation = {"studies": {"ablation_update": {"agent_counts": [limit]}}}
     validate_config(deep_merge(paper_cfg, ablation))
     ablation["studies"]["ablation_update"]["agent_counts"] = [limit + 1]
     with pytest.raises(ConfigError, match=f"at most {limit}"):
         validate_config(deep_merge(paper_cfg, ablation))
     # ... and at that limit the sampler finds a scenario within its attempt budget
-    starts, goals = generate_scenario(Arena.from_config(paper_cfg, "small"), limit, seed=0, index=0, collision_radius=r)
+    starts, goals = generate_scenario(Arena.from_config(paper_cfg, "small"), limit, seed=0, index=0, min_separation=sep)
     assert starts.shape == goals.shape == (limit, 2)
     # every configured (arena, N) of the shipped configs is within the bound and sampled at once
     for cfg in (paper_cfg, smoke_cfg):
         for arena, n in _scenario_settings(cfg):
-            assert n <= max_agents(cfg["arenas"][arena]["half_width"], r)
-            starts, _ = generate_scenario(Arena.from_config(cfg, arena), n, seed=0, index=0, collision_radius=r)
+            assert n <= max_agents(cfg["arenas"][arena]["half_width"], sep)
+            starts, _ = generate_scenario(Arena.from_config(cfg, arena), n, seed=0, index=0, min_separation=sep)
             assert starts.shape == (n, 2)
 
 

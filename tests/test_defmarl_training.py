@@ -99,7 +99,7 @@ def test_checkpoint_and_root_finding_deployment(tmp_path):
     path = save_checkpoint(tmp_path / "defmarl.pt", tr, meta={"method": "defmarl", "epigraph": dataclasses.asdict(EPI)})
     spec = observation_settings()
     pol = load_defmarl(path, spec, 4.0, spec.collision_radius, iterations=20)
-    starts, goals = generate_scenarios(Arena("small", 1.0, 0.2), 4, 0, 3, spec.collision_radius)
+    starts, goals = generate_scenarios(Arena("small", 1.0, 0.2), 4, 0, 3, 2 * spec.collision_radius)
     state = torch.cat([starts, torch.zeros_like(starts)], -1)
     _, z, root = pol.budgets(state, goals)
     assert ((z >= EPI.z_min) & (z <= EPI.z_max)).all()
@@ -163,7 +163,7 @@ def test_attention_encoder_and_its_deployment(tmp_path):
     spec = observation_settings()
     pol = load_defmarl(path, spec, 4.0, spec.collision_radius)
     assert type(pol.critic.encoder).__name__ == "AttentionEncoder"
-    starts, goals = generate_scenarios(Arena("small", 1.0, 0.2), 4, 0, 3, spec.collision_radius)
+    starts, goals = generate_scenarios(Arena("small", 1.0, 0.2), 4, 0, 3, 2 * spec.collision_radius)
     state = torch.cat([starts, torch.zeros_like(starts)], -1)
     _, z, root = pol.budgets(state, goals)
     # the search's fast path (first trunk layer affine in z) agrees with the critic itself: each

@@ -29,7 +29,7 @@ def _tiny(cfg, tmp_path, **study):
 
 def test_nominal_policy_reaches_goals_single_agent():
     dyn = DoubleIntegrator(u_max=4.0, v_max=4.0)
-    starts, goals = generate_scenarios(Arena("small", 1.0, 3.0), 1, seed=0, count=4, collision_radius=0.1)
+    starts, goals = generate_scenarios(Arena("small", 1.0, 3.0), 1, seed=0, count=4, min_separation=0.2)
     res, stats = run_episode(DoubleIntegratorBackend(dyn, 0.0025), NominalPD(dyn, 6.0, 4.9), starts, goals, 1200, 0.1, progress=False)
     assert res.final_distance.max() < 0.01
     assert stats["steps"] == 1200

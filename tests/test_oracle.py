@@ -63,7 +63,7 @@ def test_bad_settings_fail_early():
 
 
 def _simulate(policy, arena, n, count, seed=0):
-    starts, goals = generate_scenarios(arena, n, seed, count, 0.1, dtype=torch.float64)
+    starts, goals = generate_scenarios(arena, n, seed, count, 0.2, dtype=torch.float64)
     steps = int(round(arena.episode_s / SIM_DT))
     res, _ = run_episode(DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), SIM_DT), policy, starts, goals, steps, 0.1, progress=False)
     return (starts - goals).numpy(), res.cost
@@ -110,7 +110,7 @@ def test_conflict_pattern_bounds_are_those_of_the_pattern_scenarios():
     s = OracleSettings(horizon_s=0.5, u_max=4.0, v_max=4.0, dt=0.025)
     ob = scenario_bounds(arena, 4, 0, 2, 0.1, s, pattern="circle_swap")
     assert set(ob["pattern"]) == {"circle_swap"}
-    starts, goals = generate_scenario(arena, 4, 0, 1, 0.1, "circle_swap")
+    starts, goals = generate_scenario(arena, 4, 0, 1, 0.2, "circle_swap")
     assert ob["oracle_cost"].iloc[1] == pytest.approx(lower_bound(starts - goals, s).mean())
     uniform = scenario_bounds(arena, 4, 0, 2, 0.1, s)
     assert set(uniform["pattern"]) == {"uniform"} and not np.allclose(uniform["oracle_cost"], ob["oracle_cost"])

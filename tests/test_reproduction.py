@@ -37,7 +37,7 @@ def small_run(tmp_path_factory):
                 out = tmp / "eval" / study / run / f"n3_seed{seed}.parquet"
                 evaluate(cfg, study, run, 3, seed, out, models=models_of(cfg), progress=False, track=False)
                 results[study].append(out)
-    oracle = [write_bounds(tmp / "oracle" / f"n3_seed{s}.parquet", Arena.from_config(cfg, "small"), 3, s, 2, 0.1,
+    oracle = [write_bounds(tmp / "oracle" / f"n3_seed{s}.parquet", Arena.from_config(cfg, "small"), 3, s, 2, 0.2,
                            OracleSettings(horizon_s=T, u_max=4.0, v_max=4.0, dt=0.025)) for s in (0, 1)]
     return cfg, tmp, results, oracle
 

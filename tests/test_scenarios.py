@@ -17,26 +17,26 @@ def _min_sep(p):
 @pytest.mark.parametrize("arena,n", [(SMALL, 16), (LARGE, 256)])
 def test_separation_and_bounds(arena, n):
     for index in range(3):
-        starts, goals = generate_scenario(arena, n, seed=3, index=index, collision_radius=0.1)
+        starts, goals = generate_scenario(arena, n, seed=3, index=index, min_separation=0.2)
         assert starts.shape == goals.shape == (n, 2)
         assert _min_sep(starts) >= 0.2 and _min_sep(goals) >= 0.2
         assert np.abs(starts).max() <= arena.half_width and np.abs(goals).max() <= arena.half_width
 
 
 def test_pure_function_of_arena_n_seed_index():
-    a = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1)
-    b = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1)
+    a = generate_scenario(SMALL, 8, seed=1, index=4, min_separation=0.2)
+    b = generate_scenario(SMALL, 8, seed=1, index=4, min_separation=0.2)
     np.testing.assert_array_equal(a[0], b[0])
     np.testing.assert_array_equal(a[1], b[1])
     for other in [(SMALL, 8, 2, 4), (SMALL, 8, 1, 5), (SMALL, 12, 1, 4), (Arena("large", 1.0, 3.0), 8, 1, 4)]:
-        c = generate_scenario(other[0], other[1], seed=other[2], index=other[3], collision_radius=0.1)
+        c = generate_scenario(other[0], other[1], seed=other[2], index=other[3], min_separation=0.2)
         assert not np.array_equal(a[0][: min(8, other[1])], c[0][: min(8, other[1])])
 
 
 def test_batches_equal_single_scenarios():
-    starts, goals = generate_scenarios(SMALL, 12, seed=0, count=3, collision_radius=0.1, first_index=5)
+    starts, goals = generate_scenarios(SMALL, 12, seed=0, count=3, min_separation=0.2, first_index=5)
     assert starts.shape == (3, 12, 2) and starts.dtype == torch.float32
-    single = generate_scenario(SMALL, 12, seed=0, index=6, collision_radius=0.1)
+    single = generate_scenario(SMALL, 12, seed=0, index=6, min_separation=0.2)
     np.testing.assert_allclose(starts[1].numpy(), single[0], atol=1e-6)
     np.testing.assert_allclose(goals[1].numpy(), single[1], atol=1e-6)
 
@@ -44,9 +44,9 @@ def test_batches_equal_single_scenarios():
 def test_infeasible_request_fails_fast_with_clear_message():
     # the up-front coverage check names the limit instead of sampling forever
     with pytest.raises(ScenarioInfeasibleError, match=r"cannot place 200 agents.*at most \d+ agents"):
-        generate_scenario(SMALL, 200, seed=0, index=0, collision_radius=0.1)
+        generate_scenario(SMALL, 200, seed=0, index=0, min_separation=0.2)
     with pytest.raises(ScenarioInfeasibleError):
-        generate_scenario(SMALL, 0, seed=0, index=0, collision_radius=0.1)
+        generate_scenario(SMALL, 0, seed=0, index=0, min_separation=0.2)
 
 
 # --- structured conflicts (madpinn/conflicts.py) ---
@@ -64,13 +64,13 @@ def _match(a, b, tol):
 @pytest.mark.parametrize("n", [3, 8, 16])
 def test_conflict_patterns_are_separated_inside_the_arena_and_reproducible(pattern, n):
     for index in range(5):
-        starts, goals = generate_scenario(SMALL, n, seed=0, index=index, collision_radius=0.1, pattern=pattern)
+        starts, goals = generate_scenario(SMALL, n, seed=0, index=index, min_separation=0.2, pattern=pattern)
         assert starts.shape == goals.shape == (n, 2)
         assert _min_sep(starts) >= 0.2 and _min_sep(goals) >= 0.2
         assert np.abs(starts).max() <= SMALL.half_width and np.abs(goals).max() <= SMALL.half_width
-        again = generate_scenario(SMALL, n, seed=0, index=index, collision_radius=0.1, pattern=pattern)
+        again = generate_scenario(SMALL, n, seed=0, index=index, min_separation=0.2, pattern=pattern)
         np.testing.assert_array_equal(starts, again[0])
-    other = generate_scenario(SMALL, n, seed=0, index=1, collision_radius=0.1, pattern=pattern)[0]
+    other = generate_scenario(SMALL, n, seed=0, index=1, min_separation=0.2, pattern=pattern)[0]
     assert not np.allclose(starts, other)   # index 4 vs 1: another rotation / placement
 
 
@@ -79,30 +79,30 @@ def test_head_on_patterns_swap_partners(pattern):
     """Every agent's goal is its partner's start and the partner's goal its start (up to the jitter)."""
     tol = 2 * np.sqrt(2) * JITTER * SMALL.half_width + 1e-9
     for index in range(5):
-        starts, goals = generate_scenario(SMALL, 8, seed=2, index=index, collision_radius=0.1, pattern=pattern)
+        starts, goals = generate_scenario(SMALL, 8, seed=2, index=index, min_separation=0.2, pattern=pattern)
         partner = _match(goals, starts, tol)
         assert (partner >= 0).all() and (partner != np.arange(8)).all()
         np.testing.assert_array_equal(partner[partner], np.arange(8))
 
 
 def test_circle_swap_converges_on_the_centre_and_crossing_flows_cross_at_right_angles():
-    starts, goals = generate_scenario(SMALL, 16, seed=0, index=0, collision_radius=0.1, pattern="circle_swap")
+    starts, goals = generate_scenario(SMALL, 16, seed=0, index=0, min_separation=0.2, pattern="circle_swap")
     mid = (starts + goals) / 2                         # the straight paths all pass (near) the centre at mid-trip
     assert np.abs(mid).max() <= 2 * JITTER * SMALL.half_width
-    starts, goals = generate_scenario(SMALL, 16, seed=0, index=0, collision_radius=0.1, pattern="crossing_flows")
+    starts, goals = generate_scenario(SMALL, 16, seed=0, index=0, min_separation=0.2, pattern="crossing_flows")
     heading = (goals - starts) / np.linalg.norm(goals - starts, axis=1, keepdims=True)
     cos = heading @ heading[0]
     assert (np.abs(np.abs(cos) - 1) < 0.1).sum() == 8 and (np.abs(cos) < 0.1).sum() == 8   # two perpendicular streams
 
 
 def test_uniform_scenarios_do_not_depend_on_the_conflict_patterns():
-    a = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1)
-    b = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1, pattern="uniform")
+    a = generate_scenario(SMALL, 8, seed=1, index=4, min_separation=0.2)
+    b = generate_scenario(SMALL, 8, seed=1, index=4, min_separation=0.2, pattern="uniform")
     np.testing.assert_array_equal(a[0], b[0])
-    c = generate_scenario(SMALL, 8, seed=1, index=4, collision_radius=0.1, pattern="circle_swap")
+    c = generate_scenario(SMALL, 8, seed=1, index=4, min_separation=0.2, pattern="circle_swap")
     assert not np.allclose(a[0], c[0])
 
 
 def test_too_dense_pattern_fails_with_a_clear_message():
     with pytest.raises(ScenarioInfeasibleError, match="head_on_lines.*apart"):
-        generate_scenario(LARGE, 128, seed=0, index=0, collision_radius=0.1, pattern="head_on_lines")
+        generate_scenario(LARGE, 128, seed=0, index=0, min_separation=0.2, pattern="head_on_lines")

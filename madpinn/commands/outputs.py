@@ -64,7 +64,7 @@ def _oracle(args) -> int:
                        rule="oracle" if pattern == UNIFORM else "oracle_pattern",   # the workflow rule that runs it
                        wildcards=wildcards, params={"scenarios": args.scenarios, "steps": cfg["oracle"]["steps"]})
     with job(cfg, record, not args.no_track) as run:
-        out = write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["sim"]["start_separation"] / 2.0,
+        out = write_bounds(args.out, arena, args.n_agents, args.seed, args.scenarios, cfg["sim"]["start_separation"],
                            settings, pattern=pattern)
         record.artifacts = [out]
         record.metrics = {"oracle_cost_mean": float(pd.read_parquet(out)["oracle_cost"].mean())}

@@ -121,19 +121,18 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
     one loop of :func:`run_cell` (with the collision probe where the study asks for it) and of
     ``scripts/defmarl_consensus.py``: ``wrap(policy, first)`` replaces the policy (e.g. by a probe
     around it), ``record`` keeps the first batch's trajectories."""
-    r = cs.sim.start_separation / 2.0   # the generator separates starts (and goals) by 2·this
     total = cs.scenarios
     batch = cs.sim.scenario_batch
     for b, first in enumerate(range(0, total, batch)):
         count = min(batch, total - first)
-        starts, goals = generate_scenarios(cs.arena, n_agents, seed, count, r, device, dtype, first_index=first,
+        starts, goals = generate_scenarios(cs.arena, n_agents, seed, count, cs.sim.start_separation, device, dtype, first_index=first,
                                            pattern=cs.pattern)
         policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
         if wrap is not None:
             policy = wrap(policy, first)
         sim = make_backend(backend, cs.sim, cs.limits, device, dtype)
         result, stats = run_episode(
-            sim, policy, starts, goals, cs.episode_steps, r, policy_period=cs.policy_period,
+            sim, policy, starts, goals, cs.episode_steps, cs.limits.collision_radius, policy_period=cs.policy_period,
             record_every=cs.sim.record_every if record and first == 0 else 0,
             progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
         )

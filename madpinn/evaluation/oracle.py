@@ -148,14 +148,14 @@ def upper_bound(offsets: np.ndarray, settings: OracleSettings) -> np.ndarray:
     return _solve("upper", offsets, settings)[0]
 
 
-def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, collision_radius: float,
+def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, min_separation: float,
                     settings: OracleSettings, with_upper: bool = False, pattern: str = UNIFORM) -> pd.DataFrame:
     """One row per scenario ``0 … count−1`` of ``pattern`` (uniform or a structured conflict):
     ``oracle_cost`` (mean LB over agents), its time average ``oracle_cost_time_avg`` (÷ T) and,
     with ``with_upper``, ``oracle_upper``."""
     if abs(settings.horizon_s - arena.episode_s) > 1e-9:
         raise ValueError(f"oracle horizon {settings.horizon_s} s differs from the {arena.name} episode {arena.episode_s} s")
-    offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, collision_radius, pattern))
+    offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, min_separation, pattern))
                         for i in range(count)])
     lb = lower_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
     df = pd.DataFrame({"arena": arena.name, "pattern": pattern, "n_agents": int(n_agents), "seed": int(seed),
@@ -165,13 +165,13 @@ def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, collisio
     return df
 
 
-def write_bounds(out: str | Path, arena: Arena, n_agents: int, seed: int, count: int, collision_radius: float,
+def write_bounds(out: str | Path, arena: Arena, n_agents: int, seed: int, count: int, min_separation: float,
                  settings: OracleSettings, pattern: str = UNIFORM) -> Path:
     """Cache file of :func:`scenario_bounds` (Parquet); scenarios are pure functions of their index,
     so a study with fewer scenarios reads the first rows."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    df = scenario_bounds(arena, n_agents, seed, count, collision_radius, settings, pattern=pattern)
+    df = scenario_bounds(arena, n_agents, seed, count, min_separation, settings, pattern=pattern)
     df["oracle_dt"] = settings.dt
     df.to_parquet(out, index=False)
     return out

@@ -119,7 +119,7 @@ class GoalReachingEnv:
         else:
             seed, first = int(fixed_seed), 0
         starts, goals = generate_scenarios(
-            self.arena, n_agents, seed, n_envs, self.obs_spec.collision_radius, self.device, self.dtype, first_index=first,
+            self.arena, n_agents, seed, n_envs, 2.0 * self.obs_spec.collision_radius, self.device, self.dtype, first_index=first,
         )
         self.state = torch.cat([starts, torch.zeros_like(starts)], dim=-1)
         self.goals = goals

@@ -67,15 +67,32 @@ def _velocity_columns(agent: torch.Tensor) -> torch.Tensor:
     return torch.where(agent == 0, torch.zeros_like(agent), EGO_DIM + (agent - 1) * NEIGHBOUR_DIM + 2)
 
 
+def _draw_course(m: int, horizon: float, sampling: ConflictSamplingSettings, generator: torch.Generator,
+                 dtype: torch.dtype, device) -> tuple[torch.Tensor, torch.Tensor]:
+    """The near-collision course of ``m`` pairs: time to closest approach ``τ ~ U[lo·T, hi·T]`` (s,
+    ``[m]``; ``sampling.tau``) and miss offset ``d`` uniform in the disk of radius ρ (m, ``[m, 2]``)."""
+    lo, hi = sampling.tau
+    tau = horizon * (lo + (hi - lo) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
+    return tau, torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
+
+
+def _draw_closing_velocity(m: int, speed: tuple[float, float], generator: torch.Generator, dtype: torch.dtype,
+                           device) -> torch.Tensor:
+    """``m`` relative velocities ``[m, 2]`` (m/s) of speed ``U[speed]`` and uniform direction."""
+    w = (speed[0] + (speed[1] - speed[0]) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    phi = (2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype)).to(device)
+    return torch.stack([w * torch.cos(phi), w * torch.sin(phi)], -1)
+
+
 def _redraw_closing(out: torch.Tensor, a, c, va, vc, speed: tuple[float, float], v_max: float,
                     generator: torch.Generator):
     """Give pair ``(a, c)`` of each row a relative velocity of speed ``U[speed]`` (m/s), uniform
     direction, around its mean velocity; both clipped to ±``v_max``; written into ``out``.
     Returns the new ``(va, vc)`` ``[m, 2]``."""
     m, dtype, device = va.shape[0], va.dtype, va.device
-    w = (speed[0] + (speed[1] - speed[0]) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
-    phi = (2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype)).to(device)
-    rel = torch.stack([w * torch.cos(phi), w * torch.sin(phi)], -1)
+    rel = _draw_closing_velocity(m, speed, generator, dtype, device)
     mean = 0.5 * (va + vc)
     va, vc = (mean - 0.5 * rel).clamp(-v_max, v_max), (mean + 0.5 * rel).clamp(-v_max, v_max)
     rows = torch.arange(m, device=device)
@@ -104,11 +121,7 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     pick = torch.randint(len(pairs), (m,), generator=generator)
     a = torch.tensor([p[0] for p in pairs])[pick].to(device)
     c = torch.tensor([p[1] for p in pairs])[pick].to(device)
-    lo, hi = sampling.tau
-    tau = horizon * (lo + (hi - lo) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
-    radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
-    angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
-    d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
+    tau, d = _draw_course(m, horizon, sampling, generator, dtype, device)
     pos, vel, _ = split_observation(obs[:m], n_neighbours)      # [m, n+1, 2], ego first
     rows = torch.arange(m, device=device)
     pa, va, vc = pos[rows, a], vel[rows, a], vel[rows, c]
@@ -136,17 +149,11 @@ def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampli
     if sampling.closing_speed is not None and v_range is None:
         raise ValueError("conflict sampling with closing_speed needs v_range (the velocity bound of the domain)")
     dtype, device = x.dtype, x.device
-    lo, hi = sampling.tau
-    tau = horizon * (lo + (hi - lo) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
-    radius = sampling.radius * torch.sqrt(torch.rand(m, generator=generator, dtype=dtype)).to(device)
-    angle = 2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype).to(device)
-    d = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle)], -1)
+    tau, d = _draw_course(m, horizon, sampling, generator, dtype, device)
     out = x.clone()
     if sampling.closing_speed is not None:
-        w0, w1 = sampling.closing_speed
-        w = (w0 + (w1 - w0) * torch.rand(m, generator=generator, dtype=dtype)).to(device)
-        phi = (2.0 * math.pi * torch.rand(m, generator=generator, dtype=dtype)).to(device)
-        out[:m, 2:4] = torch.stack([w * torch.cos(phi), w * torch.sin(phi)], -1).clamp(-v_range, v_range)
+        rel = _draw_closing_velocity(m, sampling.closing_speed, generator, dtype, device)
+        out[:m, 2:4] = rel.clamp(-v_range, v_range)
     out[:m, 0:2] = (-out[:m, 2:4] * tau[:, None] + d).clamp(-p_range, p_range)
     return out
 
