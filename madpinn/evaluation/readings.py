@@ -11,8 +11,9 @@ files hold, beside the paper's value:
   (``sim.contacts``: CF2X collision cylinders in MuJoCo, frozen agents in the double integrator),
   read from the study ``<base>_contacts`` of each base study.
 
-Every method keeps its own collision terms at r here (the shipped models were built for r), so the
-``2r`` columns measure the metric alone; the cost columns are the time-averaged cost over all
+Every method's own collision terms use the same r (``agents.collision_radius``: 0.1 m with the
+shipped models, so the ``2r`` columns measure the metric alone; 0.2 m under
+``workflow/configs/reading_2r.yaml``, reading (b): every method built for discs touching); the cost columns are the time-averaged cost over all
 agents (collided ones included), the quantity whose trend the paper's failure rows show.
 Rows follow the paper's tables and the config's run order; a run the paper row lists under
 ``also`` (our labelled extensions, e.g. ``madpinn-lookahead``) is shown but marked ``extension``,
@@ -138,11 +139,13 @@ def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
     table.to_csv(csv, index=False)
     seeds = sorted({int(x) for row in table["seeds"] for x in row.split()})
+    r = float(cfg["agents"]["collision_radius"])
     md.write_text(
         "Safety rate per paper cell under each collision reading (SPEC §1; madpinn/evaluation/readings.py).\n"
-        "r · pass: d ≤ r, agents pass through; 2r · pass: discs of radius r touching (d ≤ 2r), same episodes;\n"
-        "r / 2r · contact: the same counts with contact physics (sim.contacts). Every method keeps its\n"
-        f"collision terms at r. Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
+        f"Here r = {r:g} m (agents.collision_radius). r · pass: d ≤ r, agents pass through; 2r · pass: discs\n"
+        "of radius r touching (d ≤ 2r), same episodes; r / 2r · contact: the same counts with contact physics\n"
+        "(sim.contacts). Every method's collision terms (V̂, V_s, MPPI's penalty, DEF-MARL's constraint) use r.\n"
+        f"Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
         + to_markdown(format_readings(table)))
     page = out_dir / f"{name}.html"
     page.write_text(markdown_page(md.read_text(), name))
