@@ -1,7 +1,8 @@
 """Before / after the protocol rerun: every paper cell of two reproduction reports side by side.
 
     PYTHONPATH=$PWD python scripts/report_gap.py git:b3c6574:paper_figures/reproduction.json \
-        paper_figures/reproduction.json [--tables table_safety_scaling ...] [--markdown]
+        paper_figures/reproduction.json [--tables table_safety_scaling ...] [--exclude RUN ...] \
+        [--rename OLD=NEW ...]
 
 Each report is a path or ``git:REV:PATH`` (the committed report of an older protocol). Prints, per
 cell that the paper reports (its safety is known), the paper's safety and time-averaged cost, ours

@@ -226,8 +226,9 @@ def test_the_reproduction_report_names_the_collision_convention():
 def test_a_cell_counts_collisions_at_the_agents_radius_not_the_start_separation():
     """Reading (b) (``workflow/configs/reading_2r.yaml``): ``agents.collision_radius`` 0.2 m with the
     scenarios' ``sim.start_separation`` unchanged. The safety-blind nominal policy flies the same
-    scenarios either way, so (pass-through) the 0.2 m cell's safety is the 0.1 m cell's safety at 2r, and it is lower
-    on these scenarios (validation seed 100, double integrator, 12 agents × 6 scenarios, 3 s)."""
+    scenarios either way, so (pass-through) the 0.2 m cell's safety is the 0.1 m cell's safety at
+    2r, and it is lower on these scenarios (validation seed 100, double integrator, 12 agents × 6
+    scenarios, 3 s)."""
     from madpinn.evaluation.cell import run_cell
 
     cfg = load_config(["config.yaml"])

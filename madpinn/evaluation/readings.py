@@ -11,10 +11,11 @@ files hold, beside the paper's value:
   (``sim.contacts``: CF2X collision cylinders in MuJoCo, frozen agents in the double integrator),
   read from the study ``<base>_contacts`` of each base study.
 
-Every method's own collision terms use the same r (``agents.collision_radius``: 0.1 m with the
+Every method's own collision terms use the same r (``agents.collision_radius``): 0.1 m with the
 shipped models, so the ``2r`` columns measure the metric alone; 0.2 m under
-``workflow/configs/reading_2r.yaml``, reading (b): every method built for discs touching); the cost columns are the time-averaged cost over all
-agents (collided ones included), the quantity whose trend the paper's failure rows show.
+``workflow/configs/reading_2r.yaml`` (reading (b): every method built for discs touching). The
+cost columns are the time-averaged cost over all agents (collided ones included), the quantity
+whose trend the paper's failure rows show.
 Rows follow the paper's tables and the config's run order; a run the paper row lists under
 ``also`` (our labelled extensions, e.g. ``madpinn-lookahead``) is shown but marked ``extension``,
 and the closing mean |ours − paper| safety is taken over the paper's own rows only.
