@@ -19,13 +19,16 @@ def is_marl_model(name: str) -> bool:
 
 def marl_training_hash(cfg: dict, name: str) -> str:
     """Hash of the settings the weights of model ``name`` depend on (agents, observation, arena,
-    dtype and the method's training settings)."""
+    dtype and the method's training settings; for DEF-MARL also its validation settings, which
+    choose the deployed checkpoint)."""
     if name == "safemarl_nominal":
         m = cfg["methods"]["safemarl"]
         return subtree_hash(cfg, ("agents", "observation", "dtype"),
                               {"nominal": m["nominal"], "arena": cfg["arenas"][m["nominal"]["arena"]]})
     if name.startswith(DEFMARL_PREFIX):
         _, m = method_config(cfg, f"defmarl-{name[len(DEFMARL_PREFIX):]}")
-        return subtree_hash(cfg, ("agents", "observation", "arenas", "dtype"),
-                              {"training": m["training"], "epigraph": m["epigraph"]})
+        extra = {"training": m["training"], "epigraph": m["epigraph"]}
+        if m.get("validation") is not None:   # the deployed model is the best validation checkpoint
+            extra["validation"] = m["validation"]
+        return subtree_hash(cfg, ("agents", "observation", "arenas", "dtype"), extra)
     raise ValueError(f"'{name}' is not a MARL model (safemarl_nominal, defmarl_<variant>)")

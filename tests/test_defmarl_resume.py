@@ -43,8 +43,8 @@ def test_time_boxed_pieces_give_the_uninterrupted_model(smoke_cfg, tmp_path):
     full = train_defmarl(cfg, "n3", tmp_path / "full" / "m.pt", progress=False, track=False)
     assert full is not None and full["iterations"] == 4
     no_val = train_defmarl(_cfg(smoke_cfg, every=0), "n3", tmp_path / "noval" / "m.pt", progress=False, track=False)
-    assert no_val["iterations"] == 4
-    _same(_weights(tmp_path / "full" / "m.pt"), _weights(tmp_path / "noval" / "m.pt"))
+    assert no_val["iterations"] == 4 and no_val["deployed_iteration"] == 4
+    _same(_weights(tmp_path / "full" / "m_last.pt"), _weights(tmp_path / "noval" / "m.pt"))
 
     ckpt, out = tmp_path / "pieces" / "state.pt", tmp_path / "pieces" / "m.pt"
     calls, summary = 0, None
@@ -66,12 +66,17 @@ def test_time_boxed_pieces_give_the_uninterrupted_model(smoke_cfg, tmp_path):
     best = load_checkpoint(tmp_path / "full" / "m_best.pt")
     assert best["meta"]["validation"]["val_safety_n3"] == a["val_safety_n3"].max()
     _same(best["modules"], _weights(tmp_path / "pieces" / "m_best.pt"))
+    # the deployed model (the job's output) is the best validation checkpoint, the last one beside it
+    best_it = int(a["iteration"][a["val_best"] == 1.0].iloc[-1]) + 1
+    assert full["deployed_iteration"] == summary["deployed_iteration"] == best_it
+    _same(_weights(tmp_path / "full" / "m.pt"), _weights(tmp_path / "full" / ("m_last.pt" if best_it == 4 else "m_best.pt")))
     # a finished checkpoint is not trained again; a larger budget continues it
     again = train_defmarl(cfg, "n3", out, progress=False, track=False, checkpoint=ckpt, time_limit=0.0)
     assert again["iterations"] == 4
     _same(_weights(tmp_path / "full" / "m.pt"), _weights(out))
     more = train_defmarl(_cfg(smoke_cfg, iterations=5), "n3", out, progress=False, track=False, checkpoint=ckpt)
-    assert more["iterations"] == 5 and load_checkpoint(out)["meta"]["iterations"] == 5
+    assert more["iterations"] == 5 and load_checkpoint(tmp_path / "pieces" / "m_last.pt")["meta"]["iterations"] == 5
+    assert more["deployed_iteration"] in (2, 4)   # validated every 2 iterations: the last (5) never is
     # another configuration does not resume that state
     with pytest.raises(CheckpointError, match="another configuration"):
         train_defmarl(_cfg(smoke_cfg, iterations=6, seed=1), "n3", out, progress=False, track=False, checkpoint=ckpt)
@@ -115,3 +120,25 @@ def test_plateau_rule():
     with pytest.raises(ValueError, match="validation seed"):
         ValidationSettings.from_config({"every": 1, "seed": 0, "scenarios": 1, "agent_counts": [], "backend": "mujoco",
                                         "study": "main", "plateau": {"window": 3, "min_gain": 1.0, "stop": False}})
+
+
+def test_best_model_rule_ties_exactly_and_breaks_ties_on_the_other_counts():
+    """Equal outcome counts tie whatever their float rounding (146 of 150 agents safe gives
+    97.33333333333333 or 97.33333333333334 depending on how it was computed), the tie goes to the
+    higher safety at the other validation counts, and a row must beat every earlier one strictly;
+    rows without validation are skipped."""
+    from madpinn.commands.defmarl import CellValidation
+    from madpinn.commands.marl_training import mark_best
+
+    v = CellValidation.__new__(CellValidation)
+    v.train_n, v.counts = 3, [3, 16]
+    rows = [{"iteration": 49, "val_safety_n3": 90.0, "val_safety_n16": 70.0},
+            {"iteration": 99},                                                       # no validation
+            {"iteration": 149, "val_safety_n3": 97.33333333333333, "val_safety_n16": 49.1},
+            {"iteration": 199, "val_safety_n3": 97.33333333333333, "val_safety_n16": 62.6},
+            {"iteration": 249, "val_safety_n3": 96.0, "val_safety_n16": 80.0},
+            {"iteration": 299, "val_safety_n3": 97.33333333333334, "val_safety_n16": 50.0}]   # one rounding step up
+    assert v.score(rows[3])[0] == v.score(rows[5])[0]
+    best = mark_best(rows, v.score)
+    assert best["iteration"] == 199 and [r.get("val_best") for r in rows] == [1.0, None, 1.0, 1.0, 0.0, 0.0]
+    assert v.score({"iteration": 1, "val_safety_n3": float("nan")}) is None

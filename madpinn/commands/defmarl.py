@@ -25,14 +25,18 @@ EXIT_PAUSED = 75   # as train-value: the time limit stopped a piece, the checkpo
 
 
 def resume_hash(cfg: dict, variant: str) -> str:
-    """The training hash of ``defmarl_<variant>`` with ``ppo.iterations`` left out: a resumable
-    checkpoint continues when only the iteration budget grew."""
+    """The training hash of ``defmarl_<variant>`` with ``ppo.iterations`` and the validation
+    settings left out: a resumable checkpoint continues when only the iteration budget grew or
+    the validation changed (validating restores the RNG states, so it never changes the training
+    trajectory; it only chooses the deployed checkpoint)."""
     from madpinn.marl_hash import marl_training_hash
 
     c = copy.deepcopy(cfg)
     c["methods"]["defmarl"]["training"]["ppo"]["iterations"] = 0
+    c["methods"]["defmarl"].pop("validation", None)
     for v in c["methods"]["defmarl"].get("variants", {}).values():
         v.get("training", {}).get("ppo", {}).pop("iterations", None)
+        v.pop("validation", None)
     return marl_training_hash(c, f"defmarl_{variant}")
 
 
@@ -88,9 +92,15 @@ class CellValidation:
         curve = [h[key] for h in history if key in h]
         return plateau(curve, self.settings.window, self.settings.min_gain)
 
-    def score(self, stats) -> float | None:
-        """Validation safety (%) at the first training agent count: the best model's criterion."""
-        return stats.get(f"val_safety_n{self.train_n}")
+    def score(self, stats) -> tuple[float, float] | None:
+        """The best model's criterion: validation safety (%) at the first training agent count,
+        rounded to 1e-6 so that equal outcome counts tie exactly (raw floats differ by rounding),
+        then, on a tie, the mean validation safety at the other agent counts (generalisation)."""
+        s = stats.get(f"val_safety_n{self.train_n}")
+        if s is None or s != s:
+            return None
+        others = [stats[k] for k in (f"val_safety_n{n}" for n in self.counts if n != self.train_n) if k in stats]
+        return round(float(s), 6), (round(sum(map(float, others)) / len(others), 6) if others else 0.0)
 
     def curves(self) -> tuple[str, ...]:
         return tuple(f"val_{m}_n{n}" for n in self.counts for m in ("safety", "safe_scenarios", "cost")) + (

@@ -24,8 +24,9 @@ class Validation(Protocol):
 
     def plateau(self, history: Sequence[dict]) -> bool: ...
 
-    def score(self, stats: Mapping) -> float | None:
-        """The validation figure the best model is selected on (None on rows without one)."""
+    def score(self, stats: Mapping) -> tuple | None:
+        """The key the best model is selected on, compared with ``>`` (None on rows without one);
+        equal outcomes must give equal keys (no float noise)."""
 
 
 def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out: str | Path, *, desc: str, meta: Callable,
@@ -47,12 +48,16 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
     ``validation.every`` iterations, its metrics and ``val_plateau`` join the iteration's curve
     row; with ``validation.stop_at_plateau`` training ends (completed) at the plateau. The model
     with the best ``validation.score`` so far is kept as ``<out>_best.pt`` (``val_best`` = 1 on
-    its curve row): selection on the validation seed, never on protocol seeds."""
+    its curve row), and that model is the one written to ``out`` (the deployed model; the last
+one is kept as ``<out>_last.pt``): selection on the validation seed, never on protocol seeds.
+The best row is found again from the whole curve at the end, so a finished state re-run under a
+changed ``score`` deploys what that rule picks (the last model, or ``<out>_best.pt`` when it holds
+that row's weights; anything else is an error, never a silent wrong model)."""
     import pandas as pd
 
     from madpinn.device import seed_everything
     from madpinn.marl.build import training_summary
-    from madpinn.marl.checkpoint import save_checkpoint
+    from madpinn.marl.checkpoint import load_checkpoint, save_checkpoint
 
     out = Path(out)
     checkpoint = Path(checkpoint) if checkpoint is not None else None
@@ -75,9 +80,9 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
 
         best_path = out.with_name(out.stem + "_best.pt")
 
-        def best_so_far() -> float:
+        def best_so_far():
             scores = [validation.score(h) for h in trainer.history[:-1]] if validation is not None else []
-            return max((x for x in scores if x is not None), default=float("-inf"))
+            return max((x for x in scores if x is not None), default=None)
 
         def on_iteration(stats: dict) -> bool:
             stop = False
@@ -85,8 +90,8 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
                 model = save_state() if checkpoint is not None else save_checkpoint(Path(tmp) / "model.pt", trainer, meta(trainer, wall()))
                 stats.update(validation(model))
                 stats["val_plateau"] = float(validation.plateau(trainer.history))
-                score = validation.score(stats)
-                stats["val_best"] = float(score is not None and score > best_so_far())
+                score, best = validation.score(stats), best_so_far()
+                stats["val_best"] = float(score is not None and (best is None or score > best))
                 if stats["val_best"]:
                     save_checkpoint(best_path, trainer, meta={**meta(trainer, wall()), "validation": dict(
                         {k: v for k, v in stats.items() if k.startswith("val_")}, iteration=trainer.iteration)})
@@ -113,17 +118,53 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
         summary = training_summary(history, w, first, last, extra=extra)
         if stopped_early:
             summary["stopped_at_plateau"] = trainer.iteration
-        best = [h for h in history if h.get("val_best")]
-        if best:
-            summary["best_validation"] = {k: v for k, v in best[-1].items() if k.startswith("val_") or k == "iteration"}
+        best = mark_best(history, validation.score) if validation is not None else None
+        last_path = out.with_name(out.stem + "_last.pt")
+        if best is not None:
+            summary["best_validation"] = {k: v for k, v in best.items() if k.startswith("val_") or k == "iteration"}
+            deploy_best(out, best_path, last_path, best_iteration=int(best["iteration"]) + 1, last_iteration=trainer.iteration)
+        summary["deployed_iteration"] = load_checkpoint(out)["meta"].get("validation", {}).get("iteration", trainer.iteration)
         pd.DataFrame(history).to_csv(curve_path, index=False)
         json_path = write_json(out.with_suffix(".json"), summary)
-        record.artifacts = [out, curve_path, json_path, *([best_path] if best_path.is_file() else [])]
+        record.artifacts = [out, curve_path, json_path, *[p for p in (best_path, last_path) if p.is_file()]]
         record.metrics = {k: v for k, v in summary.items() if k not in (extra or {})}
         record.step = len(history)
         record.models = {"actor": trainer.actor}
         finish(run, record, echo=summary)
     return summary
+
+
+def mark_best(history: Sequence[dict], score: Callable[[Mapping], tuple | None]) -> dict | None:
+    """Set ``val_best`` on every validated row of ``history`` (1: its ``score`` beats every
+    earlier row's) and return the last such row (the best; None without validated rows)."""
+    best_key, best_row = None, None
+    for row in history:
+        key = score(row)
+        if key is None:
+            continue
+        row["val_best"] = float(best_key is None or key > best_key)
+        if row["val_best"]:
+            best_key, best_row = key, row
+    return best_row
+
+
+def deploy_best(out: Path, best_path: Path, last_path: Path, *, best_iteration: int, last_iteration: int) -> None:
+    """Make ``out`` (the last model, just written) the model of ``best_iteration``: keep the last
+    one as ``last_path``, then copy ``best_path`` over ``out`` unless the best is the last model.
+    ``best_path`` must hold that iteration (its ``meta.validation.iteration``)."""
+    import shutil
+
+    from madpinn.marl.checkpoint import CheckpointError, load_checkpoint
+
+    shutil.copyfile(out, last_path)
+    if best_iteration == last_iteration:
+        return
+    held = load_checkpoint(best_path)["meta"].get("validation", {}).get("iteration") if best_path.is_file() else None
+    if held != best_iteration:
+        raise CheckpointError(f"the validation curve's best model is iteration {best_iteration}, but {best_path} holds "
+                              f"{'no model' if held is None else f'iteration {held}'}: retrain (the curve's rule changed "
+                              "after that model was saved)")
+    shutil.copyfile(best_path, out)
 
 
 def _start_state(trainer, checkpoint: Path | None, init: str | Path | None, resume_hash: str | None) -> float:
