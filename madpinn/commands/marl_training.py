@@ -49,10 +49,10 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
     row; with ``validation.stop_at_plateau`` training ends (completed) at the plateau. The model
     with the best ``validation.score`` so far is kept as ``<out>_best.pt`` (``val_best`` = 1 on
     its curve row), and that model is the one written to ``out`` (the deployed model; the last
-one is kept as ``<out>_last.pt``): selection on the validation seed, never on protocol seeds.
-The best row is found again from the whole curve at the end, so a finished state re-run under a
-changed ``score`` deploys what that rule picks (the last model, or ``<out>_best.pt`` when it holds
-that row's weights; anything else is an error, never a silent wrong model)."""
+    one is kept as ``<out>_last.pt``): selection on the validation seed, never on protocol seeds.
+    The best row is found again from the whole curve at the end, so a finished state re-run under
+    a changed ``score`` deploys what that rule picks (the last model, or ``<out>_best.pt`` when it
+    holds that row's weights; anything else is an error, never a silent wrong model)."""
     import pandas as pd
 
     from madpinn.device import seed_everything
