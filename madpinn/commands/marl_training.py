@@ -57,7 +57,7 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
 
     from madpinn.device import seed_everything
     from madpinn.marl.build import training_summary
-    from madpinn.marl.checkpoint import load_checkpoint, save_checkpoint
+    from madpinn.marl.checkpoint import save_checkpoint
 
     out = Path(out)
     checkpoint = Path(checkpoint) if checkpoint is not None else None
@@ -80,18 +80,13 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
 
         best_path = out.with_name(out.stem + "_best.pt")
 
-        def best_so_far():
-            scores = [validation.score(h) for h in trainer.history[:-1]] if validation is not None else []
-            return max((x for x in scores if x is not None), default=None)
-
         def on_iteration(stats: dict) -> bool:
             stop = False
             if validation is not None and validation.every > 0 and trainer.iteration % validation.every == 0:
                 model = save_state() if checkpoint is not None else save_checkpoint(Path(tmp) / "model.pt", trainer, meta(trainer, wall()))
                 stats.update(validation(model))
                 stats["val_plateau"] = float(validation.plateau(trainer.history))
-                score, best = validation.score(stats), best_so_far()
-                stats["val_best"] = float(score is not None and (best is None or score > best))
+                stats["val_best"] = float(mark_best(trainer.history, validation.score) is stats)   # stats: the last row
                 if stats["val_best"]:
                     save_checkpoint(best_path, trainer, meta={**meta(trainer, wall()), "validation": dict(
                         {k: v for k, v in stats.items() if k.startswith("val_")}, iteration=trainer.iteration)})
@@ -123,7 +118,7 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
         if best is not None:
             summary["best_validation"] = {k: v for k, v in best.items() if k.startswith("val_") or k == "iteration"}
             deploy_best(out, best_path, last_path, best_iteration=int(best["iteration"]) + 1, last_iteration=trainer.iteration)
-        summary["deployed_iteration"] = load_checkpoint(out)["meta"].get("validation", {}).get("iteration", trainer.iteration)
+        summary["deployed_iteration"] = trainer.iteration if best is None else int(best["iteration"]) + 1
         pd.DataFrame(history).to_csv(curve_path, index=False)
         json_path = write_json(out.with_suffix(".json"), summary)
         record.artifacts = [out, curve_path, json_path, *[p for p in (best_path, last_path) if p.is_file()]]
