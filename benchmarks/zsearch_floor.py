@@ -1,0 +1,156 @@
+"""The floor that the paper's z bisection puts under MAD-PINN's policy time on this CPU (issue 37).
+
+    PYTHONPATH=$PWD python benchmarks/zsearch_floor.py --cells results/eval [--vhat models/vhat.pt] [--repeats 20]
+
+Per agent-step, the deployed search (SPEC §6, :func:`madpinn.value_functions.z_search.cold_search`)
+needs three kinds of V̂ network rows:
+
+- one value row at ``z_max``, the feasibility test;
+- ``steps = ⌈log2(1/z_tolerance)⌉`` halvings (10), each a value row. An infeasible agent's answer is
+  ``z_max`` whatever its halvings return, so its halvings could be skipped without changing an answer;
+- one value-and-gradient row at ``z*``, for the control ``−u_max·sign(∂V̂/∂v_ego)``.
+
+A search that returns the bisection's answer on every input cannot evaluate fewer rows. Its answer
+is a function of V̂'s signs at the midpoints it visits, and where V̂ is not monotone in z no other
+value determines them (the warm search, which evaluates others, returns another index on 7 % of
+agent-steps with the shipped V̂, every time with a non-monotone V̂ in between; ``docs/performance.md``).
+A rigorous bound on the network's output could certify a sign without a row only where the exact
+terminal term ``max(φ − z, g)`` exceeds ``(T − t)·σ·(‖w_out‖₁ + |b_out|)`` = 4.3 in magnitude (shipped
+V̂, z_max = 21.5), which leaves the midpoints near the answer, the ones a search must evaluate anyway.
+
+So the rows, times what one network row costs on this core, bound from below every implementation
+that gives identical answers. The cost of a row is measured here: the SIREN forward (value) or
+forward + analytic input gradient (gradient), at each cell's batch (agents × scenarios), one
+thread, process CPU time, best of ``--repeats``. The exact boundary term and the input
+normalisation are left out, because they could be computed once per agent-step; this makes the
+floor lower, so it stays a bound.
+
+``--cells DIR`` reads the cells' summaries (``n*_seed*.json`` under ``results/eval``, or
+``*_summary.json`` in ``output_cache/``): agent-steps, share of infeasible agent-steps, and the search
+actually run (cells whose V̂ rows per agent-step are not the cold bisection's, i.e. warm starts, are
+left out). For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
+and its share. The last lines are ``cold_bisection_floor_core_h: X`` (the floor summed over the
+protocol's cells; studies named by ``--skip`` are left out) and ``protocol_cells_core_h: Y`` (the
+measured time of the same protocol's cells, every method).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from collections import defaultdict
+from functools import lru_cache
+from pathlib import Path
+
+import torch
+
+from madpinn.value_functions import load_vhat
+
+DEFAULT_SKIP = ("large_arena_frontier",)   # validation-seed study, not part of the protocol's tables
+
+
+def row_costs_us(vhat, batch: int, repeats: int = 20) -> tuple[float, float]:
+    """``(value, gradient)`` process-CPU µs per network row of ``vhat`` at ``batch`` rows, one thread,
+    best of ``repeats`` (each repeat averages enough calls to last ≈ 0.05 s). The minimum, because a
+    shared machine's speed varies by up to 30 % from one second to the next: the floor must hold
+    for the fastest moments of the runs it bounds."""
+    g = torch.Generator().manual_seed(0)
+    s = vhat.problem.sample_states(batch, g, torch.float32)
+    x = vhat.problem.normalise(s, torch.zeros(batch))
+    net = vhat.net
+
+    def best(fn) -> float:
+        fn()
+        t0 = time.process_time()
+        fn()
+        calls = max(1, int(0.05 / max(1e-6, time.process_time() - t0)))
+        out = math.inf
+        for _ in range(repeats):
+            t0 = time.process_time()
+            for _ in range(calls):
+                fn()
+            out = min(out, (time.process_time() - t0) / calls)
+        return 1e6 * out / batch
+
+    with torch.no_grad():
+        return best(lambda: net(x)), best(lambda: net.value_and_input_grad(x))
+
+
+def floor_us_per_agent_step(value_us: float, grad_us: float, steps: int, infeasible: float) -> float:
+    """µs per agent-step of the rows no identical-answer search can skip (module docstring)."""
+    return value_us * (1.0 + steps * (1.0 - infeasible)) + grad_us
+
+
+def read_cells(root: Path) -> list[dict]:
+    """Evaluation cells' summaries under ``root`` (``n*_seed*.json`` or ``*_summary.json``)."""
+    cells = []
+    for path in sorted(root.rglob("*.json")):
+        if not (path.name.startswith("n") and "_seed" in path.name) and not path.name.endswith("_summary.json"):
+            continue
+        try:
+            d = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        if isinstance(d, dict) and {"study", "run", "n_agents", "n_scenarios", "n_steps", "elapsed_s"} <= d.keys():
+            cells.append(d)
+    return cells
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cells", type=Path, required=True, help="results/eval or output_cache")
+    ap.add_argument("--vhat", default="models/vhat.pt")
+    ap.add_argument("--repeats", type=int, default=20)
+    ap.add_argument("--z-tolerance", type=float, default=1e-3, help="methods.madpinn.z_tolerance (config.yaml: 1e-3)")
+    ap.add_argument("--skip", nargs="*", default=list(DEFAULT_SKIP), help="studies left out of the protocol's sums")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    from madpinn.value_functions.z_search import bisection_steps
+
+    steps = bisection_steps(args.z_tolerance)
+    cold_rows = 1 + steps + 1
+    vhat = load_vhat(args.vhat)
+    cells = [c for c in read_cells(args.cells) if c["study"] not in args.skip]
+    if not cells:
+        raise SystemExit(f"no evaluation cell summaries under {args.cells}")
+
+    @lru_cache(maxsize=None)
+    def costs(batch: int) -> tuple[float, float]:
+        v, g = row_costs_us(vhat, batch, args.repeats)
+        print(f"batch {batch:5d}: value row {v:.3f} us, value-and-gradient row {g:.3f} us (process CPU, 1 thread)", flush=True)
+        return v, g
+
+    groups: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0])
+    total_h = floor_h = 0.0
+    left_out = 0
+    for c in cells:
+        total_h += c["elapsed_s"] / 3600.0
+        stats = c.get("policy_stats") or {}
+        rows = stats.get("vhat_evals_per_agent_step")
+        if rows is None:
+            continue
+        if abs(rows - cold_rows) > 1e-9:
+            left_out += 1
+            continue
+        batch = int(c["n_agents"]) * int(c["n_scenarios"])
+        v, g = costs(batch)
+        agent_steps = int(c["n_agents"]) * int(c["n_scenarios"]) * int(c["n_steps"])
+        f = 1e-6 * agent_steps * floor_us_per_agent_step(v, g, steps, float(stats["infeasible_fraction"])) / 3600.0
+        key = f"{c['study']}/{c['run']}"
+        groups[key][0] += 1
+        groups[key][1] += c["elapsed_s"] / 3600.0
+        groups[key][2] += f
+        floor_h += f
+    print(f"\n{'cells (cold bisection)':42s} {'n':>4s} {'job h':>7s} {'floor h':>8s} {'floor share':>11s}")
+    for key, (n, h, f) in sorted(groups.items(), key=lambda kv: -kv[1][1]):
+        print(f"{key:42s} {n:4d} {h:7.3f} {f:8.3f} {f / h:11.2f}")
+    if left_out:
+        print(f"({left_out} MAD-PINN cells with another search left out)")
+    print(f"cold_bisection_floor_core_h: {floor_h:.3f}")
+    print(f"protocol_cells_core_h: {total_h:.3f}")
+
+
+if __name__ == "__main__":
+    main()

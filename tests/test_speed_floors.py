@@ -1,0 +1,77 @@
+"""The speed-floor tools of issue 37 (benchmarks/zsearch_floor.py, scripts/paired_cells.py): the
+floor counts exactly the rows the deployed cold search evaluates, reads the cells' summaries in
+both layouts, and the paired comparison refuses cells that did not run the same scenarios."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from conftest import REPO
+from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search
+from policy_models import tiny_models
+
+sys.path.insert(0, str(REPO / "benchmarks"))
+from zsearch_floor import floor_us_per_agent_step, read_cells  # noqa: E402
+
+
+def test_floor_counts_the_rows_of_the_deployed_cold_search():
+    """With unit costs the floor is the cold search's own row count per agent-step where every
+    agent is feasible (value: V̂(z_max) + the halvings; gradient: one), and it drops exactly the
+    halvings of infeasible agents, whose answer is z_max whatever the halvings return."""
+    vhat, _ = tiny_models()
+    grid = ZGrid(vhat.z_max, bisection_steps(1e-3))
+    g = torch.Generator().manual_seed(0)
+    obs = vhat.problem.sample_states(64, g, torch.float32)[:, :-1]
+    r = cold_search(vhat, obs, grid)
+    B = obs.shape[0]
+    assert floor_us_per_agent_step(1.0, 0.0, grid.steps, 0.0) == r.value_rows / B
+    assert floor_us_per_agent_step(0.0, 1.0, grid.steps, 0.0) == r.grad_rows / B
+    assert floor_us_per_agent_step(1.0, 0.0, grid.steps, 1.0) == 1.0   # only V̂(z_max)
+    assert torch.all(r.z[~r.feasible] == vhat.z_max) and torch.all(r.index[~r.feasible] == grid.cells)
+
+
+def _cell(study="main", run="madpinn", rows=12.0, elapsed=10.0):
+    return {"study": study, "run": run, "n_agents": 4, "n_scenarios": 3, "n_steps": 5, "elapsed_s": elapsed,
+            "policy_stats": {"vhat_evals_per_agent_step": rows, "infeasible_fraction": 0.1}}
+
+
+def test_read_cells_takes_both_layouts_and_nothing_else(tmp_path):
+    (tmp_path / "eval" / "main").mkdir(parents=True)
+    (tmp_path / "eval" / "main" / "n4_seed0.json").write_text(json.dumps(_cell()))
+    (tmp_path / "abc123_summary.json").write_text(json.dumps(_cell(run="nominal")))
+    (tmp_path / "store.json").write_text(json.dumps({"study": "x"}))   # not a cell summary
+    (tmp_path / "n4_seed1.json").write_text("{truncated")              # unreadable: skipped
+    runs = sorted(c["run"] for c in read_cells(tmp_path))
+    assert runs == ["madpinn", "nominal"]
+
+
+def _frame(scenarios, safety, cost, seed=100):
+    n = len(scenarios)
+    return pd.DataFrame({"scenario": scenarios, "n_agents": [8] * n, "seed": [seed] * n, "safety_rate": safety,
+                         "safe": [s == 1.0 for s in safety], "cost_safe_time_avg": cost, "cost_all_time_avg": cost})
+
+
+def test_paired_cells_differences_and_refusal(tmp_path):
+    a, b, c = tmp_path / "a.parquet", tmp_path / "b.parquet", tmp_path / "c.parquet"
+    _frame([0, 1, 2], [1.0, 0.75, 0.5], [1.0, 2.0, 3.0]).to_parquet(a)
+    _frame([0, 1, 2], [1.0, 0.5, 0.5], [0.5, 1.5, 2.5]).to_parquet(b)
+    _frame([0, 1, 3], [1.0, 0.5, 0.5], [0.5, 1.5, 2.5]).to_parquet(c)
+    script = str(REPO / "scripts" / "paired_cells.py")
+    out = subprocess.run([sys.executable, script, str(a), str(b)], capture_output=True, text=True, check=True).stdout
+    row = out.strip().splitlines()[-1]
+    d = np.array([0.0, 25.0, 0.0])
+    assert f"{d.mean():+.3f} ± {d.std(ddof=1) / np.sqrt(3):.3f}" in row   # safety difference, points
+    assert "+0.500 ± 0.000" in row                                          # cost difference
+    bad = subprocess.run([sys.executable, script, str(a), str(c)], capture_output=True, text=True)
+    assert bad.returncode != 0 and "not the same scenarios" in bad.stderr
+
+
+@pytest.mark.parametrize("argv", [[], ["only_one.parquet"]])
+def test_paired_cells_needs_pairs(argv):
+    bad = subprocess.run([sys.executable, str(REPO / "scripts" / "paired_cells.py"), *argv], capture_output=True, text=True)
+    assert bad.returncode != 0
