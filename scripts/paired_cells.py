@@ -2,7 +2,7 @@
 
     python scripts/paired_cells.py A.parquet B.parquet [A2.parquet B2.parquet ...]
 
-For each pair (A, B), prints one Markdown row: N, safety and safe scenarios of A / B, the
+For each pair (A, B), prints one Markdown row: N, the scenario seed, safety and safe scenarios of A / B, the
 time-averaged cost of A / B over collision-free agents (the paper's cost) and over all agents, the
 paired per-scenario difference A − B (mean ± standard error over scenarios) of the safety rate
 (points) and of both costs, and the policy
@@ -40,7 +40,7 @@ def row(path_a: Path, path_b: Path) -> str:
             raise SystemExit(f"{path_a} and {path_b} differ in '{key}': not the same scenarios")
     n = int(a["n_agents"].iloc[0])
     policy = " / ".join(f"{j['policy_us_per_agent_step']:.0f}" if "policy_us_per_agent_step" in j else "–" for j in (ja, jb))
-    return (f"| {n} | {100 * a.safety_rate.mean():.1f} % / {100 * b.safety_rate.mean():.1f} % "
+    return (f"| {n} | {int(a['seed'].iloc[0])} | {100 * a.safety_rate.mean():.1f} % / {100 * b.safety_rate.mean():.1f} % "
             f"({100 * a.safe.mean():.0f} / {100 * b.safe.mean():.0f} % safe sc.) "
             f"| {a.cost_safe_time_avg.mean():.3f} / {b.cost_safe_time_avg.mean():.3f} "
             f"| {a.cost_all_time_avg.mean():.3f} / {b.cost_all_time_avg.mean():.3f} "
@@ -52,9 +52,9 @@ def row(path_a: Path, path_b: Path) -> str:
 def main(argv: list[str]) -> None:
     if not argv or len(argv) % 2:
         raise SystemExit(__doc__)
-    print("| N | safety A / B (safe scenarios) | cost ÷T A / B | cost ÷T, all agents, A / B | safety A − B (points) "
+    print("| N | seed | safety A / B (safe scenarios) | cost ÷T A / B | cost ÷T, all agents, A / B | safety A − B (points) "
           "| cost ÷T A − B | all agents A − B | policy µs per agent-step A / B | scenarios |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for i in range(0, len(argv), 2):
         print(row(Path(argv[i]), Path(argv[i + 1])))
 
