@@ -171,6 +171,7 @@ def contact_stages(cfg: dict, scenarios: int = 64, agents: int = 16, steps: int 
                 ("floor of per-scenario boxes", re.sub(r'<geom name="floor"[^>]*/>', boxes, xml), 0, None),
                 ("islands off", xml, int(dsbl.mjDSBL_ISLAND), None), ("midphase off", xml, int(dsbl.mjDSBL_MIDPHASE), None),
                 ("libccd (native CCD off)", xml, int(dsbl.mjDSBL_NATIVECCD), None),
+                ("multi-point CCD off", xml, int(dsbl.mjDSBL_MULTICCD), None),
                 ("solver: warm start off", xml, int(dsbl.mjDSBL_WARMSTART), None),
                 ("solver: CG", xml, 0, mujoco.mjtSolver.mjSOL_CG)]
     base = None
