@@ -28,7 +28,11 @@ search costs nothing beyond the V̂ rows the paper's bisection cannot skip: the 
 at the fastest measured speed of this core, with no boundary term, indexing or Python. The line
 ``madpinn_cell_speedup_ceiling_at_256: C`` prints ``old`` ÷ that time. No implementation with the
 bisection's answers gets above C on this machine without making the network or the rest of the
-cell faster.
+cell faster. It also prints how many of those rows a bound on the network's output would certify
+without evaluating them (:func:`zsearch_floor.certifiable_rows`, every 20th search of the episode).
+
+``--arena small --agents 12`` runs the same comparison in Table I's arena (the last lines keep
+their names).
 
     PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0
 """
@@ -54,12 +58,13 @@ from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
 import madpinn.policies.madpinn as madpinn_policy
-from zsearch_floor import floor_us_per_agent_step, row_costs_us   # benchmarks/zsearch_floor.py
+from zsearch_floor import certifiable_rows, floor_us_per_agent_step, row_costs_us   # benchmarks/zsearch_floor.py
 
 PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
 SPEC = ObservationSettings.from_config(PAPER).base_mapping()
 BASE_SETTINGS = MadPinnSettings.from_config(PAPER["methods"]["madpinn"])
 DT = 0.0025
+ARENAS = {name: float(a["half_width"]) for name, a in PAPER["arenas"].items()}   # half widths (m)
 
 
 def old_selector(vs, n: int, chunk: int = 65536):
@@ -81,15 +86,19 @@ def old_selector(vs, n: int, chunk: int = 65536):
 
 VARIANTS = ("old", "neighbours", "warm", "newton")
 SEARCH_CPU = [0.0]   # process CPU seconds inside the policy's cold z search (timed wrapper below)
+SEARCH_CALLS: list = []   # (obs, grid) of every 20th cold search of an episode, for certifiable_rows
 _cold_search = madpinn_policy.cold_search
 
 
-def _timed_cold_search(*args, **kwargs):
+def _timed_cold_search(vhat, obs, grid, *args, **kwargs):
     t0 = time.process_time()
     try:
-        return _cold_search(*args, **kwargs)
+        return _cold_search(vhat, obs, grid, *args, **kwargs)
     finally:
         SEARCH_CPU[0] += time.process_time() - t0
+        SEARCH_CALLS.append(None)
+        if len(SEARCH_CALLS) % 20 == 0:
+            SEARCH_CALLS[-1] = (obs.clone(), grid)
 
 
 madpinn_policy.cold_search = _timed_cold_search
@@ -105,6 +114,7 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
     pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     SEARCH_CPU[0] = 0.0
+    SEARCH_CALLS.clear()
     cpu = time.process_time()
     result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
     cpu = time.process_time() - cpu
@@ -113,7 +123,8 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
     return {"result": result, "policy_us": 1e6 * stats["policy_s"] / agent_steps, "cpu_us": 1e6 * cpu / agent_steps,
             "wall_s": stats["wall_s"],
             "rows": s["vhat_evals_per_agent_step"], "hit": s["warm_hit_rate"],
-            "search_us": 1e6 * SEARCH_CPU[0] / agent_steps, "infeasible": s["infeasible_fraction"]}
+            "search_us": 1e6 * SEARCH_CPU[0] / agent_steps, "infeasible": s["infeasible_fraction"],
+            "searches": [c for c in SEARCH_CALLS if c is not None]}
 
 
 def main() -> None:
@@ -121,6 +132,8 @@ def main() -> None:
     ap.add_argument("--vhat", default="models/vhat.pt")
     ap.add_argument("--vs", default="models/vs.pt")
     ap.add_argument("--agents", type=int, default=256)
+    ap.add_argument("--arena", choices=sorted(ARENAS), default="large",
+                    help="large: half width 4 m (Table II); small: 1 m (Table I and the ablations)")
     ap.add_argument("--scenarios", type=int, default=2)
     ap.add_argument("--episode-s", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
@@ -129,10 +142,10 @@ def main() -> None:
         raise SystemExit(f"use a validation seed (≥ 100), not {args.seed}")
     torch.set_num_threads(1)
     vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
-    arena = Arena("large", 4.0, args.episode_s)
+    arena = Arena(args.arena, ARENAS[args.arena], args.episode_s)
     starts, goals = generate_scenarios(arena, args.agents, args.seed, args.scenarios, 2 * SPEC.collision_radius)
     steps = int(round(args.episode_s / DT))
-    print(f"{args.agents} agents, large arena, {args.scenarios} scenarios of seed {args.seed}, {steps} steps "
+    print(f"{args.agents} agents, {args.arena} arena, {args.scenarios} scenarios of seed {args.seed}, {steps} steps "
           f"({args.episode_s} s), double integrator, torch 1 thread", flush=True)
     runs = {}
     with torch.no_grad():
@@ -159,6 +172,9 @@ def main() -> None:
     value_us, grad_us = row_costs_us(vhat, args.agents * args.scenarios)
     floor = floor_us_per_agent_step(value_us, grad_us, bisection_steps(BASE_SETTINGS.z_tolerance), new["infeasible"])
     rest = new["cpu_us"] - new["search_us"]
+    certified = [certifiable_rows(vhat, obs, grid) for obs, grid in new["searches"]]
+    print(f"neighbours: value rows per agent-step whose sign the network's output bound certifies without a row: "
+          f"{sum(certified) / max(1, len(certified)):.4f} (every 20th search of the episode, {len(certified)} searches)")
     print(f"neighbours: cold z search {new['search_us']:.1f} us/agent-step of {new['cpu_us']:.1f} (process CPU; "
           f"infeasible share {new['infeasible']:.3f}); the rows it cannot skip: value row {value_us:.3f} us, "
           f"gradient row {grad_us:.3f} us at batch {args.agents * args.scenarios} -> floor {floor:.1f} us/agent-step; "

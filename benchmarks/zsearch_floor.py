@@ -14,9 +14,10 @@ A search that returns the bisection's answer on every input cannot evaluate fewe
 is a function of V̂'s signs at the midpoints it visits, and where V̂ is not monotone in z no other
 value determines them (the warm search, which evaluates others, returns another index on 7 % of
 agent-steps with the shipped V̂, every time with a non-monotone V̂ in between; ``docs/performance.md``).
-A rigorous bound on the network's output could certify a sign without a row only where the exact
-terminal term ``max(φ − z, g)`` exceeds ``(T − t)·σ·(‖w_out‖₁ + |b_out|)`` = 4.3 in magnitude (shipped
-V̂, z_max = 21.5), which leaves the midpoints near the answer, the ones a search must evaluate anyway.
+A rigorous bound on the network's output, ``|N − b_out| ≤ ‖w_out‖₁`` (as ``|sin| ≤ 1``), could
+certify a sign without a row only where the exact terminal term ``max(φ − z, g)`` outweighs
+``(T − t)·σ·‖w_out‖₁`` = 4.3 (shipped V̂, z_max = 21.5). :func:`certifiable_rows` counts such rows
+on the bisection's own path; ``bench_policy_cell.py`` prints the count on its episode's observations.
 
 So the rows, times what one network row costs on this core, bound from below every implementation
 that gives identical answers. The cost of a row is measured here: the SIREN forward (value) or
@@ -76,6 +77,36 @@ def row_costs_us(vhat, batch: int, repeats: int = 20) -> tuple[float, float]:
 
     with torch.no_grad():
         return best(lambda: net(x)), best(lambda: net.value_and_input_grad(x))
+
+
+def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
+    """Mean value rows per agent of the cold bisection on ``obs [B, D]`` whose sign the output bound
+    ``|N − b_out| ≤ ‖w_out‖₁`` certifies without evaluating the network (V̂(z_max), and the
+    halvings of feasible agents, on the path the bisection takes). Checks every certified sign
+    against the network's value."""
+    from madpinn.value_functions.z_search import grid_value
+
+    w, b = vhat.net.out.weight, vhat.net.out.bias
+    scale = vhat.horizon * vhat.output_scale            # (T − t)·σ at t = 0
+    low, high = scale * (b - w.abs().sum()), scale * (b + w.abs().sum())
+
+    def certified(idx, value):
+        term = vhat.system.terminal_value(obs, grid.z(idx, obs.dtype))
+        above, below = term + low > 0, term + high <= 0
+        assert bool(((value > 0) | ~above).all() and ((value <= 0) | ~below).all()), "the output bound is violated"
+        return above | below
+
+    top = torch.full((obs.shape[0],), grid.cells, dtype=torch.long)
+    v_top = grid_value(vhat, obs, grid, top)
+    feasible = v_top <= 0
+    count = certified(top, v_top).double()
+    lo, hi = torch.zeros_like(top), top.clone()
+    for _ in range(grid.steps):
+        mid = (lo + hi) // 2
+        v = grid_value(vhat, obs, grid, mid)
+        count += (certified(mid, v) & feasible).double()
+        hi, lo = torch.where(v <= 0, mid, hi), torch.where(v <= 0, lo, mid)
+    return float(count.mean())
 
 
 def floor_us_per_agent_step(value_us: float, grad_us: float, steps: int, infeasible: float) -> float:

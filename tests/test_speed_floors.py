@@ -16,7 +16,7 @@ from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search
 from policy_models import tiny_models
 
 sys.path.insert(0, str(REPO / "benchmarks"))
-from zsearch_floor import floor_us_per_agent_step, read_cells  # noqa: E402
+from zsearch_floor import certifiable_rows, floor_us_per_agent_step, read_cells  # noqa: E402
 
 
 def test_floor_counts_the_rows_of_the_deployed_cold_search():
@@ -33,6 +33,24 @@ def test_floor_counts_the_rows_of_the_deployed_cold_search():
     assert floor_us_per_agent_step(0.0, 1.0, grid.steps, 0.0) == r.grad_rows / B
     assert floor_us_per_agent_step(1.0, 0.0, grid.steps, 1.0) == 1.0   # only V̂(z_max)
     assert torch.all(r.z[~r.feasible] == vhat.z_max) and torch.all(r.index[~r.feasible] == grid.cells)
+
+
+def test_certifiable_rows_counts_the_rows_an_output_bound_decides():
+    """With the output layer's weights zeroed, V̂ is its exact terminal term plus a constant, so the
+    bound decides every row on the path: V̂(z_max) and each feasible agent's halvings. With the
+    trained weights it decides at most that many (and every certified sign is checked inside)."""
+    import copy
+
+    vhat, _ = tiny_models()
+    grid = ZGrid(vhat.z_max, bisection_steps(1e-3))
+    obs = vhat.problem.sample_states(200, torch.Generator().manual_seed(1), torch.float32)[:, :-1]
+    feasible = cold_search(vhat, obs, grid, with_grad=False).feasible.double().mean().item()
+    assert 0.0 <= certifiable_rows(vhat, obs, grid) <= 1 + grid.steps * feasible + 1e-9
+    flat = copy.deepcopy(vhat)
+    with torch.no_grad():
+        flat.net.out.weight.zero_()
+    feasible = cold_search(flat, obs, grid, with_grad=False).feasible.double().mean().item()
+    assert certifiable_rows(flat, obs, grid) == pytest.approx(1 + grid.steps * feasible, abs=1e-9)
 
 
 def _cell(study="main", run="madpinn", rows=12.0, elapsed=10.0):
