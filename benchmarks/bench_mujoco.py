@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 import torch
 
+import madpinn.simulation.mujoco.backend as backend_module
 from madpinn.config import deep_merge, load_config
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, compile_world
@@ -174,12 +175,11 @@ def contact_stages(cfg: dict, scenarios: int = 64, agents: int = 16, steps: int 
                 ("multi-point CCD off", xml, int(dsbl.mjDSBL_MULTICCD), None),
                 ("solver: warm start off", xml, int(dsbl.mjDSBL_WARMSTART), None),
                 ("solver: CG", xml, 0, mujoco.mjtSolver.mjSOL_CG)]
-    base = None
-    for label, text, disable, solver in variants:
-        us = min(cpu_us(*world(text, disable, solver)) for _ in range(3))
-        base = us if label.startswith("contacts on") else base
-        print(f"{label:30s} {us:.3f} us/drone per mj_step" + (f" ({us / base - 1:+.0%} vs the backend's)" if base and base != us else ""),
-              flush=True)
+    cpu = {label: min(cpu_us(*world(text, disable, solver)) for _ in range(3)) for label, text, disable, solver in variants}
+    base = cpu["contacts on (the backend)"]
+    for label, us in cpu.items():
+        vs = "" if label.startswith("contacts") else f" ({us / base - 1:+.0%} vs the backend's)"
+        print(f"{label:30s} {us:.3f} us/drone per mj_step{vs}", flush=True)
 
 
 def time_contacts(cfg: dict, scenarios: int, agents: int, steps: int, repeats: int,
@@ -197,8 +197,6 @@ def time_contacts(cfg: dict, scenarios: int, agents: int, steps: int, repeats: i
     out = {}
     variants = [(False, False), (True, False)] + ([(True, True)] if explicit_pairs else [])
     for contacts, explicit in variants:
-        import madpinn.simulation.mujoco.backend as backend_module
-
         original = backend_module.compile_world
         if explicit:
             backend_module.compile_world = explicit_pair_worlds(agents)

@@ -85,8 +85,9 @@ def old_selector(vs, n: int, chunk: int = 65536):
 
 
 VARIANTS = ("old", "neighbours", "warm", "newton")
-SEARCH_CPU = [0.0]   # process CPU seconds inside the policy's cold z search (timed wrapper below)
-SEARCH_CALLS: list = []   # (obs, grid) of every 20th cold search of an episode, for certifiable_rows
+# the policy's cold z searches in the current episode (timed wrapper below): process CPU seconds,
+# calls, and (obs, grid) of every 20th call, for certifiable_rows
+SEARCH = {"cpu": 0.0, "calls": 0, "kept": []}
 _cold_search = madpinn_policy.cold_search
 
 
@@ -95,10 +96,10 @@ def _timed_cold_search(vhat, obs, grid, *args, **kwargs):
     try:
         return _cold_search(vhat, obs, grid, *args, **kwargs)
     finally:
-        SEARCH_CPU[0] += time.process_time() - t0
-        SEARCH_CALLS.append(None)
-        if len(SEARCH_CALLS) % 20 == 0:
-            SEARCH_CALLS[-1] = (obs.clone(), grid)
+        SEARCH["cpu"] += time.process_time() - t0
+        SEARCH["calls"] += 1
+        if SEARCH["calls"] % 20 == 0:
+            SEARCH["kept"].append((obs.clone(), grid))
 
 
 madpinn_policy.cold_search = _timed_cold_search
@@ -113,8 +114,7 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
                                                                           z_newton=variant == "newton")
     pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
-    SEARCH_CPU[0] = 0.0
-    SEARCH_CALLS.clear()
+    SEARCH.update(cpu=0.0, calls=0, kept=[])
     cpu = time.process_time()
     result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
     cpu = time.process_time() - cpu
@@ -123,8 +123,8 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
     return {"result": result, "policy_us": 1e6 * stats["policy_s"] / agent_steps, "cpu_us": 1e6 * cpu / agent_steps,
             "wall_s": stats["wall_s"],
             "rows": s["vhat_evals_per_agent_step"], "hit": s["warm_hit_rate"],
-            "search_us": 1e6 * SEARCH_CPU[0] / agent_steps, "infeasible": s["infeasible_fraction"],
-            "searches": [c for c in SEARCH_CALLS if c is not None]}
+            "search_us": 1e6 * SEARCH["cpu"] / agent_steps, "infeasible": s["infeasible_fraction"],
+            "searches": SEARCH["kept"]}
 
 
 def main() -> None:

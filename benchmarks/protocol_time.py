@@ -58,16 +58,26 @@ def workflow_jobs(store: Path, since_ms: int = 0) -> list[dict]:
             return jobs
 
 
+def cell_summaries(directory: Path) -> list[dict]:
+    """The evaluation cells' summaries under ``directory`` (``*_summary.json`` of the output cache,
+    or ``n*_seed*.json`` under ``results/eval``) that record ``elapsed_s``; an unreadable one stops
+    the script with its path."""
+    cells = []
+    for f in sorted([*directory.rglob("*_summary.json"), *directory.rglob("n*_seed*.json")]):
+        try:
+            s = json.loads(f.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise SystemExit(f"unreadable cell summary {f}: {exc}") from exc
+        if isinstance(s, dict) and "elapsed_s" in s:
+            cells.append(s)
+    return cells
+
+
 def cell_jobs(directory: Path) -> list[dict]:
     """``[{rule, job, seconds}]`` of the evaluation cells summarised under ``directory``."""
-    jobs = []
-    for f in sorted([*directory.rglob("*_summary.json"), *directory.rglob("n*_seed*.json")]):
-        s = json.loads(f.read_text())
-        if "elapsed_s" not in s:
-            continue
-        jobs.append({"rule": f"evaluate {s['study']}/{s['run']}", "seconds": float(s["elapsed_s"]),
-                     "job": f"evaluate/{s['backend']}/{s['study']}/{s['run']}/n{s['n_agents']}_seed{s['seed']}"})
-    return jobs
+    return [{"rule": f"evaluate {s['study']}/{s['run']}", "seconds": float(s["elapsed_s"]),
+             "job": f"evaluate/{s['backend']}/{s['study']}/{s['run']}/n{s['n_agents']}_seed{s['seed']}"}
+            for s in cell_summaries(directory)]
 
 
 def main() -> None:

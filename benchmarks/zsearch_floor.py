@@ -26,8 +26,9 @@ thread, process CPU time, best of ``--repeats``. The exact boundary term and the
 normalisation are left out, because they could be computed once per agent-step; this makes the
 floor lower, so it stays a bound.
 
-``--cells DIR`` reads the cells' summaries (``n*_seed*.json`` under ``results/eval``, or
-``*_summary.json`` in ``output_cache/``): agent-steps, share of infeasible agent-steps, and the search
+``--cells DIR`` reads the cells' summaries (:func:`protocol_time.cell_summaries`: ``n*_seed*.json``
+under ``results/eval``, or ``*_summary.json`` in ``output_cache/``): agent-steps, share of
+infeasible agent-steps, and the search
 actually run (cells whose V̂ rows per agent-step are not the cold bisection's, i.e. warm starts, are
 left out). For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
 and its share. The last lines are ``cold_bisection_floor_core_h: X`` (the floor summed over the
@@ -38,7 +39,6 @@ measured time of the same protocol's cells, every method).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from collections import defaultdict
@@ -48,6 +48,8 @@ from pathlib import Path
 import torch
 
 from madpinn.value_functions import load_vhat
+from madpinn.value_functions.z_search import bisection_steps, cold_search
+from protocol_time import cell_summaries   # benchmarks/protocol_time.py
 
 DEFAULT_SKIP = ("large_arena_frontier",)   # validation-seed study, not part of the protocol's tables
 
@@ -79,54 +81,46 @@ def row_costs_us(vhat, batch: int, repeats: int = 20) -> tuple[float, float]:
         return best(lambda: net(x)), best(lambda: net.value_and_input_grad(x))
 
 
-def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
-    """Mean value rows per agent of the cold bisection on ``obs [B, D]`` whose sign the output bound
-    ``|N − b_out| ≤ ‖w_out‖₁`` certifies without evaluating the network (V̂(z_max), and the
-    halvings of feasible agents, on the path the bisection takes). Checks every certified sign
-    against the network's value."""
-    from madpinn.value_functions.z_search import grid_value
+class _RecordedValues:
+    """``vhat`` whose :meth:`value` calls are kept as ``(z, value)``, in call order."""
 
+    def __init__(self, vhat):
+        self.vhat, self.calls = vhat, []
+
+    def value(self, obs, z, t=0.0):
+        v = self.vhat.value(obs, z, t)
+        self.calls.append((z, v))
+        return v
+
+
+def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
+    """Mean value rows per agent of the deployed cold bisection (:func:`cold_search`) on
+    ``obs [B, D]`` whose sign the output bound ``|N − b_out| ≤ ‖w_out‖₁`` certifies without
+    evaluating the network: V̂(z_max), and the halvings of feasible agents, on the path the search
+    takes. Checks every certified sign against the network's value."""
     w, b = vhat.net.out.weight, vhat.net.out.bias
     scale = vhat.horizon * vhat.output_scale            # (T − t)·σ at t = 0
     low, high = scale * (b - w.abs().sum()), scale * (b + w.abs().sum())
 
-    def certified(idx, value):
-        term = vhat.system.terminal_value(obs, grid.z(idx, obs.dtype))
+    def certified(z, value):
+        term = vhat.system.terminal_value(obs, z)
         above, below = term + low > 0, term + high <= 0
         assert bool(((value > 0) | ~above).all() and ((value <= 0) | ~below).all()), "the output bound is violated"
         return above | below
 
-    top = torch.full((obs.shape[0],), grid.cells, dtype=torch.long)
-    v_top = grid_value(vhat, obs, grid, top)
-    feasible = v_top <= 0
-    count = certified(top, v_top).double()
-    lo, hi = torch.zeros_like(top), top.clone()
-    for _ in range(grid.steps):
-        mid = (lo + hi) // 2
-        v = grid_value(vhat, obs, grid, mid)
-        count += (certified(mid, v) & feasible).double()
-        hi, lo = torch.where(v <= 0, mid, hi), torch.where(v <= 0, lo, mid)
+    recorded = _RecordedValues(vhat)
+    feasible = cold_search(recorded, obs, grid, with_grad=False).feasible
+    (z_top, v_top), *halvings = recorded.calls
+    assert len(halvings) == grid.steps, "cold_search no longer evaluates V̂(z_max) and then one row per halving"
+    count = certified(z_top, v_top).double()
+    for z, v in halvings:
+        count += (certified(z, v) & feasible).double()
     return float(count.mean())
 
 
 def floor_us_per_agent_step(value_us: float, grad_us: float, steps: int, infeasible: float) -> float:
     """µs per agent-step of the rows no identical-answer search can skip (module docstring)."""
     return value_us * (1.0 + steps * (1.0 - infeasible)) + grad_us
-
-
-def read_cells(root: Path) -> list[dict]:
-    """Evaluation cells' summaries under ``root`` (``n*_seed*.json`` or ``*_summary.json``)."""
-    cells = []
-    for path in sorted(root.rglob("*.json")):
-        if not (path.name.startswith("n") and "_seed" in path.name) and not path.name.endswith("_summary.json"):
-            continue
-        try:
-            d = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue
-        if isinstance(d, dict) and {"study", "run", "n_agents", "n_scenarios", "n_steps", "elapsed_s"} <= d.keys():
-            cells.append(d)
-    return cells
 
 
 def main() -> None:
@@ -138,12 +132,10 @@ def main() -> None:
     ap.add_argument("--skip", nargs="*", default=list(DEFAULT_SKIP), help="studies left out of the protocol's sums")
     args = ap.parse_args()
     torch.set_num_threads(1)
-    from madpinn.value_functions.z_search import bisection_steps
-
     steps = bisection_steps(args.z_tolerance)
     cold_rows = 1 + steps + 1
     vhat = load_vhat(args.vhat)
-    cells = [c for c in read_cells(args.cells) if c["study"] not in args.skip]
+    cells = [c for c in cell_summaries(args.cells) if c["study"] not in args.skip]
     if not cells:
         raise SystemExit(f"no evaluation cell summaries under {args.cells}")
 

@@ -1,6 +1,7 @@
 """The speed-floor tools of issue 37 (benchmarks/zsearch_floor.py, scripts/paired_cells.py): the
-floor counts exactly the rows the deployed cold search evaluates, reads the cells' summaries in
-both layouts, and the paired comparison refuses cells that did not run the same scenarios."""
+floor counts exactly the rows the deployed cold search evaluates, the cells' summaries are read in
+both layouts (benchmarks/protocol_time.py), and the paired comparison refuses cells that did not
+run the same scenarios."""
 
 import json
 import subprocess
@@ -16,7 +17,8 @@ from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search
 from policy_models import tiny_models
 
 sys.path.insert(0, str(REPO / "benchmarks"))
-from zsearch_floor import certifiable_rows, floor_us_per_agent_step, read_cells  # noqa: E402
+from protocol_time import cell_summaries  # noqa: E402
+from zsearch_floor import certifiable_rows, floor_us_per_agent_step  # noqa: E402
 
 
 def test_floor_counts_the_rows_of_the_deployed_cold_search():
@@ -58,14 +60,17 @@ def _cell(study="main", run="madpinn", rows=12.0, elapsed=10.0):
             "policy_stats": {"vhat_evals_per_agent_step": rows, "infeasible_fraction": 0.1}}
 
 
-def test_read_cells_takes_both_layouts_and_nothing_else(tmp_path):
+def test_cell_summaries_take_both_layouts_and_stop_on_an_unreadable_one(tmp_path):
     (tmp_path / "eval" / "main").mkdir(parents=True)
     (tmp_path / "eval" / "main" / "n4_seed0.json").write_text(json.dumps(_cell()))
     (tmp_path / "abc123_summary.json").write_text(json.dumps(_cell(run="nominal")))
     (tmp_path / "store.json").write_text(json.dumps({"study": "x"}))   # not a cell summary
-    (tmp_path / "n4_seed1.json").write_text("{truncated")              # unreadable: skipped
-    runs = sorted(c["run"] for c in read_cells(tmp_path))
+    (tmp_path / "n4_seed1.json").write_text(json.dumps({"study": "x"}))  # no elapsed_s: not a finished cell
+    runs = sorted(c["run"] for c in cell_summaries(tmp_path))
     assert runs == ["madpinn", "nominal"]
+    (tmp_path / "n4_seed2.json").write_text("{truncated")
+    with pytest.raises(SystemExit, match="n4_seed2.json"):
+        cell_summaries(tmp_path)
 
 
 def _frame(scenarios, safety, cost, seed=100):

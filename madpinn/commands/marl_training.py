@@ -115,10 +115,10 @@ def train_and_record(cfg: dict, build: Callable[[], object], tcfg: Mapping, out:
             summary["stopped_at_plateau"] = trainer.iteration
         best = mark_best(history, validation.score) if validation is not None else None
         last_path = out.with_name(out.stem + "_last.pt")
+        summary["deployed_iteration"] = trainer.iteration if best is None else int(best["iteration"]) + 1
         if best is not None:
             summary["best_validation"] = {k: v for k, v in best.items() if k.startswith("val_") or k == "iteration"}
-            deploy_best(out, best_path, last_path, best_iteration=int(best["iteration"]) + 1, last_iteration=trainer.iteration)
-        summary["deployed_iteration"] = trainer.iteration if best is None else int(best["iteration"]) + 1
+            deploy_best(out, best_path, last_path, best_iteration=summary["deployed_iteration"], last_iteration=trainer.iteration)
         pd.DataFrame(history).to_csv(curve_path, index=False)
         json_path = write_json(out.with_suffix(".json"), summary)
         record.artifacts = [out, curve_path, json_path, *[p for p in (best_path, last_path) if p.is_file()]]
