@@ -4,12 +4,18 @@ Every selector maps the global state ``[S, N, 4]`` to neighbour indices ``[S, N,
 ``PHANTOM = −1`` where fewer than n candidates exist; :func:`madpinn.observation.build_observation`
 pads those with the far, motionless phantom). All agents of all scenarios are handled in one batch.
 
-``value`` — the n agents with the lowest pairwise safety value ``V_s(x_ij, t = 0)``,
+Sensing (issue 47, docs/protocol.md §8): every strategy, like every baseline, considers only the
+agents within the one sensing radius ``observation.sensing_radius`` (centre distance ``d_ij ≤
+radius``, the same test as :func:`madpinn.observation.nearest_neighbours`); agents beyond it are
+never read. ``radius=None`` (library default, benchmarks) lifts the limit.
+
+``value`` — the n sensed agents with the lowest pairwise safety value ``V_s(x_ij, t = 0)``,
 ``x_ij = [p_i − p_j, v_i − v_j]``. Brute-force definition (:func:`pair_scores_brute_force`): the
-score of every ordered pair ``(i, j ≠ i)`` is ``V_s(x_ij)`` if ``x_ij`` lies in the V_s training
-domain (``|p_i − p_j| ≤ p_range`` and ``|v_i − v_j| ≤ v_range`` per axis, where the learned V_s is
-defined), and ``+∞`` otherwise (no learned evidence of risk: such a pair is treated like an absent
-one). The n lowest finite scores are selected (ascending); ``+∞`` slots become phantoms.
+score of every ordered pair ``(i, j ≠ i)`` is ``V_s(x_ij)`` if ``j`` is sensed and ``x_ij`` lies in
+the V_s training domain (``|p_i − p_j| ≤ p_range`` and ``|v_i − v_j| ≤ v_range`` per axis, where
+the learned V_s is defined), and ``+∞`` otherwise (unsensed, or no learned evidence of risk: such a
+pair is treated like an absent one). The n lowest finite scores are selected (ascending); ``+∞``
+slots become phantoms.
 
 Pruning (:func:`pair_scores`): since out-of-domain pairs score ``+∞`` by definition, only
 in-domain pairs need a network evaluation; they are found with cheap coordinate tests (an
@@ -87,12 +93,15 @@ def relative_states(state: torch.Tensor) -> torch.Tensor:
     return state.unsqueeze(2) - state.unsqueeze(1)
 
 
-def in_domain(state: torch.Tensor, p_range: float, v_range: float) -> torch.Tensor:
-    """``[S, N, N]`` bool: pair state inside the V_s training box, self-pairs excluded."""
+def in_domain(state: torch.Tensor, p_range: float, v_range: float, radius: float | None = None) -> torch.Tensor:
+    """``[S, N, N]`` bool: pair state inside the V_s training box and, with ``radius`` (m), partner
+    within the sensing radius (``d_ij ≤ radius``); self-pairs excluded."""
     S, N, _ = state.shape
     p, v = state[..., 0:2], state[..., 2:4]
     ok = ((p.unsqueeze(2) - p.unsqueeze(1)).abs() <= p_range).all(-1)
     ok &= ((v.unsqueeze(2) - v.unsqueeze(1)).abs() <= v_range).all(-1)
+    if radius is not None:
+        ok &= pairwise_distances(p) <= radius
     return ok & ~torch.eye(N, dtype=torch.bool, device=state.device)
 
 
@@ -122,19 +131,20 @@ def _vs_in_chunks(vs, x: torch.Tensor, chunk: int) -> torch.Tensor:
     return torch.cat(out)
 
 
-def pair_scores_brute_force(state: torch.Tensor, vs, chunk: int = 65536) -> torch.Tensor:
-    """Reference definition: V_s on all ``S·N·(N−1)`` ordered pairs, ``+∞`` out of domain ``[S, N, N]``."""
+def pair_scores_brute_force(state: torch.Tensor, vs, chunk: int = 65536, radius: float | None = None) -> torch.Tensor:
+    """Reference definition: V_s on all ``S·N·(N−1)`` ordered pairs, ``+∞`` out of domain or
+    beyond ``radius`` ``[S, N, N]``."""
     S, N, _ = state.shape
     x = relative_states(state).reshape(-1, 4)
     values = _vs_in_chunks(vs, x, chunk).reshape(S, N, N)
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
     return values.masked_fill(~mask, float("inf"))
 
 
-def pair_scores(state: torch.Tensor, vs, chunk: int = 65536) -> torch.Tensor:
+def pair_scores(state: torch.Tensor, vs, chunk: int = 65536, radius: float | None = None) -> torch.Tensor:
     """Same scores as :func:`pair_scores_brute_force`, evaluating V_s only on in-domain pairs."""
     S, N, _ = state.shape
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
     s_idx, i_idx, j_idx = mask.nonzero(as_tuple=True)
     x = state[s_idx, i_idx] - state[s_idx, j_idx]
     scores = torch.full((S, N, N), float("inf"), dtype=state.dtype, device=state.device)
@@ -192,7 +202,7 @@ def calibrate_drift_margins(vs, samples: int = MARGIN_SAMPLES, seed: int = MARGI
 
 
 def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, chunk: int = 65536,
-                        counts: dict | None = None) -> torch.Tensor:
+                        counts: dict | None = None, radius: float | None = None) -> torch.Tensor:
     """Scores ``[S, N, N]`` whose n lowest per row (:func:`select_lowest` with ``exact_ties``) are
     exactly those of :func:`pair_scores_brute_force`, evaluating V_s on fewer pairs.
 
@@ -207,10 +217,10 @@ def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, 
 
     Exactness rests on ``V_s ≥ free-drift bound − margin`` for the pruned pairs; ``margins`` come
     from :func:`calibrate_drift_margins` (measured, widened). ``counts`` (optional) accumulates
-    ``in_domain`` and ``evaluated`` pairs.
+    ``in_domain`` and ``evaluated`` pairs. ``radius``: only sensed partners are in the domain.
     """
     S, N, _ = state.shape
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
     s_idx, i_idx, j_idx = mask.nonzero(as_tuple=True)
     x = state[s_idx, i_idx] - state[s_idx, j_idx]
     P = x.shape[0]
@@ -243,20 +253,21 @@ def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, 
 
 
 def value_selector(vs, n: int, chunk: int = 65536, pruned: bool = True, bounded: bool = True,
-                   margins: DriftMargins | None = None) -> Selector:
-    """``value`` strategy: n lowest V_s (see module docstring), ties broken by the lower index.
-    ``pruned``: in-domain pairs only; ``bounded`` (with ``pruned``): also skip pairs the bounds
-    exclude (:func:`pair_scores_bounded`; ``margins`` default: :func:`calibrate_drift_margins`)."""
+                   margins: DriftMargins | None = None, radius: float | None = None) -> Selector:
+    """``value`` strategy: n lowest V_s among the agents within ``radius`` (m; None: any distance;
+    see module docstring), ties broken by the lower index. ``pruned``: in-domain pairs only;
+    ``bounded`` (with ``pruned``): also skip pairs the bounds exclude (:func:`pair_scores_bounded`;
+    ``margins`` default: :func:`calibrate_drift_margins`)."""
     if pruned and bounded:
         m = margins if margins is not None else calibrate_drift_margins(vs, chunk=chunk)
-        return lambda state: select_lowest(pair_scores_bounded(state, vs, n, m, chunk), n, exact_ties=True)
+        return lambda state: select_lowest(pair_scores_bounded(state, vs, n, m, chunk, radius=radius), n, exact_ties=True)
     scorer = pair_scores if pruned else pair_scores_brute_force
-    return lambda state: select_lowest(scorer(state, vs, chunk), n, exact_ties=True)
+    return lambda state: select_lowest(scorer(state, vs, chunk, radius=radius), n, exact_ties=True)
 
 
-def nearest_selector(n: int) -> Selector:
-    """``nearest`` strategy: the n nearest other agents (any distance)."""
-    return lambda state: nearest_neighbours(state, n)
+def nearest_selector(n: int, radius: float | None = None) -> Selector:
+    """``nearest`` strategy: the n nearest other agents within ``radius`` (m; None: any distance)."""
+    return lambda state: nearest_neighbours(state, n, radius=radius)
 
 
 def random_selector(n: int, radius: float, generator: torch.Generator) -> Selector:
@@ -273,13 +284,14 @@ def random_selector(n: int, radius: float, generator: torch.Generator) -> Select
 
 def make_selector(strategy: str, n: int, *, vs=None, radius: float | None = None,
                   generator: torch.Generator | None = None, chunk: int = 65536) -> Selector:
-    """Build the selector of ``strategy`` (one of :data:`STRATEGIES`)."""
+    """Build the selector of ``strategy`` (one of :data:`STRATEGIES`); every strategy reads only
+    the agents within the sensing ``radius`` (m)."""
     if strategy == "value":
         if vs is None:
             raise ValueError("the 'value' neighbour strategy needs the pairwise safety value V_s")
-        return value_selector(vs, n, chunk)
+        return value_selector(vs, n, chunk, radius=radius)
     if strategy == "nearest":
-        return nearest_selector(n)
+        return nearest_selector(n, radius)
     if strategy == "random":
         if radius is None or generator is None:
             raise ValueError("the 'random' neighbour strategy needs a sensing radius and a torch.Generator")
