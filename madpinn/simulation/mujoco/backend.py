@@ -2,7 +2,7 @@
 
 All S × N drones of a job fly in MuJoCo worlds of at most ``drones_per_world`` drones (drone
 ``s·N + i`` is agent i of scenario s). Per ``sim.dt`` the backend runs ``substeps`` times:
-setpoint (p_d, v_d, a_ff) → cascaded controller → rotor thrusts → forces → ``mj_step``. The
+setpoint (p_d, v_d, a_ff) → controller (``sim.mujoco.controller``, :mod:`readings`) → rotor thrusts → forces → ``mj_step``. The
 planar state returned is read from the simulated drones after the last substep.
 
 Setpoints: the policy acceleration ``a`` (clipped to the control box) drives a double-integrator
@@ -26,9 +26,9 @@ import numpy as np
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.simulation.mujoco.controller import CascadedController
 from madpinn.simulation.mujoco.forces import apply_rotor_thrusts
 from madpinn.simulation.mujoco.model import compile_world, scenario_offsets
+from madpinn.simulation.mujoco.readings import make_controller
 from madpinn.simulation.mujoco.settings import MujocoSettings
 
 
@@ -50,7 +50,7 @@ class MujocoBackend:
         self.spec = settings.spec
         self.contacts = bool(contacts)
         self.h = self.dt / int(settings.substeps)
-        self.controller = CascadedController(settings.gains, self.spec)
+        self.controller = make_controller(settings.controller, settings.gains, self.spec, self.h)
         self.device, self.dtype = torch.device(device), dtype
         self._shape: tuple[int, int] | None = None
         self._worlds: list[tuple[mujoco.MjModel, mujoco.MjData, slice]] = []
@@ -86,6 +86,7 @@ class MujocoBackend:
         self.reference = np.concatenate([p, np.clip(v, -self.dynamics.v_max, self.dynamics.v_max)], axis=1)
         self.accel = np.zeros((count, 2))
         self.thrusts = np.zeros((count, 4))
+        self.controller.reset(count)
         self.time = 0.0
         return self._planar_state()
 

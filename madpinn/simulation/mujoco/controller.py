@@ -53,21 +53,39 @@ class ControllerSettings:
             raise ValueError(f"max_tilt_deg must be in (0, 90), got {self.max_tilt_deg}")
 
 
-class CascadedController:
-    """Rotor thrusts for M drones from their state and setpoints (all numpy float64)."""
+class RotorMixer:
+    """Collective thrust and body torques -> rotor thrusts, shared by every controller reading."""
 
-    def __init__(self, gains: ControllerSettings, spec: CrazyflieSpec):
-        gains.validate()
+    def __init__(self, spec: CrazyflieSpec):
         spec.validate()
-        self.gains, self.spec = gains, spec
+        self.spec = spec
         self.mixer = mixer_matrix(spec)
         self._mixer_inv_t = np.linalg.inv(self.mixer).T.copy()
+        self.f_max = spec.max_rotor_thrust
+
+    def reset(self, count: int) -> None:
+        """Start of an episode of ``count`` drones (stateless readings: nothing to do)."""
+
+    def mix(self, thrust: np.ndarray, torque: np.ndarray) -> np.ndarray:
+        """Collective thrust ``[M]`` (N) and body torques ``[M, 3]`` (N·m) -> rotor thrusts
+        ``[M, 4]``, each clipped to ``[0, f_max]`` (no prioritisation; docs/mujoco.md compares
+        measured alternatives)."""
+        wrench = np.concatenate([thrust[:, None], torque], axis=1)
+        return np.clip(wrench @ self._mixer_inv_t, 0.0, self.f_max)
+
+
+class CascadedController(RotorMixer):
+    """Rotor thrusts for M drones from their state and setpoints (all numpy float64)."""
+
+    def __init__(self, gains: ControllerSettings, spec: CrazyflieSpec, dt: float | None = None):
+        gains.validate()
+        super().__init__(spec)
+        self.gains = gains
         self.k_pos = np.array([gains.pos_xy, gains.pos_xy, gains.pos_z])
         self.k_vel = np.array([gains.vel_xy, gains.vel_xy, gains.vel_z])
         self.k_att = np.array([gains.att_rp, gains.att_rp, gains.att_yaw])
         self.j_k_rate = np.asarray(spec.inertia) * np.array([gains.rate_rp, gains.rate_rp, gains.rate_yaw])
         self.tan_tilt = math.tan(math.radians(gains.max_tilt_deg))
-        self.f_max = spec.max_rotor_thrust
 
     def __call__(
         self,
@@ -105,10 +123,3 @@ class CascadedController:
         # attitude -> rate -> torque loops
         torque = self.j_k_rate * (self.k_att * att_err - omega)
         return self.mix(thrust, torque)
-
-    def mix(self, thrust: np.ndarray, torque: np.ndarray) -> np.ndarray:
-        """Collective thrust ``[M]`` (N) and body torques ``[M, 3]`` (N·m) -> rotor thrusts
-        ``[M, 4]``, each clipped to ``[0, f_max]`` (no prioritisation; docs/mujoco.md compares
-        measured alternatives)."""
-        wrench = np.concatenate([thrust[:, None], torque], axis=1)
-        return np.clip(wrench @ self._mixer_inv_t, 0.0, self.f_max)

@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass, fields
 from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.forces import FORCE_MODES
 from madpinn.simulation.mujoco.model import MAX_DRONES_PER_WORLD, CrazyflieSpec
+from madpinn.simulation.mujoco.readings import CONTROLLERS
 
 
 @dataclass(frozen=True)
@@ -16,7 +17,9 @@ class MujocoSettings:
     :mod:`~madpinn.simulation.mujoco.forces`; drones_per_world: largest world compiled (bigger
     batches use several worlds); altitude (m) of the setpoint; thrust_to_weight sets the rotor
     limit f_max = thrust_to_weight · m g / 4; max_drones: bound of S × N per backend;
-    render_clips: the workflow renders one GIF per (study, run) where offscreen GL exists."""
+    render_clips: the workflow renders one GIF per (study, run) where offscreen GL exists;
+    controller: the tracking-loop reading (:mod:`~madpinn.simulation.mujoco.readings`); gains:
+    the ``cascaded`` reading's gains."""
 
     substeps: int
     force_application: str
@@ -25,6 +28,7 @@ class MujocoSettings:
     thrust_to_weight: float
     max_drones: int
     render_clips: bool
+    controller: str
     gains: ControllerSettings
 
     @property
@@ -40,6 +44,8 @@ class MujocoSettings:
             raise ValueError(f"sim.mujoco.drones_per_world must be in 1..{MAX_DRONES_PER_WORLD}, got {self.drones_per_world}")
         if not (math.isfinite(self.altitude) and self.altitude > 0):
             raise ValueError(f"sim.mujoco.altitude must be positive, got {self.altitude}")
+        if self.controller not in CONTROLLERS:
+            raise ValueError(f"sim.mujoco.controller must be one of {CONTROLLERS}, got '{self.controller}'")
         if int(self.max_drones) < 1:
             raise ValueError(f"sim.mujoco.max_drones must be ≥ 1, got {self.max_drones}")
         self.spec.validate()
