@@ -306,6 +306,7 @@ READS = {
                                         **({"governors": _governors(cfg, study)}
                                            if name == "fig_large_arena_frontier" else {})},
     "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
+    "claims": _keys("experiment"),
     "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "render-clip": _keys("sim.mujoco", "arenas"),
     "gap-decomposition": lambda cfg: _gap_rows(cfg),

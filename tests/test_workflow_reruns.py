@@ -61,7 +61,7 @@ def test_training_setting_reruns_that_training_and_its_downstream_only(done):
     # The reproduction report lists the models' checksums and every table: it reruns too.
     assert jobs == {"train_vhat": 1, "evaluate": 3, "validate_vhat": 1, "verify_vhat": 1, "fig_value_heatmap": 1,
                     "table_safety_scaling": 1, "table_neighbour_ablation": 1, "table_update_ablation": 1,
-                    "fig_cost_safety": 1, "fig_trajectories": 1, "reproduction_report": 1, "all": 1}, jobs
+                    "fig_cost_safety": 1, "fig_trajectories": 1, "reproduction_report": 1, "claims_table": 1, "all": 1}, jobs
 
 
 def test_deployment_and_validation_settings_rerun_no_training(done):
@@ -88,7 +88,8 @@ def test_unrelated_changes_rerun_nothing(done):
 def test_study_setting_reruns_that_study_only(done):
     jobs = _dry(done, {"studies": {"ablation_neighbours": {"scenarios": 2}}})
     # its cells, the oracle bounds of the new scenario count, its table and the report
-    assert jobs == {"evaluate": 1, "oracle": 1, "table_neighbour_ablation": 1, "reproduction_report": 1, "all": 1}, jobs
+    assert jobs == {"evaluate": 1, "oracle": 1, "table_neighbour_ablation": 1, "reproduction_report": 1, "claims_table": 1,
+                    "all": 1}, jobs
 
 
 def _edit_and_dry(copy, rel):
@@ -130,7 +131,7 @@ def test_figure_code_change_reruns_figures_only(done):
     jobs = _edit_and_dry(done, "figures/style.py")
     assert set(jobs) == {"fig_cost_safety", "fig_trajectories", "all"}, jobs
     jobs = _edit_and_dry(done, "evaluation/tables.py")   # read by the tables, the figures and the report
-    assert set(jobs) == TABLES | {"fig_cost_safety", "fig_trajectories", "reproduction_report", "all"}, jobs
+    assert set(jobs) == TABLES | {"fig_cost_safety", "fig_trajectories", "reproduction_report", "claims_table", "all"}, jobs
 
 
 def test_dry_run_writes_nothing(done):

@@ -1,5 +1,5 @@
-"""``table``, ``figure``, ``oracle`` and ``reproduction``: paper tables, figures, the cost lower
-bound and the reproduction report, assembled from result files."""
+"""``table``, ``figure``, ``oracle``, ``reproduction`` and ``claims``: paper tables, figures, the cost
+lower bound, the reproduction report (from result files) and the paper's claims tested on it."""
 
 from __future__ import annotations
 
@@ -104,6 +104,16 @@ def _reproduction(args) -> int:
         return finish(run, record, echo=list(record.artifacts))
 
 
+def _claims(args) -> int:
+    from madpinn.evaluation.claims import write_claims
+
+    cfg = config_of(args)
+    record = JobRecord(job_key="report/claims", rule="claims_table", params={"report": str(args.report)})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = write_claims(args.report, args.out_dir)
+        return finish(run, record, echo=list(record.artifacts))
+
+
 def _collision_readings(args) -> int:
     from madpinn.evaluation.readings import write_readings
 
@@ -136,6 +146,13 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_reproduction)
+
+    p = sub.add_parser("claims", help="the paper's claims tested on a reproduction report -> claims.{json,md,html}")
+    add_config_arg(p)
+    p.add_argument("--report", required=True, help="reproduction.json (python -m madpinn reproduction)")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_claims)
 
     p = sub.add_parser("collision-readings", help="every paper cell under each collision reading (issue 38)")
     add_config_arg(p)

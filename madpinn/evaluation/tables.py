@@ -11,7 +11,12 @@ divided by the episode length T. Beside them every table shows the time-averaged
 agents (collided ones included), and ``summary`` tables the safety under the disc reading (d ≤ 2r,
 from the same episodes; SPEC §1). Given oracle files (:mod:`madpinn.evaluation.oracle`), each
 table ends with an oracle row per agent count: the lone-agent cost lower bound on the same
-scenarios. Single-seed studies show the mean alone (no "± 0.00").
+scenarios. Single-seed studies show the mean with its 95 % bootstrap interval over scenarios (no
+"± 0.00"). ``summary`` tables also read safety where the drones' bodies touch (d ≤ 0.12 m,
+:mod:`madpinn.evaluation.contact`). The ``.csv`` carries a 95 % interval (``*_ci_lo``,
+``*_ci_hi``) of every figure of :data:`madpinn.evaluation.intervals.INTERVAL_METRICS`: t over seeds
+for multi-seed cells, the bootstrap over scenarios for single-seed ones
+(:mod:`madpinn.evaluation.intervals`).
 
 Each table is written as ``.csv`` (numeric mean/std columns, oracle rows with run ``oracle``),
 ``.md`` and ``.tex``.
@@ -25,6 +30,8 @@ from typing import Iterable
 import pandas as pd
 
 from madpinn.config import method_config
+from madpinn.evaluation.contact import contact_distance, seed_contact, with_contact
+from madpinn.evaluation.intervals import seed_figures
 from madpinn.evaluation.metrics import across_seeds, scenario_intervals, seed_summary
 from madpinn.scenarios import UNIFORM
 
@@ -47,9 +54,11 @@ def load_results(paths: Iterable[str | Path]) -> pd.DataFrame:
 
 
 def per_seed(df: pd.DataFrame) -> pd.DataFrame:
+    """One row per (run, N, seed): the seed figures, the contact reading and their bootstrap intervals over scenarios."""
     rows = []
-    for (run, n, seed), g in df.groupby(["run", "n_agents", "seed"], sort=False):
-        rows.append({"run": run, "n_agents": int(n), "seed": int(seed), **seed_summary(g), **scenario_intervals(g)})
+    for (run, n, seed), g in with_contact(df).groupby(["run", "n_agents", "seed"], sort=False):
+        rows.append({"run": run, "n_agents": int(n), "seed": int(seed), **seed_summary(g), **scenario_intervals(g),
+                     **seed_contact(g)})
     return pd.DataFrame(rows)
 
 
@@ -67,8 +76,13 @@ def run_order(df: pd.DataFrame, cfg: dict) -> dict[str, int]:
 
 
 def summarize(df: pd.DataFrame, cfg: dict) -> pd.DataFrame:
-    """Mean/std across seeds per (run, N), with display labels, in config order (:func:`run_order`)."""
-    agg = across_seeds(per_seed(df), ["run", "n_agents"])
+    """Mean/std across seeds per (run, N), with the 95 % intervals of
+    :func:`madpinn.evaluation.intervals.seed_figures` and display labels, in config order (:func:`run_order`)."""
+    keys = ["run", "n_agents"]
+    seeds = per_seed(df)
+    agg = across_seeds(seeds, keys)
+    fig = seed_figures(seeds, keys)
+    agg = agg.drop(columns=[c for c in fig.columns if c in agg and c not in keys]).merge(fig, on=keys, how="left")
     agg.insert(1, "label", [label_of(cfg, r) for r in agg["run"]])
     order = run_order(df, cfg)
     agg["_o"] = agg["run"].map(order)
@@ -167,6 +181,7 @@ def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd
             ALL_HEADER: [_fmt(r, "cost_all_time_avg") for _, r in agg.iterrows()],
             "Safety (d ≤ 2r)": [_fmt(r, "safety_rate_2r") for _, r in agg.iterrows()],
             "Safe Sc. (d ≤ 2r)": [_fmt(r, "safe_scenarios_2r") for _, r in agg.iterrows()],
+            f"Safety (d ≤ {contact_distance():g} m)": [_fmt(r, "safety_rate_contact") for _, r in agg.iterrows()],
         })
         return pd.DataFrame(table)
     raise ValueError(f"unknown table kind '{kind}' (have {KINDS})")

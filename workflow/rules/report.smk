@@ -35,3 +35,37 @@ rule reproduction_report:
 
 
 register_targets(*REPORT_OUTPUTS)
+
+
+# `snakemake -j2 claims_table`: each claim of the paper tested on the report (issue 47): the cells it
+# rests on, our figures with their 95 % intervals, a verdict computed by madpinn/evaluation/claims.py.
+CLAIMS_OUTPUTS = [f"{FIGURES}/claims.md", f"{FIGURES}/claims.json", f"{FIGURES}/claims.html"]
+
+
+rule claims_table:
+    input:
+        tracking=TRACKING,
+        report=rules.reproduction_report.output.json,
+    output:
+        md=CLAIMS_OUTPUTS[0],
+        json=CLAIMS_OUTPUTS[1],
+        html=report(CLAIMS_OUTPUTS[2], caption="../report/claims.rst", category=REPORT_SECTIONS["reproduction"],
+                    labels={"Item": "Claims of the paper, tested", "Covers": "each claim: cells, figures with intervals, verdict"}),
+    params:
+        config=RESOLVED,
+        settings=settings_hash("claims"),
+        source=source_hash("claims"),
+        out_dir=out_dir_of("md"),
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/claims_table.log",
+    shell:
+        "python -m madpinn claims --config {params.config:q} --report {input.report:q} --out-dir {params.out_dir:q}"
+        " 2>&1 | tee {log:q}"
+
+
+register_targets(*CLAIMS_OUTPUTS)
