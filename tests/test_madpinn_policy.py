@@ -410,3 +410,21 @@ def test_newton_search_returns_the_warm_answer_where_the_crossing_is_unique(mode
     assert torch.all(new.z[~new.feasible] == vhat.z_max)
     if 1 <= spread <= 3:  # predictions off by a few cells, as in closed loop (exact ones cost about the same)
         assert new.value_rows + new.grad_rows < warm.value_rows + warm.grad_rows
+
+
+def test_infeasible_brake_changes_only_the_infeasible_agents():
+    """``infeasible: brake`` (issue 46, not in the paper): agents with no feasible budget brake at
+    u_max per axis against their velocity; every feasible agent keeps the paper's control."""
+    vhat, vs = tiny_models()
+    state, goals = scenario(S=3, N=6)
+    state[0, 1, 0:2] = state[0, 0, 0:2]   # a collision: no feasible budget for agents 0 and 1
+    controls, feasible = {}, None
+    for mode in ("gradient", "brake"):
+        pol = MadPinnPolicy(vhat, make_selector("value", 2, vs=vs), SPEC, madpinn_settings(infeasible=mode), 0.0025)
+        pol.reset(state, goals)
+        controls[mode] = pol.act(state, goals, 0.0).reshape(-1, 2)
+        feasible = pol.last_search.feasible
+    assert (~feasible).any() and feasible.any()
+    assert torch.equal(controls["brake"][feasible], controls["gradient"][feasible])
+    v = state.reshape(-1, 4)[~feasible, 2:4]
+    assert torch.equal(controls["brake"][~feasible], -vhat.system.u_max * torch.sign(v))

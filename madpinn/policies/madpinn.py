@@ -13,7 +13,10 @@ For all agents of all scenarios at once, at every policy step (simulation step `
    With ``warm_start`` each agent's search is bracketed around the linear extrapolation of its
    last two answers (same z* as the cold bisection wherever V̂ is monotone in z, ≈ 2–3 network
    rows per agent-step instead of 12; see :mod:`madpinn.policies.z_search`);
-4. ego control ``u = −u_max·sign(∂V̂/∂v_ego)`` at ``(t = 0, ô* = [o, z*])``.
+4. ego control ``u = −u_max·sign(∂V̂/∂v_ego)`` at ``(t = 0, ô* = [o, z*])``; where no budget is
+   feasible (``V̂(0, o, z_max) > 0``, the paper: ``V_d = +∞``) ``infeasible`` chooses the control:
+   ``gradient`` (the same formula at ``z_max``) or ``brake`` (``u = −u_max·sign(v_ego)`` per axis,
+   not in the paper: a measured alternative, issue 46).
 
 Each agent's control depends only on its own observation; the batch is a computational device.
 
@@ -45,6 +48,8 @@ from madpinn.value_functions.symmetry import symmetrize
 from madpinn.value_functions.z_search import ZGrid, cold_search
 
 INF_UPDATE = "inf"
+INFEASIBLE = ("gradient", "brake")
+"""controls where no budget is feasible: ∇V̂ at z_max (the paper's formula) | brake per axis"""
 
 
 @dataclass(frozen=True)
@@ -57,7 +62,8 @@ class MadPinnSettings:
     look_ahead: τ (s) of the actuator-lag compensation: V̂ sees each agent's own state predicted
     τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
     the measured state); vs_band: V_s clamped into its exact band [free-drift bound, ψ]
-    (:meth:`madpinn.value_functions.PairValue.banded`, issue 37); z_newton: the warm search takes a Newton step on ∂V̂/∂z
+    (:meth:`madpinn.value_functions.PairValue.banded`, issue 37); infeasible: the control where no
+    budget is feasible (:data:`INFEASIBLE`); z_newton: the warm search takes a Newton step on ∂V̂/∂z
     (:func:`newton_search`, fewer V̂ rows; may return another verified crossing where V̂ is not
     monotone in z, so not the default and not read from the config yet, issue 37)."""
 
@@ -70,6 +76,7 @@ class MadPinnSettings:
     safety_filter: CBVFSettings | None
     look_ahead: float
     vs_band: bool
+    infeasible: str
     z_newton: bool = False   # not a config key (issue 37)
 
     @classmethod
@@ -80,7 +87,8 @@ class MadPinnSettings:
                    z_tolerance=float(mcfg["z_tolerance"]), warm_start=bool(mcfg["warm_start"]),
                    pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
-                   look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]))
+                   look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]),
+                   infeasible=str(mcfg["infeasible"]))
 
 
 def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
@@ -177,6 +185,9 @@ class MadPinnPolicy:
         self.last_search = r
         z, feasible = r.z, r.feasible
         u = self.vhat.system.optimal_control(r.grad, obs)[:, 0]
+        if self.settings.infeasible == "brake":
+            brake = -self.vhat.system.u_max * torch.sign(x.reshape(S * N, 4)[:, 2:4])
+            u = torch.where(feasible.unsqueeze(-1), u, brake)
         st = self.stats
         st["policy_steps"] += 1
         st["agent_steps"] += S * N
