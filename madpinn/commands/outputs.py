@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from madpinn.commands.args import add_config_arg, config_of
+from madpinn.commands.args import add_config_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job
 
 
@@ -35,6 +35,8 @@ def _figure(args) -> int:
                 raise ConfigError(f"fig_large_arena_frontier needs --study STUDY of this configuration, got {args.study!r}")
             runs = [FrontierRun.of_run(cfg, run) for run in cfg["studies"][args.study]["runs"]]
             files = plot_large_arena_frontier(args.inputs, runs, Path(args.out_dir) / args.name)
+        elif args.name == "fig_vhat_budget":
+            files = _vhat_budget_figure(cfg, args)
         else:  # fig_trajectories (argparse restricts the choices)
             from madpinn.evaluation.tables import label_of
             from madpinn.figures.trajectories import plot_trajectories
@@ -43,6 +45,24 @@ def _figure(args) -> int:
             files = plot_trajectories(args.inputs, labels, Path(args.out_dir) / args.name)
         record.artifacts = files
         return finish(run, record, echo=list(files))
+
+
+def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
+    """fig_vhat_budget: each run of ``--study`` with the samples of the V̂ it loads (``--vhat RUN=PATH``)."""
+    from madpinn.config import ConfigError, method_config
+    from madpinn.figures.budget import BudgetRun, model_samples, plot_vhat_budget
+    from madpinn.value_functions.model import read_checkpoint
+
+    if not args.study or args.study not in cfg["studies"]:
+        raise ConfigError(f"fig_vhat_budget needs --study STUDY of this configuration, got {args.study!r}")
+    models = parse_models(args.vhat or [])
+    runs = []
+    for run in cfg["studies"][args.study]["runs"]:
+        if run not in models:
+            raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
+        meta = read_checkpoint(models[run], "vhat")["meta"]
+        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1].get("label", run)), samples=model_samples(meta)))
+    return plot_vhat_budget(args.inputs, runs, Path(args.out_dir) / args.name)
 
 
 def _oracle(args) -> int:
@@ -175,8 +195,11 @@ def register(sub) -> None:
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")
     add_config_arg(p)
-    p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories", "fig_large_arena_frontier"])
-    p.add_argument("--study", default=None, help="fig_large_arena_frontier: the study whose runs it shows")
+    p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories", "fig_large_arena_frontier",
+                                                      "fig_vhat_budget"])
+    p.add_argument("--study", default=None, help="fig_large_arena_frontier, fig_vhat_budget: the study whose runs it shows")
+    p.add_argument("--vhat", nargs="*", default=None, metavar="RUN=PATH",
+                   help="fig_vhat_budget: the V̂ model each run loads (its training samples)")
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
     p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)

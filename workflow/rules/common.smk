@@ -1,6 +1,7 @@
 # Shared paths, target lists and helpers. Later rule files register what their methods need.
 import fcntl
 import os
+from types import SimpleNamespace
 
 import yaml
 

@@ -92,3 +92,42 @@ if "large_arena_frontier" in config["studies"]:
 
     if "large_arena_frontier" in studies_in_all():   # in_all: false: built by its own target only
         register_targets(*expand(f"{FIGURES}/fig_large_arena_frontier.{{ext}}", ext=FIG_EXTS))
+
+
+# Issue 46: safety against V̂'s training samples (each budget a V̂ variant; the paper's Table II as lines).
+if "vhat_budget" in config["studies"]:
+
+    def budget_vhat_args(wildcards):
+        """``RUN=PATH`` of the V̂ each run of study vhat_budget loads (its training samples)."""
+        return [f"{run}={madpinn_models(SimpleNamespace(run=run))['vhat']}" for run in config["studies"]["vhat_budget"]["runs"]]
+
+    rule fig_vhat_budget:
+        input:
+            tracking=TRACKING,
+            results=study_results("vhat_budget"),
+            models=lambda wildcards: [a.split("=", 1)[1] for a in budget_vhat_args(wildcards)],
+        output:
+            png=report(f"{FIGURES}/fig_vhat_budget.png", caption="../report/fig_vhat_budget.rst",
+                       category=REPORT_SECTIONS["our_tables"],
+                       labels={"Item": "fig_vhat_budget", "Shows": "safety vs V̂ training samples"}),
+            pdf=f"{FIGURES}/fig_vhat_budget.pdf",
+            csv=f"{FIGURES}/fig_vhat_budget.csv",
+        params:
+            config=RESOLVED,
+            settings=settings_hash("figure", name="fig_vhat_budget", study="vhat_budget"),
+            source=source_hash("figure"),
+            out_dir=out_dir_of("png"),
+            vhat=budget_vhat_args,
+        resources:
+            mem_mb=2000,
+            runtime=15,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/fig_vhat_budget.log",
+        shell:
+            "python -m madpinn figure --config {params.config:q} --name fig_vhat_budget --study vhat_budget"
+            " --inputs {input.results:q} --vhat {params.vhat:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+
+    if "vhat_budget" in studies_in_all():   # in_all: false until the 3x V̂ is trained
+        register_targets(*expand(f"{FIGURES}/fig_vhat_budget.{{ext}}", ext=[*FIG_EXTS, "csv"]))
