@@ -128,7 +128,7 @@ def test_best_model_rule_ties_exactly_and_breaks_ties_on_the_other_counts():
     higher safety at the other validation counts, and a row must beat every earlier one strictly;
     rows without validation are skipped."""
     from madpinn.evaluation.marl_validation import CellValidation
-    from madpinn.marl.training_run import mark_best
+    from madpinn.marl.best_model import mark_best
 
     v = CellValidation.__new__(CellValidation)
     v.train_n, v.counts = 3, [3, 16]

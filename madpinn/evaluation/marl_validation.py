@@ -3,7 +3,7 @@
 :class:`CellValidation` is the :class:`madpinn.marl.training_run.Validation` that ``train-defmarl``
 passes to its training run: it evaluates the current policy on a validation seed (≥ 100, never a
 protocol seed), decides the plateau and scores the rows the deployed checkpoint is chosen on
-(:func:`madpinn.marl.training_run.mark_best`). It lives above ``marl/`` because it runs cells.
+(:mod:`madpinn.marl.best_model`). It lives above ``marl/`` because it runs cells.
 """
 
 from __future__ import annotations
@@ -13,8 +13,10 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
+from madpinn.marl.best_model import BestOnValidation
 
-class CellValidation:
+
+class CellValidation(BestOnValidation):
     """Validation curve of run ``defmarl-<variant>``: the evaluation cells (``run_cell``, the
     study's cell settings with ``scenarios`` replaced) at the training and extra agent counts on
     the validation seed; adds ``val_safety_n<N>`` (%), ``val_safe_scenarios_n<N>`` (%),

@@ -2,10 +2,11 @@
 
 :class:`TrainingRun` seeds, builds the trainer, resumes it from its checkpoint or continues a
 trained model, trains (optionally in time-boxed pieces), evaluates its validation curve, keeps
-the best model (:func:`mark_best`) and deploys it (:func:`deploy_best`), then writes the
-checkpoint, the learning curve CSV and the JSON summary. The command layer
-(``madpinn/commands/marl_training.py``) only wraps it in the job's live MLflow run: every line
-that decides which weights are written lives here, in the training jobs' source hash.
+the best model and deploys it (the validation's choice: :mod:`madpinn.marl.best_model`, which
+only validated trainings import), then writes the checkpoint, the learning curve CSV and the
+JSON summary. The command layer (``madpinn/commands/marl_training.py``) only wraps it in the
+job's live MLflow run: every line that decides which weights are written is in the training
+jobs' source hash.
 
 A written model holds only what its weights are a function of (settings, iterations, seed); the
 run's wall time is in the summary JSON beside it, so identical weights give an identical file.
@@ -32,9 +33,12 @@ class Validation(Protocol):
 
     def plateau(self, history: Sequence[dict]) -> bool: ...
 
-    def score(self, stats: Mapping) -> tuple | None:
-        """The key the best model is selected on, compared with ``>`` (None on rows without one);
-        equal outcomes must give equal keys (no float noise)."""
+    def best(self, history: Sequence[dict]) -> dict | None:
+        """Mark the best rows of ``history`` (``val_best``) and return the best one, None without
+        validated rows (:class:`madpinn.marl.best_model.BestOnValidation`)."""
+
+    def deploy(self, out: Path, best_path: Path, last_path: Path, *, best_iteration: int, last_iteration: int) -> None:
+        """Make ``out`` the model of ``best_iteration`` (:func:`madpinn.marl.best_model.deploy_best`)."""
 
 
 @dataclass(frozen=True)
@@ -91,11 +95,11 @@ class TrainingRun:
         optimizers, :meth:`PPOTrainer.skip_to` its iterations). ``validation``: every
         ``validation.every`` iterations, its metrics and ``val_plateau`` join the iteration's
         curve row; with ``validation.stop_at_plateau`` training ends (completed) at the plateau.
-        The model with the best ``validation.score`` so far is kept as ``<out>_best.pt``
+        The model with the best ``validation.best`` row so far is kept as ``<out>_best.pt``
         (``val_best`` = 1 on its curve row), and that model is the one written to ``out`` (the
         deployed model; the last one is kept as ``<out>_last.pt``): selection on the validation
         seed, never on protocol seeds. The best row is found again from the whole curve at the
-        end, so a finished state re-run under a changed ``score`` deploys what that rule picks
+        end, so a finished state re-run under a changed rule deploys what that rule picks
         (the last model, or ``<out>_best.pt`` when it holds that row's weights; anything else is
         an error, never a silent wrong model)."""
         import pandas as pd
@@ -129,7 +133,7 @@ class TrainingRun:
                                                                                          self.meta(trainer))
                     stats.update(validation(model))
                     stats["val_plateau"] = float(validation.plateau(trainer.history))
-                    stats["val_best"] = float(mark_best(trainer.history, validation.score) is stats)   # stats: the last row
+                    stats["val_best"] = float(validation.best(trainer.history) is stats)   # stats: the last row
                     if stats["val_best"]:
                         save_checkpoint(best_path, trainer, meta={**self.meta(trainer), "validation": dict(
                             {k: v for k, v in stats.items() if k.startswith("val_")}, iteration=trainer.iteration)})
@@ -155,50 +159,17 @@ class TrainingRun:
         summary = training_summary(history, w, self.first, self.last, extra=self.extra)
         if stopped_early:
             summary["stopped_at_plateau"] = trainer.iteration
-        best = mark_best(history, validation.score) if validation is not None else None
+        best = validation.best(history) if validation is not None else None
         last_path = out.with_name(out.stem + "_last.pt")
         summary["deployed_iteration"] = trainer.iteration if best is None else int(best["iteration"]) + 1
         if best is not None:
             summary["best_validation"] = {k: v for k, v in best.items() if k.startswith("val_") or k == "iteration"}
-            deploy_best(out, best_path, last_path, best_iteration=summary["deployed_iteration"], last_iteration=trainer.iteration)
+            validation.deploy(out, best_path, last_path, best_iteration=summary["deployed_iteration"], last_iteration=trainer.iteration)
         pd.DataFrame(history).to_csv(curve_path, index=False)
         json_path = out.with_suffix(".json")
         json_path.write_text(json.dumps(summary, indent=2))
         files = [out, curve_path, json_path, *[p for p in (best_path, last_path) if p.is_file()]]
         return TrainingResult(summary, files, trainer)
-
-
-def mark_best(history: Sequence[dict], score: Callable[[Mapping], tuple | None]) -> dict | None:
-    """Set ``val_best`` on every validated row of ``history`` (1: its ``score`` beats every
-    earlier row's) and return the last such row (the best; None without validated rows)."""
-    best_key, best_row = None, None
-    for row in history:
-        key = score(row)
-        if key is None:
-            continue
-        row["val_best"] = float(best_key is None or key > best_key)
-        if row["val_best"]:
-            best_key, best_row = key, row
-    return best_row
-
-
-def deploy_best(out: Path, best_path: Path, last_path: Path, *, best_iteration: int, last_iteration: int) -> None:
-    """Make ``out`` (the last model, just written) the model of ``best_iteration``: keep the last
-    one as ``last_path``, then copy ``best_path`` over ``out`` unless the best is the last model.
-    ``best_path`` must hold that iteration (its ``meta.validation.iteration``)."""
-    import shutil
-
-    from madpinn.marl.checkpoint import CheckpointError, load_checkpoint
-
-    shutil.copyfile(out, last_path)
-    if best_iteration == last_iteration:
-        return
-    held = load_checkpoint(best_path)["meta"].get("validation", {}).get("iteration") if best_path.is_file() else None
-    if held != best_iteration:
-        raise CheckpointError(f"the validation curve's best model is iteration {best_iteration}, but {best_path} holds "
-                              f"{'no model' if held is None else f'iteration {held}'}: retrain (the curve's rule changed "
-                              "after that model was saved)")
-    shutil.copyfile(best_path, out)
 
 
 def start_state(trainer, checkpoint: Path | None, init: str | Path | None, resume_hash: str | None) -> float:
