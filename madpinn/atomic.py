@@ -22,7 +22,14 @@ def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> Path:
 
 
 def save_torch(payload: Any, path: str | Path) -> Path:
-    """``torch.save(payload)`` to ``path`` atomically (load back with ``weights_only=True``)."""
+    """``torch.save(payload)`` to ``path`` atomically (load back with ``weights_only=True``). The
+    bytes are those of a save to memory, so they depend on the payload alone: saved to a file,
+    torch names the archive's records after that file (here a per-process temporary name), and
+    two identical payloads written to two paths would differ."""
+    import io
+
     import torch
 
-    return atomic_write(path, lambda tmp: torch.save(payload, tmp))
+    buffer = io.BytesIO()
+    torch.save(payload, buffer)
+    return atomic_write(path, lambda tmp: tmp.write_bytes(buffer.getvalue()))

@@ -33,7 +33,7 @@ JITTER = 0.02
 
 
 def _infeasible(msg: str):
-    from madpinn.scenarios import ScenarioInfeasibleError
+    from madpinn.scenario_errors import ScenarioInfeasibleError
 
     return ScenarioInfeasibleError(msg)
 

@@ -15,16 +15,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from madpinn.scenario_errors import ScenarioInfeasibleError  # noqa: F401 - raised here, imported from here by callers
+
 if TYPE_CHECKING:
     import torch
 
 # Random sequential addition of disks jams near 54.7 % coverage; refuse well before it.
 _MAX_RSA_COVERAGE = 0.45
 _MAX_TRIES_PER_POINT = 20_000
-
-
-class ScenarioInfeasibleError(ValueError):
-    """The requested number of agents cannot be placed with the required separation."""
 
 
 @dataclass(frozen=True)

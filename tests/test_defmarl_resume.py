@@ -127,8 +127,8 @@ def test_best_model_rule_ties_exactly_and_breaks_ties_on_the_other_counts():
     97.33333333333333 or 97.33333333333334 depending on how it was computed), the tie goes to the
     higher safety at the other validation counts, and a row must beat every earlier one strictly;
     rows without validation are skipped."""
-    from madpinn.commands.defmarl import CellValidation
-    from madpinn.commands.marl_training import mark_best
+    from madpinn.evaluation.marl_validation import CellValidation
+    from madpinn.marl.best_model import mark_best
 
     v = CellValidation.__new__(CellValidation)
     v.train_n, v.counts = 3, [3, 16]

@@ -84,7 +84,10 @@ def test_cli_train_validate_figures(tmp_path):
     vhat, vs = load_vhat(out / "vhat.pt"), load_vs(out / "vs.pt")
     for m, iterations in ((vhat, 30 + 10), (vs, 30 + 10)):   # smoke: 30 iterations + a 10-iteration fine_tune stage
         assert m.meta["iterations"] == iterations and len(m.meta["config_hash"]) == 12
-        assert m.meta["residual"]["residual_mean"] > 0 and m.meta["git_commit"]
+        assert m.meta["residual"]["residual_mean"] > 0 and not {"wall_s", "git_commit"} & set(m.meta)   # run record: beside it
+    for kind in ("vs", "vhat"):
+        record = json.loads((out / f"{kind}_train.json").read_text())
+        assert record["git_commit"] and record["wall_s"] > 0
     assert (out / "vhat_loss.csv").read_text().count("\n") == 41
     assert load_vhat(out / "vhat_stage1.pt").meta["iterations"] == 30
     assert main(["validate-vs", "--config", *CONFIGS, "--model", str(out / "vs.pt"), "--out", str(tmp_path / "vs.json"),

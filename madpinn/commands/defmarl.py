@@ -11,11 +11,9 @@ first — checkpoint, learning-curve CSV, JSON summary — then the files and th
 from __future__ import annotations
 
 import copy
-import random
 import sys
-from dataclasses import asdict, replace
+from dataclasses import asdict
 from pathlib import Path
-from typing import Sequence
 
 from madpinn.commands.args import config_of
 from madpinn.commands.finish import JobRecord
@@ -40,73 +38,6 @@ def resume_hash(cfg: dict, variant: str) -> str:
     return marl_training_hash(c, f"defmarl_{variant}")
 
 
-class CellValidation:
-    """Validation curve of run ``defmarl-<variant>``: the evaluation cells (``run_cell``, the
-    study's cell settings with ``scenarios`` replaced) at the training and extra agent counts on
-    the validation seed; adds ``val_safety_n<N>`` (%), ``val_safe_scenarios_n<N>`` (%),
-    ``val_cost_n<N>`` and ``val_plateau`` to the iteration's curve row. The global RNG states are
-    restored afterwards, so validating does not change the trained weights."""
-
-    def __init__(self, cfg: dict, run: str, training_counts: Sequence[int], threads: int):
-        from madpinn.config import method_config
-        from madpinn.evaluation.cell import CellSettings
-        from madpinn.marl.validation import ValidationSettings
-
-        _, mcfg = method_config(cfg, run)
-        self.settings = ValidationSettings.from_config(mcfg["validation"])
-        s = self.settings
-        self.every = s.every
-        self.cell = replace(CellSettings.from_config(cfg, s.study, run), scenarios=s.scenarios)
-        self.train_n = int(training_counts[0])
-        self.counts = s.counts(training_counts)
-        self.threads = threads
-        self.stop_at_plateau = s.stop and s.every > 0
-
-    def __call__(self, model: Path) -> dict:
-        import numpy as np
-        import torch
-
-        from madpinn.evaluation.cell import run_cell
-
-        states = (torch.get_rng_state(), np.random.get_state(), random.getstate())
-        try:
-            out = {}
-            for n in self.counts:
-                s = run_cell(self.cell, n, self.settings.seed, models={"policy": model}, backend=self.settings.backend,
-                             threads=self.threads, progress=False).summary
-                out.update({f"val_safety_n{n}": 100.0 * s["safety_rate"], f"val_safe_scenarios_n{n}": 100.0 * s["safe_scenarios"],
-                            f"val_cost_n{n}": s["cost"]})
-        finally:
-            torch.set_rng_state(states[0])
-            np.random.set_state(states[1])
-            random.setstate(states[2])
-        print(" ".join(f"{k}={v:.4g}" for k, v in out.items()), flush=True)
-        return out
-
-    def plateau(self, history: Sequence[dict]) -> bool:
-        """The plateau rule (:func:`madpinn.marl.validation.plateau`) on the safety curve at the
-        first training agent count."""
-        from madpinn.marl.validation import plateau
-
-        key = f"val_safety_n{self.train_n}"
-        curve = [h[key] for h in history if key in h]
-        return plateau(curve, self.settings.window, self.settings.min_gain)
-
-    def score(self, stats) -> tuple[float, float] | None:
-        """The best model's criterion: validation safety (%) at the first training agent count,
-        rounded to 1e-6 so that equal outcome counts tie exactly (raw floats differ by rounding),
-        then, on a tie, the mean validation safety at the other agent counts (generalisation)."""
-        s = stats.get(f"val_safety_n{self.train_n}")
-        if s is None or s != s:
-            return None
-        others = [stats[k] for k in (f"val_safety_n{n}" for n in self.counts if n != self.train_n) if k in stats]
-        return round(float(s), 6), (round(sum(map(float, others)) / len(others), 6) if others else 0.0)
-
-    def curves(self) -> tuple[str, ...]:
-        return tuple(f"val_{m}_n{n}" for n in self.counts for m in ("safety", "safe_scenarios", "cost")) + (
-            "val_plateau", "val_best")
-
-
 def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True,
                   checkpoint: str | Path | None = None, time_limit: float | None = None,
                   init: str | Path | None = None) -> dict | None:
@@ -114,6 +45,8 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
     when ``time_limit`` paused it (state kept in ``checkpoint``)."""
     from madpinn.config import ConfigError, method_config
     from madpinn.marl.defmarl.build import DEFMARL_CURVES, SUMMARY_KEYS, build_defmarl_trainer
+    from madpinn.evaluation.marl_validation import CellValidation
+    from madpinn.marl.training_run import TrainingRun
 
     if "defmarl" not in cfg["methods"]:
         raise ConfigError("methods.defmarl is not configured")
@@ -126,18 +59,20 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
         _check_init(init, mcfg)
     validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if "validation" in mcfg else None
     curves = DEFMARL_CURVES + (validation.curves() if validation is not None else ())
+    training = TrainingRun(
+        build=lambda: build_defmarl_trainer(cfg, run)[0], seed=int(tcfg["seed"]), out=Path(out), desc=f"DEF-MARL ({variant})",
+        meta=lambda trainer: {"method": "defmarl", "variant": variant, "epigraph": asdict(trainer.epi),
+                              "arena": tcfg["arena"], "agent_counts": list(tcfg["agent_counts"]),
+                              **({"init_from": str(init)} if init is not None else {})},
+        first=SUMMARY_KEYS, last=SUMMARY_KEYS, extra={"run": run}, threads=threads, progress=progress,
+        checkpoint=None if checkpoint is None else Path(checkpoint), time_limit=time_limit,
+        init=None if init is None else Path(init), resume_hash=resume_hash(cfg, variant), validation=validation)
     return train_and_record(
-        cfg, lambda: build_defmarl_trainer(cfg, run)[0], tcfg, out, desc=f"DEF-MARL ({variant})",
-        meta=lambda trainer, wall: {"method": "defmarl", "variant": variant, "epigraph": asdict(trainer.epi), "wall_s": wall,
-                                    "arena": tcfg["arena"], "agent_counts": list(tcfg["agent_counts"]),
-                                    **({"init_from": str(init)} if init is not None else {})},
-        first=SUMMARY_KEYS, last=SUMMARY_KEYS, curves=curves, extra={"run": run},
-        record=JobRecord(job_key=f"train/defmarl_{variant}", rule="train_defmarl", wildcards={"variant": variant},
-                         params={"training": tcfg, "epigraph": mcfg["epigraph"], "agents": cfg["agents"],
-                                 "observation": cfg["observation"], "validation": mcfg.get("validation")}),
-        threads=threads, progress=progress, track=track, checkpoint=checkpoint, time_limit=time_limit, init=init,
-        resume_hash=resume_hash(cfg, variant), validation=validation,
-    )
+        cfg, training, curves,
+        JobRecord(job_key=f"train/defmarl_{variant}", rule="train_defmarl", wildcards={"variant": variant},
+                  params={"training": tcfg, "epigraph": mcfg["epigraph"], "agents": cfg["agents"],
+                          "observation": cfg["observation"], "validation": mcfg.get("validation")}),
+        track=track)
 
 
 def _check_init(init: str | Path, mcfg: dict) -> None:

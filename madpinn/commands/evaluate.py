@@ -36,11 +36,8 @@ def evaluate(
 
     from madpinn.config import ConfigError, method_config, run_agents, run_observation, study_backend, study_sim
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
-    from madpinn.settings import AgentSettings
 
-    # the run's agents override (a speed governor: a lower v_max, issue 33) is applied here and not in
-    # CellSettings.from_config, whose edit would change the source hash of every cell of every method
-    cs = replace(CellSettings.from_config(cfg, study, run), limits=AgentSettings.from_config({**cfg, "agents": run_agents(cfg, run)}))
+    cs = CellSettings.from_config(cfg, study, run)   # the run's agents override included (run_limits)
     method, mcfg = method_config(cfg, run)
     if collision_events and not cs.collision_events:
         if method != "madpinn":

@@ -20,18 +20,20 @@ LAST = ("episode_return", "final_distance", "reached_rate", "collision_rate")
 def train_safemarl_nominal(cfg: dict, out: str | Path, threads: int = 1, progress: bool = True, track: bool = True) -> dict:
     from madpinn.config import ConfigError
     from madpinn.marl.build import CURVES, build_trainer
+    from madpinn.marl.training_run import TrainingRun
 
     if "safemarl" not in cfg["methods"]:
         raise ConfigError("methods.safemarl is not configured (its 'nominal' block holds the PPO training settings)")
     tcfg = cfg["methods"]["safemarl"]["nominal"]
+    training = TrainingRun(
+        build=lambda: build_trainer(cfg, tcfg), seed=int(tcfg["seed"]), out=Path(out), desc="SafeMARL nominal PPO",
+        meta=lambda trainer: {"method": "safemarl-nominal", "arena": tcfg["arena"]}, first=FIRST, last=LAST,
+        threads=threads, progress=progress)
     return train_and_record(
-        cfg, lambda: build_trainer(cfg, tcfg), tcfg, out, desc="SafeMARL nominal PPO",
-        meta=lambda trainer, wall: {"method": "safemarl-nominal", "wall_s": wall, "arena": tcfg["arena"]},
-        first=FIRST, last=LAST, curves=CURVES,
-        record=JobRecord(job_key="train/safemarl_nominal", rule="train_safemarl_nominal",
-                         params={"nominal": tcfg, "agents": cfg["agents"], "observation": cfg["observation"]}),
-        threads=threads, progress=progress, track=track,
-    )
+        cfg, training, CURVES,
+        JobRecord(job_key="train/safemarl_nominal", rule="train_safemarl_nominal",
+                  params={"nominal": tcfg, "agents": cfg["agents"], "observation": cfg["observation"]}),
+        track=track)
 
 
 def _train(args) -> int:

@@ -99,15 +99,16 @@ def _paused(run, kind: str, where: str, ckpt: Path, args) -> int:
 
 
 def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
-    """The training job inside its live run: the loss curve is logged as it trains (window means,
-    ≤ :data:`LIVE_POINTS` points)."""
+    """The training job inside its live run (the stages: :func:`madpinn.value_functions.train.train_stages`):
+    the loss curve is logged as it trains (window means, ≤ :data:`LIVE_POINTS` points)."""
+    from dataclasses import replace
+
     import numpy as np
 
     from madpinn.tracking.mlflow_store import git_commit
     from madpinn.value_functions import figures
     from madpinn.value_functions.build import problem_from_config
-    from madpinn.value_functions.model import model_from_payload, model_payload, save_atomic
-    from madpinn.value_functions.train import TrainSettings, fine_tune, residual_stats, train
+    from madpinn.value_functions.train import TrainSettings, save_trained_model, stage_iterations, train_stages
 
     device, dtype = _setup(cfg, args.threads)
     problem = problem_from_config(cfg, kind)
@@ -115,39 +116,30 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     settings = TrainSettings.from_config(vcfg, cfg["value_functions"]["seed"])
     models = parse_models(args.model)
     if "init" in models:   # the workflow resolves value_functions.<kind>.init_from and passes it in
-        settings.init_from = str(models["init"])
+        settings = replace(settings, init_from=str(models["init"]))
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{out.stem}.ckpt.pt"
     chash = record.params["config_hash"]
-    progress = not args.no_progress
-    total = settings.iterations + int((vcfg.get("fine_tune") or {}).get("iterations", 0))
+    total = stage_iterations(settings, vcfg.get("fine_tune"))
     every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     deadline = None if args.time_limit is None else time.monotonic() + args.time_limit
-    net, info = train(problem, settings, ckpt, chash, device=device, dtype=dtype, progress=progress,
-                      stop_after=args.stop_after, on_iteration=run.curve("loss", every), deadline=deadline)
+    net, info = train_stages(problem, settings, vcfg.get("fine_tune"), ckpt, out.with_name(f"{out.stem}_stage1.pt"), chash,
+                             device, dtype, progress=not args.no_progress, stop_after=args.stop_after,
+                             on_iteration=run.curve("loss", every), deadline=deadline)
     if not info["completed"]:
-        return _paused(run, kind, f"{info['iterations']} of {settings.iterations} iterations", ckpt, args)
-    if vcfg.get("fine_tune"):
-        net, info = fine_tune(problem, settings, net, info, vcfg["fine_tune"], out.with_name(f"{out.stem}_stage1.pt"),
-                              ckpt, chash, device, dtype, progress=progress, stop_after=args.stop_after,
-                              on_iteration=run.curve("loss", every, offset=info["iterations"]), deadline=deadline)
-        if not info["completed"]:
-            return _paused(run, kind, f"fine-tuning, {info['iterations']} of {total} iterations in all", ckpt, args)
+        where = (f"{info['iterations']} of {settings.iterations} iterations" if info["stage"] == "train"
+                 else f"fine-tuning, {info['iterations']} of {total} iterations in all")
+        return _paused(run, kind, where, ckpt, args)
+    model = save_trained_model(problem, net, settings, info, vcfg, chash, out, device, dtype)
     history = info["history"]
-    meta = {"config_hash": chash, "git_commit": git_commit(), "iterations": info["iterations"], "wall_s": info["wall_s"],
-            "init_from": settings.init_from, "batch_offset": info["batch_offset"],
-            "final_loss": float(np.mean(history[-100:])), "settings": {**vcfg, "seed": settings.seed}}
-    model = model_from_payload(model_payload(problem, net, settings.output_scale, meta), device=device, dtype=dtype)
-    # held-out residual over one training batch of fresh states (validate-vhat: the validation's count)
-    meta["residual"] = residual_stats(problem, model, settings.batch_size, settings.seed)
-    save_atomic(model_payload(problem, net, settings.output_scale, meta), out)
     stem = out.with_suffix("")
     loss_csv = stem.with_name(stem.name + "_loss.csv")
     np.savetxt(loss_csv, np.asarray(history), header="loss", comments="", fmt="%.8g")
     artifacts = [out, loss_csv, figures.loss_curve(history, f"{kind} training", stem.with_name(stem.name + "_loss.png"))]
     artifacts += figure_of(model, cfg, kind, stem.with_name(stem.name + "_figure"))
-    summary = {"kind": kind, "iterations": info["iterations"], "wall_s": info["wall_s"], "final_loss": meta["final_loss"],
-               **meta["residual"]}
+    # the run's own record (timing, commit) beside the model, never in it: identical weights, identical file
+    summary = {"kind": kind, "iterations": info["iterations"], "wall_s": info["wall_s"], "git_commit": git_commit(),
+               "final_loss": model.meta["final_loss"], **model.meta["residual"]}
     write_json(stem.with_name(stem.name + "_train.json"), summary)
     record.artifacts = artifacts
     record.metrics = {k: v for k, v in summary.items() if isinstance(v, (int, float))}

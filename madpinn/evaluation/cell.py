@@ -7,6 +7,7 @@ computed together. :func:`run_cell` computes, :func:`write_cell` writes the resu
 
 from __future__ import annotations
 
+import importlib
 import json
 import time
 from dataclasses import dataclass
@@ -24,6 +25,21 @@ from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import UNIFORM, Arena, generate_scenarios
 from madpinn.settings import AgentSettings, SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
+
+
+_MODULES = {"agents": "madpinn.evaluation.run_overrides"}
+"""run override key -> the module that applies it, imported only for a run that has the key (a
+plugin registry: :mod:`madpinn.provenance` hashes it into those runs' cells alone)"""
+
+
+def run_limits(cfg: Mapping, method_cfg: Mapping) -> AgentSettings:
+    """The agents a run's cells simulate: ``agents``, or for a run with its own ``agents`` override
+    (``methods.<method>[.variants.<v>].agents``, a speed governor) that override merged over it
+    (:func:`madpinn.evaluation.run_overrides.governed_limits`)."""
+    override = method_cfg.get("agents")
+    if not override:
+        return AgentSettings.from_config(cfg)
+    return importlib.import_module(_MODULES["agents"]).governed_limits(cfg["agents"], override)
 
 
 @dataclass(frozen=True)
@@ -45,7 +61,7 @@ class CellSettings:
     scenarios: int
     """scenarios per (N, seed) cell"""
     limits: AgentSettings
-    """agents' size and control limits"""
+    """agents' size and control limits (with the run's own ``agents`` override: :func:`run_limits`)"""
     sim: SimSettings
     """simulation settings"""
     observation: ObservationSettings
@@ -73,7 +89,7 @@ class CellSettings:
         sim = SimSettings.from_config(cfg, study)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=AgentSettings.from_config(cfg),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=run_limits(cfg, mcfg),
             sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": run_observation(cfg, run)}),
             policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),

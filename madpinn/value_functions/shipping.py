@@ -3,7 +3,9 @@
 The manifest maps a model name (``vs``, ``vhat``, ``safemarl_nominal``, ``defmarl_3``, ...) to
 ``{file, sha256, bytes, training_config_hash, git_commit, iterations, batch_size, samples,
 device, wall_s, validation}``, read from the checkpoint's own metadata (any checkpoint written
-by this project: a dict with a ``meta`` entry) plus the validation reports given. The workflow's
+by this project: a dict with a ``meta`` entry; ``wall_s`` and ``git_commit`` from the training's
+summary beside it, :func:`training_record`, for checkpoints that no longer carry them) plus the
+validation reports given. The workflow's
 ``shipped`` overlay checks every shipped file before any job, dry runs included
 (:func:`check_shipped`: readable with ``weights_only=True``, of its kind, the manifest's sha256,
 trained for this configuration) and installs it into ``results/models/`` only after the same
@@ -95,6 +97,21 @@ def describe_checkpoint(data: dict) -> dict:
     }
 
 
+def training_record(path: str | Path) -> dict:
+    """The training job's summary beside checkpoint ``path`` (``<stem>_train.json`` of a value
+    function, ``<stem>.json`` of a MARL policy), where a run's wall time and commit are kept (a
+    checkpoint holds only what its weights are a function of); ``{}`` when there is none."""
+    path = Path(path)
+    for side in (path.with_name(path.stem + "_train.json"), path.with_suffix(".json")):
+        try:
+            record = json.loads(side.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(record, dict):
+            return record
+    return {}
+
+
 def read_manifest(directory: str | Path) -> dict:
     path = Path(directory) / MANIFEST
     if not path.is_file():
@@ -125,6 +142,9 @@ def ship(models: dict, directory: str | Path, validation: dict | None = None, de
         src = Path(src)
         data = read_model_file(src, name)
         entry = {"file": f"{name}.pt", "sha256": sha256(src), "bytes": src.stat().st_size, **describe_checkpoint(data)}
+        for key, value in training_record(src).items():   # timing and commit: beside a checkpoint, not in it
+            if key in ("wall_s", "git_commit") and entry.get(key) is None:
+                entry[key] = value
         for key, value in ((defaults or {}).get(name) or {}).items():
             if entry.get(key) is None:
                 entry[key] = value

@@ -247,8 +247,8 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
     from madpinn.value_functions.model import model_payload, save_atomic
 
     save_atomic(model_payload(problem, net, settings.output_scale,
-                              {"config_hash": chash, "iterations": info["iterations"], "batch_offset": info["batch_offset"],
-                               "wall_s": info["wall_s"]}), stage1)
+                              {"config_hash": chash, "iterations": info["iterations"], "batch_offset": info["batch_offset"]}),
+                stage1)
     s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
                  curriculum_fraction=0.0, init_from=str(stage1))
     net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
@@ -257,3 +257,55 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
     return net2, {"history": info["history"] + info2["history"], "iterations": info["iterations"] + info2["iterations"],
                   "wall_s": info["wall_s"] + info2["wall_s"], "completed": info2["completed"],
                   "batch_offset": info["batch_offset"]}
+
+
+def stage_iterations(settings: TrainSettings, fine_tune_settings: dict | None) -> int:
+    """Iterations of every stage together: the training, then ``fine_tune``'s (when configured)."""
+    return settings.iterations + (int(fine_tune_settings["iterations"]) if fine_tune_settings else 0)
+
+
+def train_stages(problem: PINNProblem, settings: TrainSettings, fine_tune_settings: dict | None, checkpoint: Path,
+                 stage1: Path, config_hash: str, device, dtype, progress: bool = True, stop_after: int | None = None,
+                 on_iteration: Callable[[int, float], None] | None = None, deadline: float | None = None):
+    """The training job's stages: :func:`train` (resumable from ``checkpoint``), then, when
+    ``fine_tune_settings`` (``value_functions.<kind>.fine_tune``) is set and the first stage is
+    complete, :func:`fine_tune` from the first stage's model saved at ``stage1``.
+    ``on_iteration(i, loss)`` gets the iteration counted over both stages (1-based). Returns
+    ``(network, info)``; ``info["stage"]`` names the last stage run (``"train"`` or
+    ``"fine_tune"``), ``info["completed"]`` is false when it stopped early (time limit,
+    ``stop_after``): the checkpoints hold the state to resume from."""
+    net, info = train(problem, settings, checkpoint, config_hash, device=device, dtype=dtype, progress=progress,
+                      stop_after=stop_after, on_iteration=on_iteration, deadline=deadline)
+    if not info["completed"] or not fine_tune_settings:
+        return net, {**info, "stage": "train"}
+    offset = info["iterations"]
+    shifted = None if on_iteration is None else (lambda i, loss: on_iteration(i + offset, loss))
+    net, info = fine_tune(problem, settings, net, info, fine_tune_settings, stage1, checkpoint, config_hash, device, dtype,
+                          progress=progress, stop_after=stop_after, on_iteration=shifted, deadline=deadline)
+    return net, {**info, "stage": "fine_tune"}
+
+
+def model_meta(info: dict, settings: TrainSettings, training_settings: dict, config_hash: str) -> dict:
+    """The metadata of a trained model file: what the weights are a function of (configuration
+    hash and settings, iterations, initial model, batch stream) and the final loss; never the
+    run's wall time, commit or date (the ``_train.json`` summary and MLflow keep those), so that
+    identical weights give an identical file."""
+    import numpy as np
+
+    return {"config_hash": config_hash, "iterations": info["iterations"], "init_from": settings.init_from,
+            "batch_offset": info["batch_offset"], "final_loss": float(np.mean(info["history"][-100:])),
+            "settings": {**training_settings, "seed": settings.seed}}
+
+
+def save_trained_model(problem: PINNProblem, net: torch.nn.Module, settings: TrainSettings, info: dict,
+                       training_settings: dict, config_hash: str, out: Path, device, dtype):
+    """Write the trained model to ``out`` (:func:`model_meta`, plus the held-out residual over one
+    training batch of fresh states: ``validate-vhat`` uses the validation's count) and return it
+    loaded (:class:`~madpinn.value_functions.model.PINNValueFunction`, with that metadata)."""
+    from madpinn.value_functions.model import model_from_payload
+
+    meta = model_meta(info, settings, training_settings, config_hash)
+    model = model_from_payload(model_payload(problem, net, settings.output_scale, meta), device=device, dtype=dtype)
+    meta["residual"] = model.meta["residual"] = residual_stats(problem, model, settings.batch_size, settings.seed)
+    save_atomic(model_payload(problem, net, settings.output_scale, meta), out)
+    return model

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import yaml
 
-from madpinn.config import ConfigError, study_backend, study_pattern, write_if_changed
+from madpinn.config import ConfigError, method_config, study_backend, study_pattern, write_if_changed
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
@@ -236,26 +236,35 @@ def settings_hash(command, *wildcard_names, **job):
 # (commands, config, tracking, checksums) changes no result and reruns nothing. Policies are loaded
 # by name (the registry `_MODULES` of madpinn/policies/base.py), so a cell hashes its own method's
 # policy module on top of the evaluate command: editing the MAD-PINN policy reruns the MAD-PINN
-# cells, not MPPI's or the baselines' (tests/test_workflow_sources.py).
+# cells, not MPPI's or the baselines' (tests/test_workflow_sources.py). A run's own overrides are
+# applied the same way (the registry of madpinn/evaluation/cell.py, keyed by the override's config
+# key): the speed governor's module is hashed into the cells of runs with an `agents` override only.
 POLICY_REGISTRY = "madpinn.policies.base"
+CELL_REGISTRY = "madpinn.evaluation.cell"
 _SOURCE_HASHES = {}
 
 
-def source_hash(command, *methods):
+def source_hash(command, *methods, plugins=()):
     """sha256 (12 hex) of the package files `python -m madpinn <command>` runs, with the policy
-    modules of ``methods`` (a method the registry lacks: every policy)."""
-    key = (command, *methods)
+    modules of ``methods`` (a method the registry lacks: every policy) and the ``plugins`` modules."""
+    key = (command, *methods, *plugins)
     if key not in _SOURCE_HASHES:
         policies = [plugin_module(POLICY_REGISTRY, m) for m in methods]
         if None in policies:
             policies = list(registry(POLICY_REGISTRY).values())
-        _SOURCE_HASHES[key] = package_source_hash(handler_entry(command), *policies)
+        _SOURCE_HASHES[key] = package_source_hash(handler_entry(command), *policies, *plugins)
     return _SOURCE_HASHES[key]
 
 
 def eval_source_hash(wildcards):
-    """An evaluation cell's source param: the evaluate command and its run's method's policy."""
-    return source_hash("evaluate", wildcards.run.partition("-")[0])
+    """An evaluation cell's source param: the evaluate command, its run's method's policy and the
+    modules of the run's own overrides (e.g. `agents`: madpinn/evaluation/run_overrides.py)."""
+    try:
+        run_cfg = method_config(config, wildcards.run)[1]
+    except ConfigError:   # an unknown run: the job itself says so in one line
+        run_cfg = {}
+    overrides = tuple(module for key, module in sorted(registry(CELL_REGISTRY).items()) if run_cfg.get(key))
+    return source_hash("evaluate", wildcards.run.partition("-")[0], plugins=overrides)
 
 
 # --- one real run at a time; recovery after kill -9 with the plain command ---
