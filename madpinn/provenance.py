@@ -308,6 +308,8 @@ READS = {
     "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "claims": _keys("experiment"),
     "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
+    "controller-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies),
+                                                 "readings": {s: cfg["studies"][s].get("sim") for s in studies}},
     "render-clip": _keys("sim.mujoco", "arenas"),
     "gap-decomposition": lambda cfg: _gap_rows(cfg),
 }

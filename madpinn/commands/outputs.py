@@ -146,6 +146,17 @@ def _collision_readings(args) -> int:
         return finish(run, record, echo=list(record.artifacts))
 
 
+def _controller_readings(args) -> int:
+    from madpinn.evaluation.controller_readings import write_controller_readings
+
+    cfg = config_of(args)
+    record = JobRecord(job_key="table/table_controller_readings", rule="controller_readings",
+                       params={"inputs": len(args.inputs)})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = write_controller_readings(args.inputs, cfg, args.out_dir)
+        return finish(run, record, echo=list(record.artifacts))
+
+
 def register(sub) -> None:
     p = sub.add_parser("table", help="assemble a paper table from result files")
     add_config_arg(p)
@@ -181,6 +192,13 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_collision_readings)
+
+    p = sub.add_parser("controller-readings", help="every cell under each reading of the tracking controller (issue 46)")
+    add_config_arg(p)
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of the ctl_* studies (JSON and _traj.npz beside them)")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_controller_readings)
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)

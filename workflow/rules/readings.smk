@@ -35,3 +35,37 @@ if any(s.endswith(CONTACTS_SUFFIX) for s in config["studies"]):
             " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
     register_targets(rules.collision_readings.output.csv, rules.collision_readings.output.md)
+
+
+# Controller readings (issue 46): the ctl_* studies, one per (arena, sim.mujoco.controller).
+CONTROLLER_STUDIES = [s for s in config["studies"] if s.startswith("ctl_")]
+if CONTROLLER_STUDIES:
+
+    rule controller_readings:
+        input:
+            tracking=TRACKING,
+            results=lambda w: sorted({p for s in CONTROLLER_STUDIES for p in study_results(s)}),
+        output:
+            csv=f"{FIGURES}/table_controller_readings.csv",
+            md=f"{FIGURES}/table_controller_readings.md",
+            html=report(f"{FIGURES}/table_controller_readings.html", caption="../report/table_controller_readings.rst",
+                        category=REPORT_SECTIONS["our_tables"],
+                        labels={"Item": "table_controller_readings", "Study": "ctl_* studies"}),
+        params:
+            config=RESOLVED,
+            settings=settings_hash("controller-readings", studies=CONTROLLER_STUDIES),
+            source=source_hash("controller-readings"),
+            out_dir=out_dir_of("csv"),
+        resources:
+            mem_mb=2000,
+            runtime=10,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/controller_readings.log",
+        shell:
+            "python -m madpinn controller-readings --config {params.config:q}"
+            " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+
+    if all(s in studies_in_all() for s in CONTROLLER_STUDIES):
+        register_targets(rules.controller_readings.output.csv, rules.controller_readings.output.md)
