@@ -488,15 +488,28 @@ def check_output_paths(cfg: Mapping[str, Any]) -> None:
         raise ConfigError("invalid configuration:\n" + "\n".join(lines))
 
 
+def backend_names() -> list[str]:
+    """The simulation backends a config may name: the schema's ``sim.backend`` enum (where a new
+    backend is added, docs/architecture.md)."""
+    return list(_schema()["properties"]["sim"]["properties"]["backend"]["enum"])
+
+
 def check_cell(cfg: Mapping[str, Any], n_agents: int, seed: int, study: str | None = None, run: str | None = None,
-               arena: str | None = None, pattern: str | None = None) -> None:
+               arena: str | None = None, pattern: str | None = None, backend: str | None = None) -> None:
     """The checks :func:`validate_config` makes of configured cells, for one cell named by a
-    workflow target instead (an evaluation cell: ``study``, ``run``; an oracle file: ``arena``,
-    ``pattern``): the study, run and arena exist and ``n_agents`` fit in the arena (the scenario
-    sampler's bound, :func:`madpinn.scenarios.max_agents`, or the pattern's layout). Raises
-    :class:`TargetError` (a :class:`ConfigError`)."""
+    workflow target or an ``evaluate`` run by hand instead (an evaluation cell: ``study``, ``run``,
+    ``backend``; an oracle file: ``arena``, ``pattern``): the study, run, backend and arena exist,
+    ``n_agents`` ≥ 1 and ``seed`` ≥ 0, and the agents fit in the arena (the scenario sampler's bound,
+    :func:`madpinn.scenarios.max_agents`, or the pattern's layout). Raises :class:`TargetError`
+    (a :class:`ConfigError`)."""
     from madpinn.scenarios import UNIFORM, Arena, ScenarioInfeasibleError, generate_scenario, max_agents
 
+    if backend is not None and backend not in backend_names():
+        raise TargetError(f"unknown simulation backend '{backend}' (known: {', '.join(backend_names())})")
+    if n_agents < 1:
+        raise TargetError(f"{n_agents} agents: a cell has at least 1 agent")
+    if seed < 0:
+        raise TargetError(f"seed {seed}: seeds are integers ≥ 0")
     if study is not None:
         if study not in cfg["studies"]:
             raise TargetError(f"unknown study '{study}' (this configuration's studies: {', '.join(sorted(cfg['studies']))})")

@@ -53,7 +53,7 @@ def debug_requested(argv: list[str]) -> bool:
 
 def one_line(exc: BaseException) -> str:
     """The message of ``exc`` on one line (multi-line config reports joined by '; ')."""
-    parts = [p.strip().lstrip("- ").strip() for p in str(exc).splitlines() if p.strip()]
+    parts = [p.strip().removeprefix("- ").strip() for p in str(exc).splitlines() if p.strip()]   # a bullet, not "-3"
     if len(parts) > 1 and parts[0].endswith(":"):
         return parts[0] + " " + "; ".join(parts[1:])
     return "; ".join(parts) or type(exc).__name__

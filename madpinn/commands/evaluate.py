@@ -34,9 +34,11 @@ def evaluate(
     ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
     from dataclasses import replace
 
-    from madpinn.config import ConfigError, method_config, run_agents, run_observation, study_backend, study_sim
+    from madpinn.config import ConfigError, check_cell, method_config, run_agents, run_observation, study_backend, study_sim
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
     from madpinn.settings import AgentSettings
+
+    check_cell(cfg, n_agents, seed, study=study, run=run, backend=backend)   # as the workflow checks its targets
 
     # the run's agents override (a speed governor: a lower v_max, issue 33) is applied here and not in
     # CellSettings.from_config, whose edit would change the source hash of every cell of every method

@@ -140,7 +140,7 @@ def cell_key(wildcards):
 
 def checked_cell(wildcards):
     """Stop with one line (dry runs too) when an evaluation cell or oracle file asked for by path is
-    outside this configuration: unknown study, run or arena, or more agents than the arena holds
+    outside this configuration: unknown study, run, backend or arena, or more agents than the arena holds
     (madpinn.config.check_cell: the checks validate_config makes of the configured cells)."""
     from madpinn.commands.errors import stop_workflow
     from madpinn.config import TargetError, check_cell
@@ -148,7 +148,7 @@ def checked_cell(wildcards):
     w = dict(wildcards.items())
     try:
         check_cell(config, int(w["n"]), int(w["seed"]), study=w.get("study"), run=w.get("run"), arena=w.get("arena"),
-                   pattern=w.get("pattern"))
+                   pattern=w.get("pattern"), backend=w.get("backend"))
     except TargetError as exc:
         where = (f"{w['study']}/{w['run']}" if "study" in w else f"{w['arena']}/{w.get('pattern', 'uniform')}")
         stop_workflow(TargetError(f"target {where} n{w['n']}_seed{w['seed']}: {exc}"))
