@@ -23,6 +23,7 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
     start-up stays light."""
     from madpinn.config import ConfigError, TargetError
     from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
+    from madpinn.output_cache import CacheEntryError
     from madpinn.scenarios import ScenarioInfeasibleError
     from madpinn.simulation.mujoco.backend import PhysicsDivergedError
     from madpinn.tracking import TrackingError
@@ -43,6 +44,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
         (PhysicsDivergedError, "lower sim.dt or sim.mujoco.timestep, or check the controller gains (sim.mujoco)", 5),
         (TrainingDiverged, "training diverged: lower value_functions.<kind>.lr (or output_scale) and rerun", 5),
         (FloatingPointError, "training diverged: lower the learning rate of the named training block and rerun", 5),
+        (CacheEntryError, "restore the named entry from git (git checkout -- <that file>), or delete it: its job then "
+                          "runs again and is cached anew", 7),
         (TrackingError, "start the tracking server named by tracking.uri, or set tracking.enabled: false", 6),
     ]
 
