@@ -21,7 +21,7 @@ from typing import Callable
 def _expected() -> list[tuple[type[BaseException], str, int]]:
     """(exception type, fix, exit code), most specific first. Imported lazily: the CLI's
     start-up stays light."""
-    from madpinn.config import ConfigError, TargetError
+    from madpinn.config import ConfigError, ConfigFileError, TargetError, WorkingDirectoryError
     from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
     from madpinn.output_cache import CacheEntryError
     from madpinn.scenarios import ScenarioInfeasibleError
@@ -34,6 +34,10 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
     retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
     return [
         (TargetError, "ask for an output of a configured study, arena and agent count (snakemake -n all lists them)", 2),
+        (WorkingDirectoryError, "run snakemake from the repository root (cd there), or pass --directory DIR to work in "
+                                "another directory on purpose", 2),
+        (ConfigFileError, "name an existing config file (config.yaml of the repository, or an overlay under "
+                          "workflow/configs/), or restore it from git (git checkout -- config.yaml)", 2),
         (ConfigError, "correct the named key(s) (schema: workflow/schemas/config.schema.yaml)", 2),
         (ScenarioInfeasibleError, "use fewer agents or a larger arena (arenas.<name>.half_width) for this study", 3),
         (ShippedModelError, "ship a checkpoint of that model written by madpinn (python -m madpinn ship-models --model "
