@@ -21,6 +21,7 @@ from typing import Callable
 def _expected() -> list[tuple[type[BaseException], str, int]]:
     """(exception type, fix, exit code), most specific first. Imported lazily: the CLI's
     start-up stays light."""
+    from madpinn.atomic import UnwritableDirectoryError
     from madpinn.config import ConfigError, ConfigFileError, TargetError, WorkingDirectoryError
     from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
     from madpinn.output_cache import CacheEntryError
@@ -50,6 +51,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
         (FloatingPointError, "training diverged: lower the learning rate of the named training block and rerun", 5),
         (CacheEntryError, "restore the named entry from git (git checkout -- <that file>), or delete it: its job then "
                           "runs again and is cached anew", 7),
+        (UnwritableDirectoryError, "make the directory writable (permissions, a read-write mount) or name another "
+                                   "one (the command's --out-dir / --out)", 2),
         (TrackingError, "start the tracking server named by tracking.uri, or set tracking.enabled: false", 6),
     ]
 
