@@ -34,7 +34,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
 
     retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
     return [
-        (TargetError, "ask for an output of a configured study, arena and agent count (snakemake -n all lists them)", 2),
+        (TargetError, "ask for a configured study, run, backend, arena and agent count (snakemake -n all lists the "
+                      "workflow's cells)", 2),
         (WorkingDirectoryError, "run snakemake from the repository root (cd there), or pass --directory DIR to work in "
                                 "another directory on purpose", 2),
         (ConfigFileError, "name an existing config file (config.yaml of the repository, or an overlay under "
@@ -89,9 +90,21 @@ def stop_workflow(exc: BaseException) -> None:
 
 
 def run_reporting(func: Callable[[], int], debug: bool) -> int:
-    """Run ``func``; turn an expected error into one line on stderr and its exit code."""
+    """Run ``func``; turn an expected error into one line on stderr and its exit code, and an
+    interrupt (Ctrl-C; SIGTERM inside a job: :class:`madpinn.tracking.JobKilled`) into one line and
+    128 + the signal number (the job's MLflow run is closed KILLED and a training keeps its
+    checkpoint before the interrupt gets here)."""
     try:
         return int(func() or 0)
+    except KeyboardInterrupt as exc:
+        from madpinn.tracking import JobKilled
+
+        if debug:
+            raise
+        killed = isinstance(exc, JobKilled)
+        print(f"madpinn: {'stopped by SIGTERM' if killed else 'interrupted (Ctrl-C)'} — fix: run the same command again "
+              "(a training resumes from its last checkpoint)", file=sys.stderr)
+        return 143 if killed else 130
     except Exception as exc:  # noqa: BLE001 - filtered below; unexpected errors re-raise
         for kind, _, code in _expected():
             if isinstance(exc, kind):
