@@ -10,9 +10,20 @@ from pathlib import Path
 sys.path.insert(0, workflow.basedir)  # the package, also when not pip-installed
 
 from madpinn.commands.errors import stop_workflow
-from madpinn.config import check_output_paths, load_yaml, validate_config
+from madpinn.config import WorkingDirectoryError, load_yaml, validate_config
+from snakemake_interface_executor_plugins.settings import ExecMode
 
 DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
+
+# Every relative path (results/, models/, output_cache/, the profiles' config files) is taken from
+# the working directory: `snakemake -s <clone>/Snakefile` run elsewhere would plan the whole protocol
+# into that directory's results/. Run from the repository root, or name the directory on purpose
+# with --directory (a cluster job's own process is started in place by snakemake).
+_ELSEWHERE = (workflow.exec_mode == ExecMode.DEFAULT and Path.cwd().resolve() != Path(workflow.basedir).resolve()
+              and not any(a.startswith(("--directory", "-d")) for a in sys.argv[1:]))
+if _ELSEWHERE:
+    stop_workflow(WorkingDirectoryError(f"snakemake runs in {Path.cwd()}, not in the repository {workflow.basedir}: "
+                                        f"every output would go under {Path.cwd()} (results/ …)"))
 
 # Snakemake's YAML error names neither file nor line: parse with madpinn's loader first, which
 # does (file:line:column). Files given by --configfile are parsed by snakemake's command line
@@ -28,8 +39,8 @@ configfile: str(DEFAULT_CONFIG)
 
 
 try:
-    validate_config(config)
-    check_output_paths(config)   # paths.results / paths.figures can be written (nothing is written here)
+    validate_config(config)   # the one validator (also validate-config's and every job's): schema, cross-field
+    #                           rules, and paths.results / paths.figures can be written (nothing is written here)
 except Exception as exc:
     stop_workflow(exc)
 

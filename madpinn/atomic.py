@@ -7,6 +7,11 @@ from pathlib import Path
 from typing import Any, Callable
 
 
+class UnwritableDirectoryError(OSError):
+    """A directory a command must write into cannot be written (permissions, a read-only mount,
+    a regular file in its path); raised before anything is written there."""
+
+
 def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path`` (unique per process), then rename
     it onto ``path``; parents are created, the temporary file never outlives the call."""

@@ -23,6 +23,15 @@ class ConfigError(ValueError):
     """Invalid configuration; the message names the offending key."""
 
 
+class ConfigFileError(ConfigError):
+    """A config file named on the command line (or the repository's config.yaml) does not exist
+    or holds no mapping."""
+
+
+class WorkingDirectoryError(ConfigError):
+    """The workflow was started outside the repository without naming its directory (--directory)."""
+
+
 class TargetError(ConfigError):
     """A workflow target (an output path asked for by name) outside this configuration."""
 
@@ -41,7 +50,7 @@ def deep_merge(base: Mapping[str, Any], overlay: Mapping[str, Any]) -> dict:
 def load_yaml(path: str | Path) -> dict:
     path = Path(path)
     if not path.is_file():
-        raise ConfigError(f"config file not found: {path}")
+        raise ConfigFileError(f"config file not found: {path}")
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
@@ -49,7 +58,7 @@ def load_yaml(path: str | Path) -> dict:
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise ConfigError(f"config file {path} must hold a mapping at top level")
+        raise ConfigFileError(f"config file {path} must hold a mapping at top level")
     return data
 
 
@@ -106,7 +115,9 @@ def _unknown_keys(error, root: Mapping[str, Any]) -> list[str]:
 
 
 def validate_config(cfg: Mapping[str, Any]) -> None:
-    """Validate against the JSON schema and cross-field rules; raise :class:`ConfigError`.
+    """Validate against the JSON schema and cross-field rules, and check that the output paths can
+    be written (:func:`unwritable_reason`, writes nothing); raise :class:`ConfigError`. The one
+    validator of the workflow (Snakefile), ``validate-config`` and every job (:func:`load_config`).
 
     All violations are reported at once, one line each, each naming its key.
     """
@@ -130,6 +141,8 @@ def validate_config(cfg: Mapping[str, Any]) -> None:
         lines = _vf_variant_errors(cfg, validator)
     if not lines:
         lines = _cross_field_errors(cfg) + _infeasible_agent_counts(cfg) + _infeasible_patterns(cfg)
+    if not lines:
+        lines = _unwritable_output_paths(cfg)
     if lines:
         raise ConfigError("invalid configuration:\n" + "\n".join(lines))
 
@@ -475,28 +488,40 @@ def unwritable_reason(path: str | Path) -> str | None:
     return None
 
 
-def check_output_paths(cfg: Mapping[str, Any]) -> None:
-    """:class:`ConfigError` naming each key of :data:`OUTPUT_PATH_KEYS` whose directory cannot be
-    written (:func:`unwritable_reason`); relative paths are taken from the working directory."""
+def _unwritable_output_paths(cfg: Mapping[str, Any]) -> list[str]:
+    """A line naming each key of :data:`OUTPUT_PATH_KEYS` whose directory cannot be written
+    (:func:`unwritable_reason`); relative paths are taken from the working directory."""
     lines = []
     for key in OUTPUT_PATH_KEYS:
         value = lookup_key(cfg, key)
         reason = unwritable_reason(value) if value is not None else None
         if reason:
             lines.append(f"  - '{key}': {value!r} cannot be written: {reason}")
-    if lines:
-        raise ConfigError("invalid configuration:\n" + "\n".join(lines))
+    return lines
+
+
+def backend_names() -> list[str]:
+    """The simulation backends a config may name: the schema's ``sim.backend`` enum (where a new
+    backend is added, docs/architecture.md)."""
+    return list(_schema()["properties"]["sim"]["properties"]["backend"]["enum"])
 
 
 def check_cell(cfg: Mapping[str, Any], n_agents: int, seed: int, study: str | None = None, run: str | None = None,
-               arena: str | None = None, pattern: str | None = None) -> None:
+               arena: str | None = None, pattern: str | None = None, backend: str | None = None) -> None:
     """The checks :func:`validate_config` makes of configured cells, for one cell named by a
-    workflow target instead (an evaluation cell: ``study``, ``run``; an oracle file: ``arena``,
-    ``pattern``): the study, run and arena exist and ``n_agents`` fit in the arena (the scenario
-    sampler's bound, :func:`madpinn.scenarios.max_agents`, or the pattern's layout). Raises
-    :class:`TargetError` (a :class:`ConfigError`)."""
+    workflow target or an ``evaluate`` run by hand instead (an evaluation cell: ``study``, ``run``,
+    ``backend``; an oracle file: ``arena``, ``pattern``): the study, run, backend and arena exist,
+    ``n_agents`` ≥ 1 and ``seed`` ≥ 0, and the agents fit in the arena (the scenario sampler's bound,
+    :func:`madpinn.scenarios.max_agents`, or the pattern's layout). Raises :class:`TargetError`
+    (a :class:`ConfigError`)."""
     from madpinn.scenarios import UNIFORM, Arena, ScenarioInfeasibleError, generate_scenario, max_agents
 
+    if backend is not None and backend not in backend_names():
+        raise TargetError(f"unknown simulation backend '{backend}' (known: {', '.join(backend_names())})")
+    if n_agents < 1:
+        raise TargetError(f"{n_agents} agents: a cell has at least 1 agent")
+    if seed < 0:
+        raise TargetError(f"seed {seed}: seeds are integers ≥ 0")
     if study is not None:
         if study not in cfg["studies"]:
             raise TargetError(f"unknown study '{study}' (this configuration's studies: {', '.join(sorted(cfg['studies']))})")

@@ -134,7 +134,7 @@ def test_cli_errors_are_one_line_with_the_fix(tmp_path):
     res = madpinn("evaluate", "--config", *cfg, "--study", "nope", "--run", "nominal", "--n-agents", "3", *cell)
     assert_one_line(res, "unknown study 'nope'", code=2)
     res = madpinn("evaluate", "--config", *cfg, "--study", "main", "--run", "nominal", "--n-agents", "5000", *cell)
-    assert_one_line(res, "fewer agents", code=3)
+    assert_one_line(res, "5000 agents do not fit in arena 'small'", "1 to 69", code=2)   # config.check_cell (issue 50)
     args = ["validate-vhat", "--config", *cfg, "--model", f"vhat={tmp_path / 'missing.pt'}", "--out", str(tmp_path / "v.json")]
     assert_one_line(madpinn(*args), "not found", "missing.pt", code=4)
     for res in (madpinn("--debug", *args), madpinn(*args, env={"MADPINN_DEBUG": "1"})):
@@ -151,3 +151,29 @@ def test_command_line_and_result_files_jobs_start_without_the_heavy_libraries():
              "print(' '.join(m for m in ('torch', 'mlflow', 'mujoco', 'cvxpy') if m in sys.modules))")
     proc = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, check=True)
     assert proc.stdout.split() == []
+
+
+def test_ctrl_c_on_a_job_run_by_hand_is_one_line_and_keeps_the_checkpoint(tmp_path):
+    """Issue 50 item 6: Ctrl-C on `train-value` printed a 41-line KeyboardInterrupt traceback
+    (recovery was fine). Now one line and exit 130; the resume checkpoint stays."""
+    import signal
+    import time
+
+    from conftest import subprocess_env
+
+    long = tmp_path / "long.yaml"
+    long.write_text("value_functions: {vs: {iterations: 100000, checkpoint_every: 5}}\ntracking: {enabled: false}\n")
+    out = tmp_path / "models" / "vs.pt"
+    ckpt = out.parent / "checkpoints" / "vs.ckpt.pt"
+    proc = subprocess.Popen([sys.executable, "-m", "madpinn", "train-value", "--config", str(REPO / "config.yaml"),
+                             str(SMOKE), str(long), "--kind", "vs", "--out", str(out), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=subprocess_env(), cwd=tmp_path)
+    deadline = time.monotonic() + 300
+    while not ckpt.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert ckpt.exists(), proc.communicate()[1][-3000:]
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "Traceback" not in err, err[-3000:]
+    assert err.startswith("madpinn: interrupted (Ctrl-C)") and err.count("\n") == 1, err   # all it prints
+    assert ckpt.exists() and not out.exists()

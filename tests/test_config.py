@@ -277,3 +277,62 @@ def test_every_shipped_overlay_validates_on_the_protocol(overlay):
         stack += [REPO / "workflow" / "configs" / "shipped.yaml", REPO / "workflow" / "configs" / "collision_readings.yaml"]
     cfg = load_config([*stack, REPO / "workflow" / "configs" / overlay])
     assert cfg["experiment"]
+
+
+def test_unknown_backend_or_bad_agent_count_is_one_line_in_the_workflow_and_by_hand(tmp_path):
+    """Issue 50 items 4 and 9: an unknown backend in a target path passed the dry run (two trainings
+    planned) and was a 28-line ValueError traceback by hand; `evaluate --n-agents -3` got the hint
+    "use fewer agents". The workflow and the command check a cell alike (config.check_cell)."""
+    from conftest import SMOKE, run_snakemake
+
+    proc = run_snakemake(tmp_path, "-n", "-j1", "results/smoke/eval/nosuchbackend/main/madpinn/n3_seed0.parquet",
+                         check=False)
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr and "train_" not in proc.stdout, proc.stderr[-3000:]
+    assert len(lines) == 1 and "unknown simulation backend 'nosuchbackend'" in lines[0], proc.stderr[-3000:]
+    base = [sys.executable, "-m", "madpinn", "evaluate", "--config", str(REPO / "config.yaml"), str(SMOKE),
+            "--study", "main", "--run", "nominal", "--seed", "0", "--out", str(tmp_path / "x.parquet"), "--no-track"]
+    cases = {("--n-agents", "3", "--backend", "nosuchbackend"): "unknown simulation backend 'nosuchbackend'",
+             ("--n-agents", "-3"): "-3 agents: a cell has at least 1 agent"}
+    for extra, words in cases.items():
+        proc = subprocess.run(base + list(extra), capture_output=True, text=True, env=subprocess_env(), cwd=tmp_path)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr[-3000:]
+        assert proc.stderr.startswith("madpinn: ") and words in proc.stderr and "fewer agents" not in proc.stderr
+    assert list(tmp_path.glob("x*")) == []
+
+
+def test_validate_config_refuses_what_the_workflow_refuses(tmp_path):
+    """Issue 50 item 7: `validate-config` said "config OK" for `paths.results: /proc/r`, which the
+    workflow refuses: the two used different validators. validate_config is now the one validator
+    (Snakefile, validate-config, every job's load_config)."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("paths: {results: /proc/r}\n")
+    proc = subprocess.run([sys.executable, "-m", "madpinn", "validate-config", "--config", str(REPO / "config.yaml"),
+                           str(bad)], capture_output=True, text=True, env=subprocess_env(), cwd=tmp_path)
+    assert proc.returncode == 2 and "config OK" not in proc.stdout, proc.stdout
+    assert proc.stderr.count("\n") == 1 and "'paths.results': '/proc/r' cannot be written" in proc.stderr
+    with pytest.raises(ConfigError, match="cannot be written"):
+        validate_config(deep_merge(load_config([REPO / "config.yaml"]), {"paths": {"figures": "/proc/f"}}))
+
+
+def test_workflow_run_outside_the_repository_or_without_config_yaml_is_one_line(tmp_path):
+    """Issue 50 item 8: `snakemake -s <clone>/Snakefile` from another directory planned everything
+    into <cwd>/results/ (now refused, unless --directory names the directory on purpose); a missing
+    config.yaml got the hint "correct the named key(s)"."""
+    from workflow_helpers import copy_repo
+
+    proc = subprocess.run([sys.executable, "-m", "snakemake", "-n", "-j1", "-s", str(REPO / "Snakefile")],
+                          capture_output=True, text=True, env=subprocess_env(), cwd=tmp_path)
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert len(lines) == 1 and f"snakemake runs in {tmp_path}, not in the repository" in lines[0], proc.stderr[-3000:]
+    assert "--directory" in lines[0] and [p.name for p in tmp_path.iterdir() if p.name != ".snakemake"] == []
+
+    copy = copy_repo(tmp_path / "clone")
+    (copy / "config.yaml").unlink()
+    proc = subprocess.run([sys.executable, "-m", "snakemake", "-n", "-j1"], capture_output=True, text=True,
+                          env={**subprocess_env(), "PYTHONPATH": str(copy)}, cwd=copy)
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("madpinn: ")]
+    assert proc.returncode != 0 and len(lines) == 1, proc.stderr[-3000:]
+    assert "config file not found" in lines[0] and "git checkout -- config.yaml" in lines[0]
+    assert "correct the named key" not in lines[0]

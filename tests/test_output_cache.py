@@ -52,3 +52,46 @@ def test_shipped_profile_dry_run_caches_cells_and_writes_nothing(tmp_path):
     jobs = dict(re.findall(r"^(\w+)\s+(\d+)$", proc.stdout, re.M))
     assert "train_vhat" not in jobs and "train_vs" not in jobs and int(jobs["evaluate"]) > 200   # models from models/
     assert not oc.exists()
+
+
+def test_every_kind_of_damaged_cache_entry_is_named(tmp_path):
+    """Issue 50 item 1: Snakemake restores an entry without reading it. check_entries reads each
+    one whole: a truncated Parquet, a JSON cut short and an NPZ with one flipped byte are each
+    named; the committed entries and the cache's README pass."""
+    import shutil
+
+    import pytest
+
+    from madpinn.output_cache import CacheEntryError, check_entries
+
+    src = sorted((REPO / "output_cache").glob("*_traj.npz"))[0]
+    stem = src.name.removesuffix("_traj.npz")
+    for suffix in ("_parquet.parquet", "_summary.json", "_traj.npz"):
+        shutil.copy2(REPO / "output_cache" / f"{stem}{suffix}", tmp_path / f"{stem}{suffix}")
+    (tmp_path / "README.md").write_text("not an entry")
+    assert check_entries(tmp_path) == 3
+    npz = tmp_path / f"{stem}_traj.npz"
+    good = npz.read_bytes()
+    offset = _npz_data_byte(npz)
+    npz.write_bytes(good[:offset] + bytes([good[offset] ^ 0xFF]) + good[offset + 1:])
+    for name, damage in ((f"{stem}_traj.npz", None),
+                         (f"{stem}_summary.json", lambda b: b[: len(b) // 2]),
+                         (f"{stem}_parquet.parquet", lambda b: b[:500])):
+        path = tmp_path / name
+        if damage is not None:
+            path.write_bytes(damage(path.read_bytes()))
+        with pytest.raises(CacheEntryError, match=name):
+            check_entries(tmp_path)
+        path.unlink()
+
+
+def _npz_data_byte(path):
+    """The offset of a data byte in the middle of an NPZ's first member (a byte only its CRC guards)."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as z:
+        info = z.infolist()[0]
+    raw = path.read_bytes()
+    name_len = int.from_bytes(raw[info.header_offset + 26: info.header_offset + 28], "little")
+    extra_len = int.from_bytes(raw[info.header_offset + 28: info.header_offset + 30], "little")
+    return info.header_offset + 30 + name_len + extra_len + info.compress_size // 2

@@ -283,3 +283,46 @@ def test_replaced_runs_leave_no_empty_artifact_directories(paper_cfg, tmp_path, 
     root = tmp_path / "mlflow" / "artifacts" / wf.experiment
     assert [d for d in root.rglob("*") if d.is_dir() and not any(d.iterdir())] == []
     assert {d.name for d in root.iterdir()} <= {r.info.run_id for r in runs}
+
+
+def test_a_rerun_for_another_results_path_never_deletes_the_first_paths_run(paper_cfg, tmp_path, monkeypatch):
+    """Issue 50 item 2: two results paths sharing one store (the smoke run with `paths.results:
+    results_a`, then `results_b`): the second run of `train/vs` permanently deleted the first's while
+    results_a stayed on disk. Runs are owned by their results path (tag madpinn.results): a rerun
+    replaces its own path's run only."""
+    a = _settings(paper_cfg, tmp_path, monkeypatch, results=str(tmp_path / "results_a"))
+    b = replace(a, results=str(tmp_path / "results_b"))
+    first_a = log_job(a, "train/vs", "train_vs", {})
+    first_b = log_job(b, "train/vs", "train_vs", {})
+    runs = _all_runs(a, "train/vs")
+    assert {r.info.run_id for r in runs} == {first_a, first_b}
+    assert all(r.info.lifecycle_stage == "active" for r in runs)
+    assert {r.data.tags["madpinn.results"] for r in runs} == {a.results, b.results}
+    second_a = log_job(a, "train/vs", "train_vs", {})        # a rerun for results_a replaces results_a's run only
+    assert {r.info.run_id for r in _all_runs(a, "train/vs")} == {second_a, first_b}
+
+
+def test_results_path_of_a_run_is_its_absolute_results_directory(paper_cfg, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    cfg = deep_merge(_cfg(paper_cfg, tmp_path), {"paths": {"results": "results_a"}})
+    assert TrackingSettings.from_config(cfg).results == str(tmp_path / "results_a")
+
+
+def test_replaced_runs_leave_no_logged_model_files(paper_cfg, tmp_path, monkeypatch):
+    """Issue 50 item 9: a purged run's logged MLflow models (≈ 330 kB each for a V̂) stayed in the
+    artifact store, soft-deleted; now they are removed with the run, as `mlflow gc` would."""
+    s = _settings(paper_cfg, tmp_path, monkeypatch)
+    for _ in range(3):
+        with job_run(s, job_key="train/z", rule="train_z") as run:
+            run.finish(models={"net": torch.nn.Linear(4, 3)})
+    (live,) = _all_runs(s, "train/z")
+    c = MlflowClient(s.uri)
+    exp = c.get_experiment_by_name(s.experiment).experiment_id
+    models = c.search_logged_models([exp])
+    assert [m.source_run_id for m in models] == [live.info.run_id]
+    root = tmp_path / "mlflow" / "artifacts" / s.experiment
+    owners = {p.relative_to(root).parts[1] if p.relative_to(root).parts[0] == "models" else p.relative_to(root).parts[0]
+              for p in root.rglob("MLmodel")}
+    assert owners == {models[0].model_id, live.info.run_id}          # the live run's model only
+    assert [d for d in root.rglob("*") if d.is_dir() and not any(d.iterdir())] == []

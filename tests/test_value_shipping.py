@@ -207,3 +207,29 @@ def test_corrupted_or_swapped_shipped_model_stops_a_dry_run_in_one_line(tmp_path
     assert len(lines) == 1 and "models/vhat.pt" in lines[0] and "fix:" in lines[0], proc.stderr[-3000:]
     assert ("corrupted or truncated" if fault == "truncated" else "holds a 'vs' model") in lines[0]
     assert not (tmp_path / "results").exists()
+
+
+def test_ship_models_into_a_directory_it_cannot_write_is_one_line(tmp_path):
+    """Issue 50 item 5: a read-only models/ gave 38 lines of chained OSError tracebacks. The
+    directory is checked before anything is written: one line, exit 2. (A regular file in the
+    path stands for any unwritable directory, also for root; a read-only one is tried unless root,
+    whom permissions do not stop.)"""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import REPO, subprocess_env
+
+    (tmp_path / "a_file").write_text("")
+    targets = [tmp_path / "a_file" / "models"]
+    if os.geteuid() != 0:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        targets.append(ro)
+    for out in targets:
+        proc = subprocess.run([sys.executable, "-m", "madpinn", "ship-models", "--model", f"vs={REPO / 'models' / 'vs.pt'}",
+                               "--out-dir", str(out)], capture_output=True, text=True, env=subprocess_env())
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr[-3000:]
+        assert proc.stderr.startswith(f"madpinn: cannot ship into {out}:") and "nothing was written" in proc.stderr
+    assert sorted(p.name for p in tmp_path.rglob("*")) == sorted(["a_file"] + (["ro"] if len(targets) > 1 else []))

@@ -21,8 +21,10 @@ from typing import Callable
 def _expected() -> list[tuple[type[BaseException], str, int]]:
     """(exception type, fix, exit code), most specific first. Imported lazily: the CLI's
     start-up stays light."""
-    from madpinn.config import ConfigError, TargetError
+    from madpinn.atomic import UnwritableDirectoryError
+    from madpinn.config import ConfigError, ConfigFileError, TargetError, WorkingDirectoryError
     from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
+    from madpinn.output_cache import CacheEntryError
     from madpinn.scenarios import ScenarioInfeasibleError
     from madpinn.simulation.mujoco.backend import PhysicsDivergedError
     from madpinn.tracking import TrackingError
@@ -32,7 +34,12 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
 
     retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
     return [
-        (TargetError, "ask for an output of a configured study, arena and agent count (snakemake -n all lists them)", 2),
+        (TargetError, "ask for a configured study, run, backend, arena and agent count (snakemake -n all lists the "
+                      "workflow's cells)", 2),
+        (WorkingDirectoryError, "run snakemake from the repository root (cd there), or pass --directory DIR to work in "
+                                "another directory on purpose", 2),
+        (ConfigFileError, "name an existing config file (config.yaml of the repository, or an overlay under "
+                          "workflow/configs/), or restore it from git (git checkout -- config.yaml)", 2),
         (ConfigError, "correct the named key(s) (schema: workflow/schemas/config.schema.yaml)", 2),
         (ScenarioInfeasibleError, "use fewer agents or a larger arena (arenas.<name>.half_width) for this study", 3),
         (ShippedModelError, "ship a checkpoint of that model written by madpinn (python -m madpinn ship-models --model "
@@ -43,6 +50,10 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
         (PhysicsDivergedError, "lower sim.dt or sim.mujoco.timestep, or check the controller gains (sim.mujoco)", 5),
         (TrainingDiverged, "training diverged: lower value_functions.<kind>.lr (or output_scale) and rerun", 5),
         (FloatingPointError, "training diverged: lower the learning rate of the named training block and rerun", 5),
+        (CacheEntryError, "restore the named entry from git (git checkout -- <that file>), or delete it: its job then "
+                          "runs again and is cached anew", 7),
+        (UnwritableDirectoryError, "make the directory writable (permissions, a read-write mount) or name another "
+                                   "one (the command's --out-dir / --out)", 2),
         (TrackingError, "start the tracking server named by tracking.uri, or set tracking.enabled: false", 6),
     ]
 
@@ -53,7 +64,7 @@ def debug_requested(argv: list[str]) -> bool:
 
 def one_line(exc: BaseException) -> str:
     """The message of ``exc`` on one line (multi-line config reports joined by '; ')."""
-    parts = [p.strip().lstrip("- ").strip() for p in str(exc).splitlines() if p.strip()]
+    parts = [p.strip().removeprefix("- ").strip() for p in str(exc).splitlines() if p.strip()]   # a bullet, not "-3"
     if len(parts) > 1 and parts[0].endswith(":"):
         return parts[0] + " " + "; ".join(parts[1:])
     return "; ".join(parts) or type(exc).__name__
@@ -79,9 +90,21 @@ def stop_workflow(exc: BaseException) -> None:
 
 
 def run_reporting(func: Callable[[], int], debug: bool) -> int:
-    """Run ``func``; turn an expected error into one line on stderr and its exit code."""
+    """Run ``func``; turn an expected error into one line on stderr and its exit code, and an
+    interrupt (Ctrl-C; SIGTERM inside a job: :class:`madpinn.tracking.JobKilled`) into one line and
+    128 + the signal number (the job's MLflow run is closed KILLED and a training keeps its
+    checkpoint before the interrupt gets here)."""
     try:
         return int(func() or 0)
+    except KeyboardInterrupt as exc:
+        from madpinn.tracking import JobKilled
+
+        if debug:
+            raise
+        killed = isinstance(exc, JobKilled)
+        print(f"madpinn: {'stopped by SIGTERM' if killed else 'interrupted (Ctrl-C)'} — fix: run the same command again "
+              "(a training resumes from its last checkpoint)", file=sys.stderr)
+        return 143 if killed else 130
     except Exception as exc:  # noqa: BLE001 - filtered below; unexpected errors re-raise
         for kind, _, code in _expected():
             if isinstance(exc, kind):

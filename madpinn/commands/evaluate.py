@@ -34,8 +34,10 @@ def evaluate(
     ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
     from dataclasses import replace
 
-    from madpinn.config import ConfigError, method_config, run_agents, run_observation, study_backend, study_sim
+    from madpinn.config import ConfigError, check_cell, method_config, run_agents, run_observation, study_backend, study_sim
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
+
+    check_cell(cfg, n_agents, seed, study=study, run=run, backend=backend)   # as the workflow checks its targets
 
     cs = CellSettings.from_config(cfg, study, run)   # the run's agents override included (run_limits)
     method, mcfg = method_config(cfg, run)

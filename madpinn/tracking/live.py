@@ -9,10 +9,11 @@
 
 - Status: ``FINISHED`` (block ends normally), ``KILLED`` (SIGINT/SIGTERM — the handler is
   installed for the block), ``FAILED`` (any other exception, which propagates).
-- Replacement: when the run closes, every other run of the same ``job_key`` *and source*
-  (``workflow`` or ``manual``, tag ``madpinn.source``) is deleted permanently
-  (:func:`madpinn.tracking.mlflow_store.purge_runs`); a job started by hand never replaces the
-  workflow's run.
+- Replacement: when the run closes, every other run of the same ``job_key``, source
+  (``workflow`` or ``manual``, tag ``madpinn.source``) *and results path* (tag
+  ``madpinn.results``) is deleted permanently (:func:`madpinn.tracking.mlflow_store.purge_runs`);
+  a job started by hand never replaces the workflow's run, and a run of one ``paths.results``
+  never replaces another's sharing the store.
 - Never raises for tracking: if the store fails at any point the run's whole record (params,
   every metric with its timestamp, result files, model directories) is written as a pending-run
   file, logged by the next workflow start (:mod:`madpinn.tracking.record`).
@@ -33,7 +34,8 @@ import time
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
-from madpinn.tracking.mlflow_store import JOB_TAG, SOURCE_TAG, client, experiment_id, git_commit, job_runs, purge_runs
+from madpinn.tracking.mlflow_store import (JOB_TAG, RESULTS_TAG, SOURCE_TAG, client, experiment_id, git_commit, job_runs,
+                                           purge_runs)
 from madpinn.tracking.record import (RunRecord, log_files, log_metric_rows, log_params, now_ms, remove_pending,
                                      write_pending)
 from madpinn.tracking.settings import TrackingSettings
@@ -69,7 +71,7 @@ class JobRun:
         self.settings = settings
         self.enabled = settings.enabled
         tags = {
-            JOB_TAG: job_key, SOURCE_TAG: settings.source, "madpinn.rule": rule,
+            JOB_TAG: job_key, SOURCE_TAG: settings.source, RESULTS_TAG: settings.results, "madpinn.rule": rule,
             "madpinn.config_hash": settings.config_hash, "madpinn.experiment_config": settings.experiment,
             "mlflow.source.git.commit": git_commit() if self.enabled else "", "mlflow.runName": job_key,
             **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, **(tags or {}),
@@ -227,7 +229,8 @@ class JobRun:
         c, run_id = self._client, self.record.run_id
         c.set_terminated(run_id, self.record.status, end_time=self.record.end_ms)
         exp = experiment_id(c, self.settings)
-        replaced = [r for r in job_runs(c, exp, self.record.job_key, self.record.source) if r.info.run_id != run_id]
+        replaced = [r for r in job_runs(c, exp, self.record.job_key, self.record.source, self.settings.results)
+                    if r.info.run_id != run_id]
         purge_runs(c, self.settings, replaced)
 
 

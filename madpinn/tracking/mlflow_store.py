@@ -21,6 +21,7 @@ from madpinn.tracking.settings import TrackingSettings
 
 JOB_TAG = "madpinn.job"
 SOURCE_TAG = "madpinn.source"
+RESULTS_TAG = "madpinn.results"   # the results path that owns a run (absolute); runs are replaced only within it
 
 # Fail fast against an unreachable server instead of MLflow's minutes of exponential backoff.
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "2")
@@ -126,15 +127,19 @@ def init_store(settings: TrackingSettings) -> dict:
     return {"uri": settings.uri, "experiment": settings.experiment, "experiment_id": exp_id}
 
 
-def job_runs(c, exp_id: str, job_key: str, source: str) -> list:
-    """Every run of ``job_key`` from ``source`` (active and soft-deleted). Runs from before the
-    source tag existed count as workflow runs."""
+def job_runs(c, exp_id: str, job_key: str, source: str, results: str | None) -> list:
+    """Every run of ``job_key`` from ``source`` owned by the results path ``results`` (tag
+    :data:`RESULTS_TAG`; active and soft-deleted): the runs a new run of that job replaces. Runs
+    from before the source tag existed count as workflow runs; runs of another results path (another
+    checkout or ``paths.results`` sharing the store) are never returned, and runs from before the
+    results tag existed only for ``results=None``."""
     from mlflow.entities import ViewType
 
     key = job_key.replace("'", "\\'")
     runs = c.search_runs([exp_id], filter_string=f"tags.`{JOB_TAG}` = '{key}'", run_view_type=ViewType.ALL,
                          max_results=1000)
-    return [r for r in runs if r.data.tags.get(SOURCE_TAG, "workflow") == source]
+    return [r for r in runs if r.data.tags.get(SOURCE_TAG, "workflow") == source
+            and r.data.tags.get(RESULTS_TAG) == results]
 
 
 def purge_runs(c, settings: TrackingSettings, runs) -> None:
@@ -149,6 +154,13 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
         for model in c.search_logged_models([run.info.experiment_id],
                                             filter_string=f"source_run_id = '{run.info.run_id}'"):
             c.delete_logged_model(model.model_id)          # the replaced run's models go with it
+            if hasattr(store, "_hard_delete_logged_model"):   # and their files (as mlflow gc)
+                try:
+                    get_artifact_repository(model.artifact_location).delete_artifacts()
+                except Exception:  # noqa: BLE001 - no artifacts, or already gone
+                    pass
+                _remove_empty_dirs(model.artifact_location, model.model_id)
+                store._hard_delete_logged_model(model.model_id)
         if run.info.lifecycle_stage != "deleted":
             c.delete_run(run.info.run_id)
         if hard:
@@ -156,13 +168,14 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
                 get_artifact_repository(run.info.artifact_uri).delete_artifacts()
             except Exception:  # noqa: BLE001 - no artifacts, or already gone (as mlflow gc)
                 pass
-            _remove_empty_run_dir(run.info.artifact_uri, run.info.run_id)
+            _remove_empty_dirs(run.info.artifact_uri, run.info.run_id)
             store._hard_delete_run(run.info.run_id)
 
 
-def _remove_empty_run_dir(artifact_uri: str, run_id: str) -> None:
-    """A purged run's local artifact directories ``…/<run_id>/artifacts`` and ``…/<run_id>``, once
-    empty (``delete_artifacts`` empties them but leaves them: one empty directory per replaced run)."""
+def _remove_empty_dirs(artifact_uri: str, run_id: str) -> None:
+    """A purged run's (or logged model's, ``run_id`` = its model id) local artifact directories
+    ``…/<run_id>/artifacts`` and ``…/<run_id>``, once empty (``delete_artifacts`` empties them but
+    leaves them: one empty directory per replaced run)."""
     from urllib.parse import unquote, urlparse
 
     parsed = urlparse(artifact_uri)

@@ -20,7 +20,8 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from madpinn.tracking.mlflow_store import TrackingError, check_store, client, experiment_id, job_runs, purge_runs
+from madpinn.tracking.mlflow_store import (RESULTS_TAG, TrackingError, check_store, client, experiment_id, job_runs,
+                                           purge_runs)
 from madpinn.tracking.settings import TrackingSettings
 
 PARAMS_PER_BATCH = 100     # MLflow's log_batch limits
@@ -141,7 +142,7 @@ def replay(settings: TrackingSettings, record: RunRecord) -> str | None:
     job is already in the store. Raises on store errors."""
     c = client(settings)
     exp = experiment_id(c, settings)
-    others = job_runs(c, exp, record.job_key, record.source)
+    others = job_runs(c, exp, record.job_key, record.source, record.tags.get(RESULTS_TAG))
     if any(r.info.run_id != record.run_id and (r.info.start_time or 0) > record.start_ms for r in others):
         return None
     run_id = c.create_run(exp, start_time=record.start_ms, tags=record.tags, run_name=record.job_key).info.run_id

@@ -45,6 +45,9 @@ class TrackingSettings:
     """Hash of the whole configuration (tag ``madpinn.config_hash``)."""
     source: str = "manual"
     """``workflow`` or ``manual`` (tag ``madpinn.source``, part of the replacement key)."""
+    results: str | None = None
+    """Absolute ``paths.results`` (tag ``madpinn.results``): the owner of the runs, replaced only by a
+    rerun of the same job for the same results path (never across results paths sharing the store)."""
     flush_every_s: float = 10.0
     """Buffered step metrics are sent at most this often (s) while a job runs."""
 
@@ -59,6 +62,7 @@ class TrackingSettings:
             pending_dir=Path(cfg["paths"]["results"]) / "tracking" / "pending",
             config_hash=config_hash(cfg),
             source=run_source(),
+            results=str(Path(cfg["paths"]["results"]).resolve()),
         )
 
     @property

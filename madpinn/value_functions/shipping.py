@@ -133,9 +133,13 @@ def ship(models: dict, directory: str | Path, validation: dict | None = None, de
     (e.g. a MARL policy's ``training_config_hash``). Every file and report is read and checked
     (:func:`read_model_file`) before anything is written, so a bad file leaves ``directory`` as it
     was; each file and then the manifest are replaced atomically. Returns the manifest."""
-    from madpinn.atomic import atomic_write
+    from madpinn.atomic import UnwritableDirectoryError, atomic_write
+    from madpinn.config import unwritable_reason
 
     directory = Path(directory)
+    reason = unwritable_reason(directory)   # before any read: a read-only models/ is one line, not a traceback
+    if reason:
+        raise UnwritableDirectoryError(f"cannot ship into {directory}: {reason}; nothing was written")
     manifest = read_manifest(directory)
     entries, sources = {}, {}
     for name, src in models.items():   # read and check everything first
@@ -158,13 +162,17 @@ def ship(models: dict, directory: str | Path, validation: dict | None = None, de
         if notes and name in notes:
             entry["note"] = notes[name]
         entries[name], sources[name] = entry, src
-    for name, src in sources.items():
-        dst = directory / f"{name}.pt"
-        if src.resolve() != dst.resolve():
-            atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
-        manifest["models"][name] = entries[name]
-    text = json.dumps(manifest, indent=2, sort_keys=True) + "\n"
-    atomic_write(directory / MANIFEST, lambda tmp: tmp.write_text(text))
+    try:
+        for name, src in sources.items():
+            dst = directory / f"{name}.pt"
+            if src.resolve() != dst.resolve():
+                atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+            manifest["models"][name] = entries[name]
+        text = json.dumps(manifest, indent=2, sort_keys=True) + "\n"
+        atomic_write(directory / MANIFEST, lambda tmp: tmp.write_text(text))
+    except OSError as exc:   # e.g. a full disk: each file is whole (atomic), the manifest possibly stale
+        raise UnwritableDirectoryError(f"cannot ship into {directory}: {exc.strerror or exc} ({exc.filename or directory})"
+                                       ) from exc
     return manifest
 
 

@@ -13,6 +13,7 @@ from madpinn.provenance import plugin_module, registry
 from madpinn.provenance import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
+from snakemake_interface_executor_plugins.settings import ExecMode
 
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
 # where the job's snakemake parses this file again); `conda:` envs, when used, come first.
@@ -44,6 +45,29 @@ TRACKING = f"{RESULTS}/tracking/store.json"
 OUTPUT_CACHE = os.environ.setdefault(
     "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
 )
+def check_output_cache(directory):
+    """Stop before any job when an entry of the output cache cannot be read (madpinn/output_cache.py)."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.output_cache import check_entries
+
+    try:
+        check_entries(directory)
+    except Exception as exc:
+        stop_workflow(exc)
+
+
+# Snakemake restores an entry by a symlink and checks nothing: every entry is read before any job,
+# dry runs included, and an unreadable one stops the run with one line (issue 50 item 1).
+if workflow.workflow_settings.cache is not None and workflow.exec_mode == ExecMode.DEFAULT and os.path.isdir(OUTPUT_CACHE):
+    check_output_cache(OUTPUT_CACHE)
+
+
+def kept(path):
+    """An output under paths.figures, where the repository tracks the protocol run's tables and
+    figures (paper_figures/): Snakemake's update() flag, so that Snakemake neither deletes it before
+    its job runs (the job overwrites it) nor after the job fails (the previous version is restored):
+    a failing job never deletes a committed file (issue 50 item 1)."""
+    return update(path)
 
 # --- what the rule files add, registered in one place and read lazily (when `all`, the evaluate
 # rule and the report build their inputs), so that the order of the includes does not matter ---
@@ -141,7 +165,7 @@ def cell_key(wildcards):
 
 def checked_cell(wildcards):
     """Stop with one line (dry runs too) when an evaluation cell or oracle file asked for by path is
-    outside this configuration: unknown study, run or arena, or more agents than the arena holds
+    outside this configuration: unknown study, run, backend or arena, or more agents than the arena holds
     (madpinn.config.check_cell: the checks validate_config makes of the configured cells)."""
     from madpinn.commands.errors import stop_workflow
     from madpinn.config import TargetError, check_cell
@@ -149,7 +173,7 @@ def checked_cell(wildcards):
     w = dict(wildcards.items())
     try:
         check_cell(config, int(w["n"]), int(w["seed"]), study=w.get("study"), run=w.get("run"), arena=w.get("arena"),
-                   pattern=w.get("pattern"))
+                   pattern=w.get("pattern"), backend=w.get("backend"))
     except TargetError as exc:
         where = (f"{w['study']}/{w['run']}" if "study" in w else f"{w['arena']}/{w.get('pattern', 'uniform')}")
         stop_workflow(TargetError(f"target {where} n{w['n']}_seed{w['seed']}: {exc}"))
@@ -288,6 +312,7 @@ onstart:
 
 # --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
 
+
 def start_tracking(settings, marker):
     """At a real start, under the run lock (skipped when another run holds it: this start then
     stops in `onstart`): the store follows a changed URI, and pending runs are logged once."""
@@ -405,10 +430,10 @@ def table_rule(name, study, kind):
             results=study_results(study),
             oracle=oracle_inputs(study),
         output:
-            csv=f"{FIGURES}/{name}.csv",
-            md=f"{FIGURES}/{name}.md",
-            tex=f"{FIGURES}/{name}.tex",
-            html=report(f"{FIGURES}/{name}.html", caption=f"../report/{name}.rst", category=table_section(name),
+            csv=kept(f"{FIGURES}/{name}.csv"),
+            md=kept(f"{FIGURES}/{name}.md"),
+            tex=kept(f"{FIGURES}/{name}.tex"),
+            html=report(kept(f"{FIGURES}/{name}.html"), caption=f"../report/{name}.rst", category=table_section(name),
                         labels=table_labels(name, study)),
         params:
             config=RESOLVED,

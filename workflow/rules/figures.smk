@@ -11,9 +11,9 @@ if "main" in config["studies"]:
             results=study_results("main"),
             oracle=oracle_inputs("main"),
         output:
-            png=report(f"{FIGURES}/fig_cost_safety.png", caption="../report/fig_cost_safety.rst",
+            png=report(kept(f"{FIGURES}/fig_cost_safety.png"), caption="../report/fig_cost_safety.rst",
                        category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 2", "Shows": "cost vs safety"}),
-            pdf=f"{FIGURES}/fig_cost_safety.pdf",
+            pdf=kept(f"{FIGURES}/fig_cost_safety.pdf"),
         params:
             config=RESOLVED,
             settings=settings_hash("figure", name="fig_cost_safety", study="main"),
@@ -38,9 +38,9 @@ rule fig_trajectories:
         tracking=TRACKING,
         traj=traj_inputs(),
     output:
-        png=report(f"{FIGURES}/fig_trajectories.png", caption="../report/fig_trajectories.rst",
+        png=report(kept(f"{FIGURES}/fig_trajectories.png"), caption="../report/fig_trajectories.rst",
                    category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 3", "Shows": "trajectories"}),
-        pdf=f"{FIGURES}/fig_trajectories.pdf",
+        pdf=kept(f"{FIGURES}/fig_trajectories.pdf"),
     params:
         config=RESOLVED,
         settings=settings_hash("figure", name="fig_trajectories", study=TRAJ["study"]),
@@ -70,10 +70,10 @@ if "large_arena_frontier" in config["studies"]:
             tracking=TRACKING,
             results=study_results("large_arena_frontier"),
         output:
-            png=report(f"{FIGURES}/fig_large_arena_frontier.png", caption="../report/fig_large_arena_frontier.rst",
+            png=report(kept(f"{FIGURES}/fig_large_arena_frontier.png"), caption="../report/fig_large_arena_frontier.rst",
                        category=REPORT_SECTIONS["our_tables"],
                        labels={"Item": "fig_large_arena_frontier", "Shows": "large-arena safety vs cost"}),
-            pdf=f"{FIGURES}/fig_large_arena_frontier.pdf",
+            pdf=kept(f"{FIGURES}/fig_large_arena_frontier.pdf"),
         params:
             config=RESOLVED,
             settings=settings_hash("figure", name="fig_large_arena_frontier", study="large_arena_frontier"),

@@ -12,9 +12,9 @@ if any(s.endswith(CONTACTS_SUFFIX) for s in config["studies"]):
             tracking=TRACKING,
             results=lambda w: sorted({p for s in reading_studies() for p in study_results(s)}),
         output:
-            csv=f"{FIGURES}/table_collision_readings.csv",
-            md=f"{FIGURES}/table_collision_readings.md",
-            html=report(f"{FIGURES}/table_collision_readings.html", caption="../report/table_collision_readings.rst",
+            csv=kept(f"{FIGURES}/table_collision_readings.csv"),
+            md=kept(f"{FIGURES}/table_collision_readings.md"),
+            html=report(kept(f"{FIGURES}/table_collision_readings.html"), caption="../report/table_collision_readings.rst",
                         category=REPORT_SECTIONS["our_tables"],
                         labels={"Item": "table_collision_readings", "Study": "base studies and their _contacts readings"}),
         params:

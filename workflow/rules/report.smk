@@ -12,9 +12,9 @@ rule reproduction_report:
         oracle=lambda w: sorted({p for s in report_studies() for p in oracle_inputs(s)}),
         models=lambda w: sorted({m for s in report_studies() for m in study_models(s)}),
     output:
-        md=REPORT_OUTPUTS[0],
-        json=REPORT_OUTPUTS[1],
-        html=report(REPORT_OUTPUTS[2], caption="../report/reproduction.rst", category=REPORT_SECTIONS["reproduction"],
+        md=kept(REPORT_OUTPUTS[0]),   # kept: a failed job never deletes the committed report (common.smk)
+        json=kept(REPORT_OUTPUTS[1]),
+        html=report(kept(REPORT_OUTPUTS[2]), caption="../report/reproduction.rst", category=REPORT_SECTIONS["reproduction"],
                     labels={"Item": "Reproduction report", "Covers": "every configured table beside the paper's"}),
     params:
         config=RESOLVED,

@@ -105,9 +105,9 @@ rule validate_vs:
         model=str(rules.train_vs.output.model),  # str(): see run_models (shipped overlay)
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
-        png=report(f"{FIGURES}/fig_vs_slices.png", caption="../report/fig_vs_slices.rst",
+        png=report(kept(f"{FIGURES}/fig_vs_slices.png"), caption="../report/fig_vs_slices.rst",
                    category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_slices", "Shows": "V_s slices"}),
-        pdf=f"{FIGURES}/fig_vs_slices.pdf",
+        pdf=kept(f"{FIGURES}/fig_vs_slices.pdf"),
     params:
         config=RESOLVED,
         stem=stem_of("png"),
@@ -154,9 +154,9 @@ rule fig_value_heatmap:
         tracking=TRACKING,
         model=str(rules.train_vhat.output.model),  # str(): see run_models (shipped overlay)
     output:
-        png=report(f"{FIGURES}/fig_value_heatmap.png", caption="../report/fig_value_heatmap.rst",
+        png=report(kept(f"{FIGURES}/fig_value_heatmap.png"), caption="../report/fig_value_heatmap.rst",
                    category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 4", "Shows": "value heatmap"}),
-        pdf=f"{FIGURES}/fig_value_heatmap.pdf",
+        pdf=kept(f"{FIGURES}/fig_value_heatmap.pdf"),
     params:
         config=RESOLVED,
         stem=stem_of("png"),

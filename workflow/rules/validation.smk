@@ -32,9 +32,9 @@ rule validate_vs_grid:
         grid=rules.solve_vs_grid.output.solution,
     output:
         report=f"{RESULTS}/validation/vs_grid.json",
-        png=report(f"{FIGURES}/fig_vs_grid.png", caption="../report/fig_vs_grid.rst",
+        png=report(kept(f"{FIGURES}/fig_vs_grid.png"), caption="../report/fig_vs_grid.rst",
                    category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_grid", "Shows": "V_s vs grid"}),
-        pdf=f"{FIGURES}/fig_vs_grid.pdf",
+        pdf=kept(f"{FIGURES}/fig_vs_grid.pdf"),
     params:
         config=RESOLVED,
         stem=stem_of("png"),
