@@ -107,11 +107,11 @@ if "vhat_budget" in config["studies"]:
             results=study_results("vhat_budget"),
             models=lambda wildcards: [a.split("=", 1)[1] for a in budget_vhat_args(wildcards)],
         output:
-            png=report(f"{FIGURES}/fig_vhat_budget.png", caption="../report/fig_vhat_budget.rst",
+            png=report(kept(f"{FIGURES}/fig_vhat_budget.png"), caption="../report/fig_vhat_budget.rst",
                        category=REPORT_SECTIONS["our_tables"],
                        labels={"Item": "fig_vhat_budget", "Shows": "safety vs V̂ training samples"}),
-            pdf=f"{FIGURES}/fig_vhat_budget.pdf",
-            csv=f"{FIGURES}/fig_vhat_budget.csv",
+            pdf=kept(f"{FIGURES}/fig_vhat_budget.pdf"),
+            csv=kept(f"{FIGURES}/fig_vhat_budget.csv"),
         params:
             config=RESOLVED,
             settings=settings_hash("figure", name="fig_vhat_budget", study="vhat_budget"),

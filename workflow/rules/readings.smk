@@ -46,9 +46,9 @@ if CONTROLLER_STUDIES:
             tracking=TRACKING,
             results=lambda w: sorted({p for s in CONTROLLER_STUDIES for p in study_results(s)}),
         output:
-            csv=f"{FIGURES}/table_controller_readings.csv",
-            md=f"{FIGURES}/table_controller_readings.md",
-            html=report(f"{FIGURES}/table_controller_readings.html", caption="../report/table_controller_readings.rst",
+            csv=kept(f"{FIGURES}/table_controller_readings.csv"),
+            md=kept(f"{FIGURES}/table_controller_readings.md"),
+            html=report(kept(f"{FIGURES}/table_controller_readings.html"), caption="../report/table_controller_readings.rst",
                         category=REPORT_SECTIONS["our_tables"],
                         labels={"Item": "table_controller_readings", "Study": "ctl_* studies"}),
         params:

@@ -47,9 +47,9 @@ rule claims_table:
         tracking=TRACKING,
         report=rules.reproduction_report.output.json,
     output:
-        md=CLAIMS_OUTPUTS[0],
-        json=CLAIMS_OUTPUTS[1],
-        html=report(CLAIMS_OUTPUTS[2], caption="../report/claims.rst", category=REPORT_SECTIONS["reproduction"],
+        md=kept(CLAIMS_OUTPUTS[0]),   # kept: a failed job never deletes the committed claims (common.smk)
+        json=kept(CLAIMS_OUTPUTS[1]),
+        html=report(kept(CLAIMS_OUTPUTS[2]), caption="../report/claims.rst", category=REPORT_SECTIONS["reproduction"],
                     labels={"Item": "Claims of the paper, tested", "Covers": "each claim: cells, figures with intervals, verdict"}),
     params:
         config=RESOLVED,
