@@ -52,8 +52,12 @@ def test_tables_show_both_costs_and_the_oracle_row(small_run):
     assert (orc["cost_mean"] <= ours["cost_all_mean"] + 1e-4).all()
     table = format_table(agg, "safety_by_n")
     assert list(table.columns) == ["Method", "3 agents · Safety", "3 agents · Safe Sc.", "3 agents · Cost ÷T", "3 agents · Cum. cost",
-                                   "3 agents · Cost ÷T all"]
+                                   "3 agents · Cost ÷T all", "3 agents · Infeasible (z_max)"]
     assert table.iloc[-1]["Method"].startswith("Oracle") and table.iloc[-1]["3 agents · Safety"] == "–"
+    # MAD-PINN's infeasible share from the cells' summaries (issue 46); none for the nominal run or the oracle
+    shares = dict(zip(agg["run"], agg["infeasible_mean"]))
+    assert 0.0 <= shares["madpinn"] <= 1.0 and pd.isna(shares["nominal"]) and pd.isna(shares["oracle"])
+    assert table.iloc[-1]["3 agents · Infeasible (z_max)"] == "–" and table.iloc[0]["3 agents · Infeasible (z_max)"].endswith("%")
     assert "±" in table.iloc[0]["3 agents · Cost ÷T"]            # two seeds
 
 

@@ -12,7 +12,6 @@ first scenario, positions every ``sim.record_every`` steps).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Iterable, Mapping
 
@@ -20,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from madpinn.config import study_sim
-from madpinn.evaluation.tables import label_of, load_results, per_seed, run_order, to_markdown
+from madpinn.evaluation.tables import cell_summary, label_of, load_results, per_seed, run_order, to_markdown
 
 METRICS = {"safety": "safety_rate", "safe sc.": "safe_scenarios", "cost ÷T": "cost_time_avg"}
 
@@ -42,8 +41,7 @@ def cell_extras(parquet: str | Path) -> dict:
     """Infeasible share (from the cell's JSON summary, NaN for non-MAD-PINN runs) and speed
     percentiles (from its ``_traj.npz``, NaN when absent) of one cell file."""
     p = Path(parquet)
-    summary = p.with_suffix(".json")
-    stats = json.loads(summary.read_text()).get("policy_stats", {}) if summary.is_file() else {}
+    stats = cell_summary(p).get("policy_stats") or {}
     traj = p.with_name(p.stem + "_traj.npz")
     speeds = recorded_speeds(traj) if traj.is_file() else np.array([np.nan])
     return {"infeasible": float(stats.get("infeasible_fraction", np.nan)),

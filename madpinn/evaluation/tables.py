@@ -24,9 +24,11 @@ Each table is written as ``.csv`` (numeric mean/std columns, oracle rows with ru
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Iterable
 
+import numpy as np
 import pandas as pd
 
 from madpinn.config import method_config
@@ -40,6 +42,8 @@ ORACLE_RUN, ORACLE_LABEL = "oracle", "Oracle (lone-agent lower bound)"
 # first-column header of the ``summary`` tables (what a row is), by table name
 ROW_HEADERS = {"table_update_ablation": "Update period k (steps)", "table_neighbour_ablation": "Neighbour selection"}
 COST_HEADER, CUM_HEADER = "Cost ÷T (time-avg.)", "Cumulative cost ∫ (m·s)"
+INFEASIBLE_HEADER = "Infeasible (z_max)"
+"""MAD-PINN agent-steps with no feasible budget (V̂ > 0 at z_max), where the infeasible branch acts (issue 46)"""
 ALL_HEADER = "Cost ÷T, all agents"
 
 
@@ -158,6 +162,7 @@ def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd
     the first column of ``summary`` tables (e.g. "Update period k (steps)")."""
     cols = (("safety_rate", "Safety"), ("safe_scenarios", "Safe Sc."), ("cost_time_avg", "Cost ÷T"), ("cost", "Cum. cost"),
             ("cost_all_time_avg", "Cost ÷T all"))
+    share = lambda r: "–" if pd.isna(r.get("infeasible_mean", np.nan)) else f"{100 * r['infeasible_mean']:.1f}%"   # noqa: E731
     if kind == "safety_by_n":
         counts = sorted(agg["n_agents"].unique())
         rows = []
@@ -167,6 +172,7 @@ def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd
             for n in counts:
                 for metric, head in cols:
                     row[f"{n} agents · {head}"] = _fmt(by_n.loc[n], metric) if n in by_n.index else "–"
+                row[f"{n} agents · {INFEASIBLE_HEADER}"] = share(by_n.loc[n]) if n in by_n.index else "–"
             rows.append(row)
         return pd.DataFrame(rows)
     if kind == "summary":
@@ -182,6 +188,7 @@ def format_table(agg: pd.DataFrame, kind: str, row_header: str = "Method") -> pd
             "Safety (d ≤ 2r)": [_fmt(r, "safety_rate_2r") for _, r in agg.iterrows()],
             "Safe Sc. (d ≤ 2r)": [_fmt(r, "safe_scenarios_2r") for _, r in agg.iterrows()],
             f"Safety (d ≤ {contact_distance():g} m)": [_fmt(r, "safety_rate_contact") for _, r in agg.iterrows()],
+            INFEASIBLE_HEADER: [share(r) for _, r in agg.iterrows()],
         })
         return pd.DataFrame(table)
     raise ValueError(f"unknown table kind '{kind}' (have {KINDS})")
@@ -212,10 +219,34 @@ def to_latex(table: pd.DataFrame, caption: str) -> str:
     )
 
 
+def cell_summary(parquet: str | Path) -> dict:
+    """The JSON summary written beside a cell's Parquet file (``{}`` when there is none)."""
+    summary = Path(parquet).with_suffix(".json")
+    return json.loads(summary.read_text()) if summary.is_file() else {}
+
+
+def infeasible_shares(result_paths: Iterable[str | Path]) -> pd.DataFrame:
+    """``(run, n_agents, infeasible_mean)``: the share of MAD-PINN agent-steps with no feasible
+    budget (``policy_stats.infeasible_fraction`` of each cell's JSON summary beside its Parquet),
+    mean over seeds; runs without that branch (or cells without a summary) are left out."""
+    rows = []
+    for p in result_paths:
+        d = cell_summary(p)
+        share = (d.get("policy_stats") or {}).get("infeasible_fraction")
+        if share is not None and "run" in d:
+            rows.append({"run": d["run"], "n_agents": int(d["n_agents"]), "infeasible": float(share)})
+    if not rows:
+        return pd.DataFrame(columns=["run", "n_agents", "infeasible_mean"])
+    return pd.DataFrame(rows).groupby(["run", "n_agents"], as_index=False)["infeasible"].mean().rename(
+        columns={"infeasible": "infeasible_mean"})
+
+
 def table_data(result_paths: Iterable[str | Path], cfg: dict, oracle_paths: Iterable[str | Path] = ()) -> pd.DataFrame:
-    """:func:`summarize` of the result files, with the oracle rows appended when given."""
+    """:func:`summarize` of the result files (with MAD-PINN's :func:`infeasible_shares`), the oracle
+    rows appended when given."""
+    result_paths = list(result_paths)
     df = load_results(result_paths)
-    agg = summarize(df, cfg)
+    agg = summarize(df, cfg).merge(infeasible_shares(result_paths), on=["run", "n_agents"], how="left")
     oracle_paths = list(oracle_paths)
     if oracle_paths:
         agg = pd.concat([agg, oracle_summary(load_oracle(oracle_paths), df)], ignore_index=True)
