@@ -126,3 +126,11 @@ def test_docs_layout():
     assert all(p.suffix == ".md" for p in (DOCS / "reference").rglob("*") if p.is_file())
     bad = [p.name for p in (DOCS / "findings").iterdir() if not re.fullmatch(r"\d{4}-\d{2}-\d{2}-[a-z0-9-]+\.md", p.name)]
     assert bad == []
+
+
+def test_the_index_lists_every_page():
+    """docs/README.md links every reference page and every finding."""
+    index = DOCS / "README.md"
+    linked = {(index.parent / m.group(1).partition("#")[0]).resolve() for m in LINK.finditer(_without_code(index.read_text(encoding="utf-8")))}
+    pages = sorted((DOCS / "reference").glob("*.md")) + sorted((DOCS / "findings").glob("*.md"))
+    assert [str(p.relative_to(DOCS)) for p in pages if p.resolve() not in linked] == []
