@@ -19,6 +19,7 @@ FENCE = re.compile(r"^(```|~~~).*?^\1[^\n]*$", re.S | re.M)
 CODE_SPAN = re.compile(r"(`+)(?!`).*?(?<!`)\1(?!`)", re.S)
 EXTERNAL = re.compile(r"^(?:[a-z][a-z0-9+.-]*:|//)", re.I)
 DOCS_PATH = re.compile(r"(?<![\w/.-])docs/[A-Za-z0-9_./-]*[A-Za-z0-9_/]")
+DOCS_JOINED = re.compile(r"[\"']docs[\"']((?:\s*/\s*[\"'][^\"'\n]+[\"'])+)")   # a path joined from quoted parts in code
 # Where a `docs/…` path may be mentioned: hand-written text and code (generated outputs under
 # paper_figures/ and output_cache/ are refreshed from their generators, which are scanned).
 MENTION_ROOTS = ("README.md", "Snakefile", "config.yaml", "docs", "madpinn", "workflow", "tests", "benchmarks",
@@ -93,6 +94,10 @@ def missing_docs_paths(files: list[Path]) -> list[str]:
             if "*" in text[m.end():m.end() + 1] or "YYYY" in path or not path.strip("/").count("/"):
                 continue
             if not (REPO / path).exists():
+                missing.append(f"{f.relative_to(REPO)}:{text.count(chr(10), 0, m.start()) + 1}: {path}")
+        for m in DOCS_JOINED.finditer(text):
+            path = "/".join(["docs", *re.findall(r"[\"']([^\"'\n]+)[\"']", m.group(1))])
+            if "{" not in path and not (REPO / path).exists():
                 missing.append(f"{f.relative_to(REPO)}:{text.count(chr(10), 0, m.start()) + 1}: {path}")
     return missing
 
