@@ -195,6 +195,11 @@ def test_collision_readings_table_from_real_cells(tmp_path):
     for reading in READINGS:
         assert table[reading].between(0, 1).all()
     assert (table["2r · pass"] <= table["r · pass"]).all() and (table["2r · contact"] <= table["r · contact"]).all()
+    # the airframe-contact distance (0.12 m) lies between r and 2r: its safety between theirs, by construction
+    from madpinn.evaluation.readings import CONTACT_COL
+    assert CONTACT_COL == "0.12 m"
+    for phys in ("pass", "contact"):
+        assert (table[f"2r · {phys}"] <= table[f"0.12 m · {phys}"]).all() and (table[f"0.12 m · {phys}"] <= table[f"r · {phys}"]).all()
     gap = mean_gap(table)
     assert gap["r · pass"] == pytest.approx((table["r · pass"] - table["paper_safety"]).abs().mean())
     shown = format_readings(table)

@@ -7,7 +7,9 @@ files hold, beside the paper's value:
 
 - ``r · pass``: collision at centre distance d ≤ r, agents pass through each other (the first protocol);
 - ``2r · pass``: discs of radius r touching (d ≤ 2r), from the same episodes' minimum separations;
-- ``r · contact`` / ``2r · contact``: the same two counts on episodes flown with contact physics
+- ``0.12 m · pass``: the airframes touching (d ≤ 0.12 m, twice the CF2X collision cylinder's radius,
+  :func:`madpinn.evaluation.contact.contact_distance`; issue 47), from the same separations;
+- ``r · contact`` / ``2r · contact`` / ``0.12 m · contact``: the same counts on episodes flown with contact physics
   (``sim.contacts``: CF2X collision cylinders in MuJoCo, frozen agents in the double integrator),
   read from the study ``<base>_contacts`` of each base study.
 
@@ -30,15 +32,20 @@ import numpy as np
 import pandas as pd
 
 from madpinn.config import ConfigError, study_sim
+from madpinn.evaluation.contact import contact_distance
 from madpinn.evaluation.reproduction import paper_row_of, paper_values
 from madpinn.evaluation.tables import label_of, load_results, per_seed, run_order, to_markdown
 
 CONTACTS_SUFFIX = "_contacts"
+CONTACT_COL = f"{contact_distance():g} m"
+"""column stem of the airframe-contact distance (issue 47: the CF2X cylinders touch at d ≤ 0.12 m)"""
 READINGS = {   # column -> (contacts study?, seed figure)
     "r · pass": (False, "safety_rate"),
     "2r · pass": (False, "safety_rate_2r"),
+    f"{CONTACT_COL} · pass": (False, "safety_rate_contact"),
     "r · contact": (True, "safety_rate"),
     "2r · contact": (True, "safety_rate_2r"),
+    f"{CONTACT_COL} · contact": (True, "safety_rate_contact"),
 }
 COSTS = {"cost ÷T all · pass": False, "cost ÷T all · contact": True}
 
@@ -144,7 +151,8 @@ def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
     md.write_text(
         "Safety rate per paper cell under each collision reading (SPEC §1; madpinn/evaluation/readings.py).\n"
         f"Here r = {r:g} m (agents.collision_radius). r · pass: d ≤ r, agents pass through; 2r · pass: discs\n"
-        "of radius r touching (d ≤ 2r), same episodes; r / 2r · contact: the same counts with contact physics\n"
+        f"of radius r touching (d ≤ 2r), same episodes; {CONTACT_COL}: the airframes' collision cylinders touching\n"
+        "(d ≤ that distance); · contact: the same counts on episodes flown with contact physics\n"
         "(sim.contacts). Every method's collision terms (V̂, V_s, MPPI's penalty, DEF-MARL's constraint) use r.\n"
         f"Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
         + to_markdown(format_readings(table)))
