@@ -27,7 +27,7 @@ if _ELSEWHERE:
 
 # Snakemake's YAML error names neither file nor line: parse with madpinn's loader first, which
 # does (file:line:column). Files given by --configfile are parsed by snakemake's command line
-# before this Snakefile runs (docs/reliability.md).
+# before this Snakefile runs (docs/reference/reliability.md).
 try:
     for _path in [DEFAULT_CONFIG, *workflow.configfiles]:
         load_yaml(_path)

@@ -126,7 +126,7 @@ def contact_stages(cfg: dict, scenarios: int = 64, agents: int = 16, steps: int 
     offsets, uniform starts in [-1, 1]² at 1 m, planar velocities uniform in ±2 m/s, hover force):
     MuJoCo's stage timers (ms per step) with contacts off and on, then the process CPU µs per
     drone-step of settings that keep the contact model (and two solver settings) — the ``--stages``
-    table of docs/performance.md."""
+    table of docs/reference/performance.md."""
     import re
 
     from madpinn.simulation.mujoco.model import scenario_offsets, world_xml

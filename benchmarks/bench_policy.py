@@ -5,7 +5,7 @@ For N ∈ {16, 64, 256, 1024} at the density of 256 agents in the large arena ([
 
 - ``batched``: :class:`madpinn.policies.madpinn.MadPinnPolicy` — all agents in one batch, V_s only
   on the in-domain pairs the bounds cannot exclude (issue 37; before it: all in-domain pairs, as in
-  the tables of docs/performance.md dated before 2026-11-26), warm-started bisection (a step right after a warm-up step, with the
+  the tables of docs/reference/performance.md dated before 2026-11-26), warm-started bisection (a step right after a warm-up step, with the
   neighbour update included);
 - ``batched_plain``: the same batch without pruning and without warm start (cold bisection);
 - ``look_ahead``: the overhead (%) of the actuator-lag compensation (``look_ahead: 0.075``, the

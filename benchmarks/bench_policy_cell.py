@@ -3,7 +3,7 @@
 Real episodes (scenarios of a validation seed, default 100; ``sim.dt`` 2.5 ms, policy every step,
 value-based neighbours every 5 steps, ``z_tolerance`` 1e-3, shipped models, no look-ahead) on the
 **double-integrator backend** (MuJoCo was 3 % of a 256-agent cell's time in the profile of
-docs/performance.md; the policy is the same), episodes shortened to ``--episode-s`` (the protocol's
+docs/reference/performance.md; the policy is the same), episodes shortened to ``--episode-s`` (the protocol's
 are 6 s), torch one thread. Variants, each the same scenarios from the same starts:
 
 - ``old``: V_s on every in-domain pair in unpadded chunks, ``torch.topk`` selection (the code

@@ -13,7 +13,7 @@ needs three kinds of V̂ network rows:
 A search that returns the bisection's answer on every input cannot evaluate fewer rows. Its answer
 is a function of V̂'s signs at the midpoints it visits, and where V̂ is not monotone in z no other
 value determines them (the warm search, which evaluates others, returns another index on 7 % of
-agent-steps with the shipped V̂, every time with a non-monotone V̂ in between; ``docs/performance.md``).
+agent-steps with the shipped V̂, every time with a non-monotone V̂ in between; ``docs/reference/performance.md``).
 A rigorous bound on the network's output, ``|N − b_out| ≤ ‖w_out‖₁`` (as ``|sin| ≤ 1``), could
 certify a sign without a row only where the exact terminal term ``max(φ − z, g)`` outweighs
 ``(T − t)·σ·‖w_out‖₁`` = 4.3 (shipped V̂, z_max = 21.5). :func:`certifiable_rows` counts such rows

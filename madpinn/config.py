@@ -502,7 +502,7 @@ def _unwritable_output_paths(cfg: Mapping[str, Any]) -> list[str]:
 
 def backend_names() -> list[str]:
     """The simulation backends a config may name: the schema's ``sim.backend`` enum (where a new
-    backend is added, docs/architecture.md)."""
+    backend is added, docs/reference/architecture.md)."""
     return list(_schema()["properties"]["sim"]["properties"]["backend"]["enum"])
 
 

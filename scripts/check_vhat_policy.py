@@ -56,7 +56,7 @@ def main() -> None:
     steps = int(round(args.seconds / dt))
     # Bystanders parked at their goals far away fill the observation instead of phantoms: with
     # fewer than n real neighbours build_observation puts every phantom at the same corner, so
-    # phantom pairs "collide" (g_d = r > 0) and V̂ > 0 for every z (see docs/value_functions.md).
+    # phantom pairs "collide" (g_d = r > 0) and V̂ > 0 for every z (see docs/reference/value_functions.md).
     far = [[-3.0, 3.0], [3.0, -3.0]]
     cases = {
         "single_agent": (torch.tensor([[[-0.6, -0.4], *far]]), torch.tensor([[[0.7, 0.5], *far]])),

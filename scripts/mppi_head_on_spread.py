@@ -1,7 +1,7 @@
 """Spread of the MPPI head-on test (tests/test_mppi.py::test_head_on_penalty_bends_paths) over
 policy seeds: per seed and λ, the number of the 16 encounters that collide (separation < r) and
 the mean separation (m). Each encounter is a chaotic draw, so the test asserts margins on these
-batch statistics; this prints the distribution the margins are chosen from (docs/reliability.md).
+batch statistics; this prints the distribution the margins are chosen from (docs/reference/reliability.md).
 
     PYTHONPATH=$PWD python scripts/mppi_head_on_spread.py --seeds 0 1 2 3 4 5 6 [--angle-offset 1e-6]
 """

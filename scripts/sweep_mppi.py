@@ -1,4 +1,4 @@
-"""One-at-a-time hyperparameter sweep of the MPPI baseline on a tuning set (docs/mppi.md).
+"""One-at-a-time hyperparameter sweep of the MPPI baseline on a tuning set (docs/reference/mppi.md).
 
 The tuning set uses a seed that no study evaluates (default 100), so the configured
 hyperparameters are not fitted to the reported scenarios. Each setting is a real evaluation

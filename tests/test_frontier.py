@@ -166,7 +166,7 @@ def test_workflow_plans_a_variant_training_only_where_a_study_uses_it(tmp_path):
 
 def test_speed_bound_of_a_run_is_the_global_bound_of_the_earlier_overlay(cells, tmp_path):
     """madpinn-vmax1's cell equals the plain run's cell under an `agents: {v_max: 1}` overlay (the
-    diagnostic of docs/madpinn_policy.md), scenario for scenario: the per-run governor is that mechanism."""
+    diagnostic of docs/reference/madpinn_policy.md), scenario for scenario: the per-run governor is that mechanism."""
     import pandas as pd
 
     cfg, paths = cells

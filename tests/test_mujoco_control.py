@@ -1,6 +1,6 @@
 """Closed-loop behaviour of the cascaded controller on the MuJoCo Crazyflie (issue 5 tests).
 
-Bounds below are the documented figures of docs/mujoco.md (measured, then given a margin).
+Bounds below are the documented figures of docs/reference/mujoco.md (measured, then given a margin).
 """
 
 import numpy as np
@@ -55,7 +55,7 @@ def test_planar_step_settles_without_overshoot():
 def test_bang_bang_double_integrator_tracking():
     # |a| = 4 m/s² per axis, random switching (mean dwell 0.25 s), 3 s, 8 drones
     result = track_reference(make_backend(), bang_bang(8, int(3.0 / DT), 0.25, seed=0))
-    assert result["rms"] < 0.045, result  # documented: RMS ≈ 3 cm (docs/mujoco.md)
+    assert result["rms"] < 0.045, result  # documented: RMS ≈ 3 cm (docs/reference/mujoco.md)
     assert result["max"] < 0.12, result
     assert result["alt_err"] < 0.03, result
 
@@ -72,7 +72,7 @@ def test_chattering_bang_bang_tracking_and_rotor_limits():
 
 
 
-# --- issue 14: how fast the drone follows the policy's acceleration (docs/mujoco.md) -----------
+# --- issue 14: how fast the drone follows the policy's acceleration (docs/reference/mujoco.md) -----------
 
 def test_acceleration_reversal_is_within_a_few_ms_of_the_rotor_limited_bound():
     from madpinn.simulation.mujoco.response import reversal, sign_change_bound_ms

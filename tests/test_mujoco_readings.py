@@ -1,5 +1,5 @@
 """The controller readings of the tracking loop (issue 46, ``sim.mujoco.controller``): each hovers
-and tracks within the figures of docs/mujoco.md ("Controller readings"; measured, then a margin),
+and tracks within the figures of docs/reference/mujoco.md ("Controller readings"; measured, then a margin),
 and each shows what defines it: the Mellinger controller follows the acceleration feed-forward,
 the firmware PID in absolute-position mode caps the speed and tilt and ignores the feed-forward."""
 

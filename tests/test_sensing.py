@@ -1,4 +1,4 @@
-"""One sensing radius for every method (issue 47, docs/protocol.md §8): no policy reads an agent
+"""One sensing radius for every method (issue 47, docs/reference/protocol.md §8): no policy reads an agent
 beyond ``observation.sensing_radius``.
 
 Behavioural check on the shipped models: the ego's control must not change when agents beyond the

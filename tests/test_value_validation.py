@@ -105,7 +105,7 @@ def test_cli_train_validate_figures(tmp_path):
 
 def test_fine_tune_stage_equals_training_from_the_first_stage_model(tmp_path):
     """``fine_tune`` in one job gives the weights of two jobs: the first stage, then ``init_from``
-    it with the stage's schedule (how results/models/vhat.pt was produced, docs/value_functions.md)."""
+    it with the stage's schedule (how results/models/vhat.pt was produced, docs/reference/value_functions.md)."""
     two = tmp_path / "two"
     assert main(["train-value", "--config", *CONFIGS, "--kind", "vhat", "--out", str(two / "vhat.pt"),
                  "--no-track", "--no-progress"]) == 0

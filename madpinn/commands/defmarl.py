@@ -105,6 +105,6 @@ def register(sub) -> None:
                    help="resumable training state: saved at every validation and when stopping, resumed when it exists")
     p.add_argument("--time-limit", type=_seconds, default=None, metavar="SECONDS",
                    help=f"stop after the first iteration that ends past this many seconds, keep --checkpoint and exit "
-                        f"{EXIT_PAUSED}: long trainings as time-boxed pieces (docs/defmarl.md)")
+                        f"{EXIT_PAUSED}: long trainings as time-boxed pieces (docs/reference/defmarl.md)")
     p.add_argument("--init", default=None, metavar="PATH",
                    help="continue this trained DEF-MARL model (weights, normalisers; fresh optimizers) up to ppo.iterations")

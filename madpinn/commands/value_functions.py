@@ -335,7 +335,7 @@ def register(sub) -> None:
     p.add_argument("--stop-after", type=int, default=None, help="stop after this many iterations (testing resume)")
     p.add_argument("--time-limit", type=_seconds, default=None, metavar="SECONDS",
                    help=f"stop after the first iteration that ends past this many seconds, keeping a checkpoint, "
-                        f"and exit {EXIT_PAUSED}: long trainings as time-boxed pieces (docs/value_functions.md)")
+                        f"and exit {EXIT_PAUSED}: long trainings as time-boxed pieces (docs/reference/value_functions.md)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=_train)
 

@@ -104,7 +104,7 @@ def write_controller_readings(result_paths: Iterable[str | Path], cfg: dict, out
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
     table.to_csv(csv, index=False)
     md.write_text(
-        "Every cell under each reading of the paper's tracking loop (issue 46; docs/mujoco.md, \"Controller readings\"):\n"
+        "Every cell under each reading of the paper's tracking loop (issue 46; docs/reference/mujoco.md, \"Controller readings\"):\n"
         "cascaded = ours (the firmware PID's structure, v_d and a_ff fed forward, raised gains, 45°); mellinger = the\n"
         "firmware's Mellinger controller with its gains; firmware_pid = the firmware's PID stack in absolute-position mode\n"
         "(1.1 m/s, 20°). Safety at d ≤ r; cost ÷T over the collision-free agents; infeasible = MAD-PINN agent-steps with\n"

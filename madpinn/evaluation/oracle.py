@@ -19,7 +19,7 @@ sandwich the continuous optimum J*:
   quadratic's bow ``‖s(h−s)/2·u_k‖``, integrated ``h³/12·‖u_k‖``. J* ≤ UB.
 
 The scenario's bound is the mean of LB over its agents. UB − LB bounds the discretisation gap
-(docs/evaluation.md reports it at two resolutions). Agents of a batch are independent blocks of
+(docs/reference/evaluation.md reports it at two resolutions). Agents of a batch are independent blocks of
 one programme (cvxpy with CLARABEL), compiled once per (batch, K) and reused with parameters.
 """
 

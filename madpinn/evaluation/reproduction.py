@@ -104,7 +104,7 @@ def collision_convention(cfg: Mapping) -> str:
                "collided agents freeze)" if cfg["sim"].get("contacts") else "agents pass through each other")
     return (f"collision counted at centre distance d ≤ r = {r:g} m, {physics}; the disc reading d ≤ 2r "
             f"= {2 * r:g} m and the physical-contact reading d ≤ {contact_distance():g} m (the CF2X bodies touch) "
-            "are reported beside it, from the same episodes' minimum separations (docs/collisions.md)")
+            "are reported beside it, from the same episodes' minimum separations (docs/reference/collisions.md)")
 
 
 def reference_run(cfg: Mapping, runs: Iterable[str]) -> str | None:

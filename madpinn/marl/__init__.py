@@ -1,5 +1,5 @@
 """Shared-parameter multi-agent PPO on the batched double integrator (SafeMARL nominal policy,
-and the base DEF-MARL builds on). See ``docs/marl.md``.
+and the base DEF-MARL builds on). See ``docs/reference/marl.md``.
 
 Modules, one concept each:
 

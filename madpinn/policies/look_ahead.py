@@ -1,7 +1,7 @@
 """Actuator-lag compensation for deployment on a lagging plant (extension, not in the paper).
 
 A drone reaches a commanded acceleration only after its attitude loop turns the thrust vector
-(≈ 35–50 ms on the simulated Crazyflie, docs/mujoco.md), so the state the policy measures is
+(≈ 35–50 ms on the simulated Crazyflie, docs/reference/mujoco.md), so the state the policy measures is
 already stale when its command takes effect. With look-ahead τ, each agent's observation is built
 from its own state predicted τ seconds ahead under its last command (the double integrator,
 constant acceleration) and every other agent's state predicted τ ahead at constant velocity

@@ -4,7 +4,7 @@ Every selector maps the global state ``[S, N, 4]`` to neighbour indices ``[S, N,
 ``PHANTOM = −1`` where fewer than n candidates exist; :func:`madpinn.observation.build_observation`
 pads those with the far, motionless phantom). All agents of all scenarios are handled in one batch.
 
-Sensing (issue 47, docs/protocol.md §8): every strategy, like every baseline, considers only the
+Sensing (issue 47, docs/reference/protocol.md §8): every strategy, like every baseline, considers only the
 agents within the one sensing radius ``observation.sensing_radius`` (centre distance ``d_ij ≤
 radius``, the same test as :func:`madpinn.observation.nearest_neighbours`); agents beyond it are
 never read. ``radius=None`` (library default, benchmarks) lifts the limit.
@@ -177,7 +177,7 @@ class DriftMargins:
         return torch.tensor(self.margins, dtype=x.dtype, device=x.device)[b]
 
 
-# Calibration of the lower-bound margin (one source of truth; see docs/performance.md, issue 37).
+# Calibration of the lower-bound margin (one source of truth; see docs/reference/performance.md, issue 37).
 MARGIN_SAMPLES = 2**17     # uniform states of the V_s domain at t = 0 (fixed seed)
 MARGIN_SEED = 37
 MARGIN_BINS = 16           # relative-speed bins over [0, √2·v_range]

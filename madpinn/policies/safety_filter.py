@@ -16,7 +16,7 @@ Per agent i, every policy step:
 Without neighbours in the sensing radius the nominal control passes unchanged.
 
 Two settings give the authors' filter design (Layered-Safe-MARL, Choi, Aloor, Li et al. 2025;
-run ``safemarl-layered``, docs/marl.md), together with ``critical_neighbours = 1``:
+run ``safemarl-layered``, docs/reference/marl.md), together with ``critical_neighbours = 1``:
 
 - ``neighbour_control = "joint"``: each row is agent i's share of the pair's *joint* QP
   ``min ‖u_i − û_i‖² + ‖u_j − û_j‖²  s.t.  a·(u_i − u_j) ≥ b`` around both nominal controls

@@ -9,7 +9,7 @@ value postprocessor ``V ← min(V, ψ)`` after every Runge–Kutta stage gives t
 variational inequality. The grid covers ``|p| ≤ p_range``, ``|v| ≤ v_range`` per axis with an odd
 number of nodes per axis (0 is a node); comparisons use only nodes of an *interior* box, where
 the extrapolating boundary condition does not reach within the horizon (documented in
-``docs/value_functions.md`` with the two-resolution convergence check).
+``docs/reference/value_functions.md`` with the two-resolution convergence check).
 """
 
 from __future__ import annotations

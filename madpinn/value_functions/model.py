@@ -106,7 +106,7 @@ class PairValue(PINNValueFunction):
     the exact V_s lies in — doing nothing is one admissible relative control, so V_s is at least
     the free-drift margin over the remaining horizon, and the minimum over the horizon includes
     τ = t, so V_s ≤ ψ = ‖p‖ − r. The clamp can only move the network toward the exact value (grid
-    reference: −35 % mean error, docs/performance.md); the gradient is the active bound's where
+    reference: −35 % mean error, docs/reference/performance.md); the gradient is the active bound's where
     the clamp acts. Set by :meth:`banded`, a deployment choice (no retraining)."""
 
     band: bool = False

@@ -52,7 +52,7 @@ class TrainSettings:
     obstacle_weight: float
     """Weight of the obstacle penalty ``mean(relu-violation)`` (same norm as the residual) added to
     the residual loss; 0 = the paper's loss. The VI's min passes its gradient to one branch only, so
-    without it nothing pulls V_s down to ψ where the other branch is smaller (docs/value_functions.md)."""
+    without it nothing pulls V_s down to ψ where the other branch is smaller (docs/reference/value_functions.md)."""
 
     @classmethod
     def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":

@@ -40,7 +40,7 @@ TRACKING = f"{RESULTS}/tracking/store.json"
 # Snakemake's between-workflow output cache (`--cache`; on in profiles/shipped): evaluation cells
 # and oracle bounds are stored under their provenance hash (rule code, params, the bytes of source
 # inputs such as the shipped models, recursively the producing jobs) and restored from there when
-# the same job comes again, on any machine that has the directory (docs/reliability.md). Only read
+# the same job comes again, on any machine that has the directory (docs/reference/reliability.md). Only read
 # when --cache is given; $SNAKEMAKE_OUTPUT_CACHE, when set, wins over paths.output_cache.
 OUTPUT_CACHE = os.environ.setdefault(
     "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
@@ -200,7 +200,7 @@ def eval_priority(wildcards):
 
 
 def eval_runtime(wildcards):
-    """Slurm time limit (min) of one cell: ≤ 200 µs per agent-step (docs/performance.md), ×2 margin."""
+    """Slurm time limit (min) of one cell: ≤ 200 µs per agent-step (docs/reference/performance.md), ×2 margin."""
     return 10 + int(2 * 200e-6 * _cell_size(wildcards) / 60)
 
 

@@ -1,7 +1,7 @@
 # DEF-MARL (issue 8): one training job per variant (defmarl-n3: 3 agents, defmarl-n8: 8 agents);
 # evaluation jobs of run defmarl-<variant> depend on that variant's model only.
 # CPU budget (paper config, 1 100 iterations, 1 thread): ~1 h per model on the 2-core CI-class machine
-# (docs/defmarl.md); smoke: seconds.
+# (docs/reference/defmarl.md); smoke: seconds.
 if "defmarl" in config["methods"]:
     DEFMARL_VARIANTS = sorted(config["methods"]["defmarl"]["variants"])
     for _v in DEFMARL_VARIANTS:

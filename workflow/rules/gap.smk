@@ -1,7 +1,8 @@
 # Gap decomposition (issue 14): a table of the cells of the studies `gap_decomposition.studies`
 # lists (MAD-PINN with the same V̂ / V_s on each backend, one deployment cause switched per run,
 # validation seeds; studies.gap_*, `in_all: false`). The evaluate rule computes the cells like any
-# other (cache, parallel cells, an MLflow run each); this job only builds the table. Not part of all:
+# other (cache, parallel cells, an MLflow run each); this job only builds the table, under
+# paths.figures (the protocol's committed copy: paper_figures/gap_decomposition/). Not part of all:
 #   snakemake -j2 gap_decomposition [--configfile workflow/configs/smoke.yaml]
 if config.get("gap_decomposition"):
 
@@ -11,9 +12,9 @@ if config.get("gap_decomposition"):
             results=[p.replace(".parquet", ".json") for s in config["gap_decomposition"]["studies"]
                      for p in study_results(s)],
         output:
-            csv=f"{RESULTS}/gap/decomposition.csv",
-            md=f"{RESULTS}/gap/decomposition.md",
-            json=f"{RESULTS}/gap/decomposition.json",
+            csv=kept(f"{FIGURES}/gap_decomposition/decomposition.csv"),
+            md=kept(f"{FIGURES}/gap_decomposition/decomposition.md"),
+            json=kept(f"{FIGURES}/gap_decomposition/decomposition.json"),
         params:
             config=RESOLVED,
             out_dir=out_dir_of("csv"),

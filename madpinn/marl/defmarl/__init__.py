@@ -1,6 +1,6 @@
 """DEF-MARL baseline (SPEC §8): distributed epigraph-form MARL on the shared PPO trainer.
 
-Public anchor: MIT-REALM/def-marl (Zhang et al. 2025). See ``docs/defmarl.md``.
+Public anchor: MIT-REALM/def-marl (Zhang et al. 2025). See ``docs/reference/defmarl.md``.
 
 - :mod:`epigraph` — z sampling, constraint h and cost l per period, the Dec-EFOCP λ-returns
   (discounted-max constraint targets, cost targets, combined ``max(max V_h, V_l − z)``).

@@ -1,5 +1,5 @@
 """Cascaded position → attitude controller with the Crazyflie firmware's structure, vectorised
-over all drones in numpy (SPEC §7, ``docs/mujoco.md``).
+over all drones in numpy (SPEC §7, ``docs/reference/mujoco.md``).
 
 Structure of the firmware's PID controller (``position_controller_pid.c`` + ``attitude_pid_controller.c``
 + ``power_distribution``), in SI units:
@@ -12,7 +12,7 @@ Structure of the firmware's PID controller (``position_controller_pid.c`` + ``at
 4. rate loop: ``τ = J ⊙ K_rate ⊙ (ω_d − ω)``;
 5. mixer: rotor thrusts ``f = M⁻¹ [T, τ]``, each clipped to ``[0, f_max]``.
 
-Differences from the firmware (documented in ``docs/mujoco.md``): gains are SI and tuned for the
+Differences from the firmware (documented in ``docs/reference/mujoco.md``): gains are SI and tuned for the
 paper's 4 m/s² bang-bang accelerations (faster attitude loop), no integral terms (the model is
 exact, gravity is fed forward), every loop runs at the physics rate, and the acceleration
 feed-forward enters the velocity loop as in the firmware's full-state setpoints.
@@ -68,7 +68,7 @@ class RotorMixer:
 
     def mix(self, thrust: np.ndarray, torque: np.ndarray) -> np.ndarray:
         """Collective thrust ``[M]`` (N) and body torques ``[M, 3]`` (N·m) -> rotor thrusts
-        ``[M, 4]``, each clipped to ``[0, f_max]`` (no prioritisation; docs/mujoco.md compares
+        ``[M, 4]``, each clipped to ``[0, f_max]`` (no prioritisation; docs/reference/mujoco.md compares
         measured alternatives)."""
         wrench = np.concatenate([thrust[:, None], torque], axis=1)
         return np.clip(wrench @ self._mixer_inv_t, 0.0, self.f_max)

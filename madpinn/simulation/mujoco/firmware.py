@@ -1,6 +1,6 @@
 """Crazyflie firmware constants (bitcraze/crazyflie-firmware, ``platform_defaults_cf2.h``,
 ``controller_mellinger.c``, ``position_controller_pid.c``, ``attitude_pid_controller.c``) and
-their conversion to SI for our Crazyflie model (issue 46, ``docs/mujoco.md``, "Controller readings").
+their conversion to SI for our Crazyflie model (issue 46, ``docs/reference/mujoco.md``, "Controller readings").
 
 Units. The firmware commands each motor in PWM counts and forms torques with the legacy power
 distribution (``power_distribution_quadrotor.c``: motor ``m_k = thrust ∓ roll/2 ± pitch/2 ± yaw``).

@@ -17,7 +17,7 @@ Per physics step, for every drone (numpy float64; firmware units converted by
    the firmware's ``*_INTEGRATION_LIMIT``; counts → N·m (:func:`torque_per_count`);
 5. the shared mixer.
 
-Differences from the firmware (``docs/mujoco.md``): one rate for every loop (the physics rate,
+Differences from the firmware (``docs/reference/mujoco.md``): one rate for every loop (the physics rate,
 instead of 100 Hz position and 500 Hz attitude), no low-pass filters, exact state, yaw setpoint 0,
 and no derivative term in the rate loop (``PID_ROLL_RATE_KD = 2.5``): our rotors have no lag, and
 on them that term feeds each step's rate change back with a per-step gain ≈ 1.1 (> 1), a growing

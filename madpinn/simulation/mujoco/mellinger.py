@@ -12,7 +12,7 @@ Per physics step, for every drone (numpy float64):
    like the firmware, then in N·m by :func:`torque_per_count`;
 5. the shared mixer (:class:`~madpinn.simulation.mujoco.controller.RotorMixer`).
 
-Differences from the firmware (``docs/mujoco.md``): standard right-handed body axes instead of the
+Differences from the firmware (``docs/reference/mujoco.md``): standard right-handed body axes instead of the
 firmware's sign flips of pitch (they cancel in the firmware), one rate for all loops (the physics
 rate, instead of 500 Hz), exact state instead of the state estimator, rotors clipped by the mixer,
 and no ``kd_omega_rp`` term (a derivative of the measured body rate): our rotors have no lag, and

@@ -1,6 +1,6 @@
 """Our own MJCF of a Crazyflie 2.x and of worlds holding many of them (SPEC §7).
 
-Physical facts (public, see ``docs/mujoco.md``): mass 0.027 kg, arm (centre to rotor axis)
+Physical facts (public, see ``docs/reference/mujoco.md``): mass 0.027 kg, arm (centre to rotor axis)
 0.0397 m, inertia diag(1.4e-5, 1.4e-5, 2.17e-5) kg·m², four rotors in X layout, thrust-to-weight
 2.25, yaw moment / thrust ratio km/kf = 0.025 m. The body frame is x forward, y left, z up; the
 centre of mass is the body origin, so rotor forces can be applied as generalised forces on the

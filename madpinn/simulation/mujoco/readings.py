@@ -1,7 +1,7 @@
 """The controller readings of the paper's tracking loop (``sim.mujoco.controller``, issue 46):
 the paper sends ``(p_d, v_d)`` to "the onboard cascaded position–attitude controller (identical to
 the Crazyflie firmware loop)" and cites Mellinger & Kumar; which firmware controller it means is
-open, so each reading is a setting (``docs/mujoco.md``, "Controller readings"):
+open, so each reading is a setting (``docs/reference/mujoco.md``, "Controller readings"):
 
 - ``cascaded``: the firmware PID's structure with ``v_d`` and ``a_ff`` fed forward, raised gains
   and a 45° tilt limit (:class:`~madpinn.simulation.mujoco.controller.CascadedController`, the

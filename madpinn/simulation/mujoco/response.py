@@ -1,7 +1,7 @@
 """Acceleration-tracking response of the simulated Crazyflie (issue 14): how fast the drone
 follows the policy's acceleration, and the physical bound on it.
 
-Used by ``benchmarks/bench_tracking.py`` (figures in docs/mujoco.md) and the tracking tests.
+Used by ``benchmarks/bench_tracking.py`` (figures in docs/reference/mujoco.md) and the tracking tests.
 All functions drive a real :class:`~madpinn.simulation.mujoco.backend.MujocoBackend`.
 """
 
