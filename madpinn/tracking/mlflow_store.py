@@ -151,6 +151,8 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
     store = _get_store(settings.uri)
     hard = hasattr(store, "_hard_delete_run")
     for run in runs:
+        for version in c.search_model_versions(filter_string=f"run_id = '{run.info.run_id}'"):
+            c.delete_model_version(version.name, version.version)   # its registry versions first
         for model in c.search_logged_models([run.info.experiment_id],
                                             filter_string=f"source_run_id = '{run.info.run_id}'"):
             c.delete_logged_model(model.model_id)          # the replaced run's models go with it
