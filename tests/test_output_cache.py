@@ -60,10 +60,10 @@ def test_cell_is_restored_from_the_cache_in_another_directory_and_recomputed_whe
     provenance = entries[0].split("_")[0]
     assert _track_cells(first) == {"enabled": True, "cells": 1, "logged": 0, "tagged": 1}
     computed, _ = _cell_run(first)
-    assert computed.data.tags["madpinn.restored"] == "false" and computed.data.tags["madpinn.provenance"] == provenance
+    assert computed.data.tags["madpinn.restored"] == "false" and computed.data.tags["madpinn.provenance_hash"] == provenance
     assert _track_cells(second) == {"enabled": True, "cells": 1, "logged": 1, "tagged": 0}
     restored, client = _cell_run(second)
-    assert restored.data.tags["madpinn.restored"] == "true" and restored.data.tags["madpinn.provenance"] == provenance
+    assert restored.data.tags["madpinn.restored"] == "true" and restored.data.tags["madpinn.provenance_hash"] == provenance
     assert restored.data.params == computed.data.params
     figures = {"safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg", "min_separation"}
     assert figures <= set(restored.data.metrics) and restored.data.metrics == computed.data.metrics

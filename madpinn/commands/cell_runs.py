@@ -5,7 +5,7 @@ A computed cell's ``evaluate`` job logs its live run (:mod:`madpinn.commands.eva
 restored from the output cache (``--cache``, profile ``shipped``) runs no job, so
 ``track-cells`` (rule ``track_cells``, after every cell) logs it from its files — the same job key,
 params (:func:`cell_record`), metrics (:func:`cell_metrics`) and artifacts — tagged
-``madpinn.restored=true``. Every cell run carries ``madpinn.provenance``, the Snakemake provenance
+``madpinn.restored=true``. Every cell run carries ``madpinn.provenance_hash``, the Snakemake provenance
 hash it is cached under (the name of the cache entry its output links to), once it is in the
 output cache. Results stay files first: the runs are built from the cell's files.
 """
@@ -21,7 +21,7 @@ from madpinn.commands.args import add_config_arg, config_of
 from madpinn.commands.finish import JobRecord, finish, job, write_json
 
 RESTORED_TAG = "madpinn.restored"          # "true": restored from the output cache, "false": computed here
-PROVENANCE_TAG = "madpinn.provenance"      # Snakemake's provenance hash of the cell (its cache entry)
+PROVENANCE_TAG = "madpinn.provenance_hash"      # Snakemake's provenance hash of the cell (its cache entry)
 LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg",
           "safety_rate_2r", "safe_scenarios_2r", "elapsed_s", "policy_us_per_agent_step")
 """Figures of a cell's JSON summary logged as metrics (with ``min_separation`` from its scenarios

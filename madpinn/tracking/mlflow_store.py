@@ -106,7 +106,7 @@ NOTE_TAG = "mlflow.note.content"
 EXPERIMENT_NOTE = (
     "madpinn: one run per workflow job (docs/tracking.md). **The paper's cells**: search "
     "`tags.madpinn.rule = 'evaluate'`, one run per (study, run, N, seed), computed here or restored from "
-    "output_cache/ (tag `madpinn.restored`, provenance hash `madpinn.provenance`). **The paper's columns** "
+    "output_cache/ (tag `madpinn.restored`, provenance hash `madpinn.provenance_hash`). **The paper's columns** "
     "(Columns menu): metrics `safety_rate` (Tables I–II safety), `safe_scenarios`, `cost_time_avg` (the "
     "paper's cost), `cost`, `cost_all_time_avg`, `min_separation` (m), `infeasible_share` (MAD-PINN); params "
     "`study`, `run`, `n_agents`, `seed`. **Training curves**: runs `train/*` and `install/*` (shipped models, "
