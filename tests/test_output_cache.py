@@ -1,7 +1,9 @@
 """Snakemake's between-workflow output cache (`--cache`, profiles/shipped): a cell computed in one
-working directory is restored, not recomputed, in another that shares the cache; a changed setting
-of the cell computes it anew; a dry run with the profile writes nothing."""
+working directory is restored, not recomputed, in another that shares the cache, and is an MLflow
+run there too (restored=true, the computed run's params and metrics); a changed setting of the
+cell computes it anew; a dry run with the profile writes nothing."""
 
+import json
 import re
 import subprocess
 import sys
@@ -19,6 +21,25 @@ def _run(workdir, cache, *extra):
     return run_snakemake(workdir, "-j1", CELL, *CACHED, env={"SNAKEMAKE_OUTPUT_CACHE": str(cache)}, **({"configfiles": extra} if extra else {}))
 
 
+def _track_cells(workdir):
+    """The rule track_cells' command for the one cell (the rule itself needs every cell of `all`)."""
+    proc = subprocess.run([sys.executable, "-m", "madpinn", "track-cells", "--config", "results/smoke/config.resolved.yaml",
+                           "--cells", CELL, "--out", "results/smoke/tracking/cells.json"], cwd=workdir, capture_output=True,
+                          text=True, timeout=600, env=subprocess_env({"MADPINN_TRACKING_SOURCE": "workflow"}))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads((workdir / "results/smoke/tracking/cells.json").read_text())
+
+
+def _cell_run(workdir):
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient(f"sqlite:///{workdir / 'mlflow' / 'mlflow.db'}")
+    exp = client.get_experiment_by_name("madpinn-smoke")
+    runs = client.search_runs([exp.experiment_id], "tags.`madpinn.job` = 'evaluate/mujoco/scaling/nominal/n64/seed0'")
+    assert len(runs) == 1
+    return runs[0], client
+
+
 def test_cell_is_restored_from_the_cache_in_another_directory_and_recomputed_when_its_settings_change(tmp_path):
     cache = tmp_path / "cache"
     cache.mkdir()
@@ -33,6 +54,23 @@ def test_cell_is_restored_from_the_cache_in_another_directory_and_recomputed_whe
     log = second / "results/smoke/logs/evaluate/mujoco/scaling/nominal/n64_seed0.log"
     assert not log.exists() or log.stat().st_size == 0       # the cell's command (it tees its output) never ran
     pd.testing.assert_frame_equal(pd.read_parquet(first / CELL), pd.read_parquet(second / CELL))
+
+    # MLflow: the computed cell's run gets its provenance hash; the restored cell, which ran no job,
+    # becomes a run with the same params, metrics and files, tagged restored=true
+    provenance = entries[0].split("_")[0]
+    assert _track_cells(first) == {"enabled": True, "cells": 1, "logged": 0, "tagged": 1}
+    computed, _ = _cell_run(first)
+    assert computed.data.tags["madpinn.restored"] == "false" and computed.data.tags["madpinn.provenance_hash"] == provenance
+    assert _track_cells(second) == {"enabled": True, "cells": 1, "logged": 1, "tagged": 0}
+    restored, client = _cell_run(second)
+    assert restored.data.tags["madpinn.restored"] == "true" and restored.data.tags["madpinn.provenance_hash"] == provenance
+    assert restored.data.params == computed.data.params
+    figures = {"safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg", "min_separation"}
+    assert figures <= set(restored.data.metrics) and restored.data.metrics == computed.data.metrics
+    assert 0 < restored.data.metrics["min_separation"] == pd.read_parquet(second / CELL)["min_separation"].min()
+    files = {a.path for a in client.list_artifacts(restored.info.run_id)}
+    assert files == {"n64_seed0.parquet", "n64_seed0.json", "n64_seed0_traj.npz"}
+    assert _track_cells(second)["logged"] == 0 and _cell_run(second)[0].info.run_id == restored.info.run_id   # once
 
     overlay = tmp_path / "more_scenarios.yaml"                 # a setting the cell reads: a new entry
     overlay.write_text(yaml.safe_dump({"studies": {"scaling": {"scenarios": 3}}}))

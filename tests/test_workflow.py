@@ -23,7 +23,8 @@ def _job_counts(workdir: Path) -> Counter:
 @pytest.fixture(scope="module")
 def smoke_run(tmp_path_factory):
     workdir = tmp_path_factory.mktemp("smoke")
-    run_snakemake(workdir, "-j2", "all")
+    proc = run_snakemake(workdir, "-j2", "all")
+    (workdir / "run_stdout.txt").write_text(proc.stdout)
     return workdir
 
 
@@ -58,6 +59,49 @@ def test_smoke_dag_produces_tables_and_one_run_per_job(smoke_run, smoke_cfg):
     evals = [k for k in counts if k.startswith("evaluate/")]
     assert len(evals) == _expected_evaluations(smoke_cfg) and set(counts.values()) == {1}
     assert {"table/table_safety_scaling", "figure/fig_cost_safety", "figure/fig_trajectories"} <= set(counts)
+
+
+def test_every_cell_and_network_is_in_mlflow_and_committed_outputs_carry_no_commit(smoke_run, smoke_cfg):
+    """track_cells saw every cell of `all` (here all computed: their own runs, restored=false, with
+    the cell's figures); every trained network is a registered model; the report and claims name no
+    commit (it is in results/…/provenance/, with each file's sha256), so a rerun at another commit
+    leaves them byte-identical."""
+    import hashlib
+    import json
+
+    ending = [ln for ln in (smoke_run / "run_stdout.txt").read_text().splitlines() if ln.startswith("madpinn: ")]
+    assert [ln.split()[1] for ln in ending] == ["tables", "report", "MLflow"]      # where everything is, at the end
+    assert f"ui --backend-store-uri sqlite:///{smoke_run / 'mlflow' / 'mlflow.db'}" in ending[-1]
+    marker = json.loads((smoke_run / "results/smoke/tracking/cells.json").read_text())
+    assert marker == {"enabled": True, "cells": _expected_evaluations(smoke_cfg), "logged": 0, "tagged": 0}
+    client = MlflowClient(f"sqlite:///{smoke_run / 'mlflow' / 'mlflow.db'}")
+    exp = client.get_experiment_by_name("madpinn-smoke")
+    cells = client.search_runs([exp.experiment_id], "tags.`madpinn.rule` = 'evaluate'", max_results=1000)
+    assert len(cells) == marker["cells"] and {r.data.tags["madpinn.restored"] for r in cells} == {"false"}
+    assert all({"safety_rate", "safe_scenarios", "cost", "cost_all", "min_separation"} <= set(r.data.metrics) for r in cells)
+    assert any("infeasible_share" in r.data.metrics for r in cells if r.data.params["method"] == "madpinn")
+    registered = {m.name: m.latest_versions for m in client.search_registered_models()}
+    assert {f"madpinn-smoke.{n}" for n in ("vs", "vhat", "safemarl_nominal", "defmarl_n3", "defmarl_n8")} <= set(registered)
+    figs = smoke_run / "results" / "smoke" / "paper_figures"
+    for job in ("reproduction", "claims"):
+        side = json.loads((smoke_run / f"results/smoke/provenance/report__{job}.json").read_text())
+        sha = side["commit"].removesuffix("-dirty")
+        assert len(sha) == 40 and set(map(lambda f: Path(f).name, side["files"])) == {f"{job}.{e}" for e in ("json", "md", "html")}
+        for f, digest in side["files"].items():
+            data = (figs / Path(f).name).read_bytes()
+            assert hashlib.sha256(data).hexdigest() == digest and sha.encode() not in data
+
+
+def test_a_second_run_leaves_the_committed_outputs_byte_identical(smoke_run):
+    """Rerunning a table, a figure, the report and the claims changes no byte of them."""
+    figs = smoke_run / "results" / "smoke" / "paper_figures"
+    before = {p.name: p.read_bytes() for p in figs.iterdir() if p.is_file()}
+    proc = run_snakemake(smoke_run, "-j2", "table_safety_scaling", "fig_cost_safety", "claims_table",
+                         "--forcerun", "table_safety_scaling", "fig_cost_safety", "reproduction_report")
+    assert len(re.findall(r"^(local)?rule (table_safety_scaling|fig_cost_safety|reproduction_report|claims_table):",
+                          proc.stdout + proc.stderr, re.M)) == 4
+    after = {p.name: p.read_bytes() for p in figs.iterdir() if p.is_file()}
+    assert set(after) == set(before) and [n for n in before if after[n] != before[n]] == []
 
 
 def test_rerun_replaces_runs_without_duplicates(smoke_run, smoke_cfg):

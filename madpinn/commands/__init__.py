@@ -20,6 +20,7 @@ from madpinn.commands.errors import debug_requested, run_reporting
 COMMAND_MODULES = [
     "madpinn.commands.setup",  # validate-config, tracking-init
     "madpinn.commands.evaluate",  # evaluate
+    "madpinn.commands.cell_runs",  # track-cells
     "madpinn.commands.outputs",  # table, figure, oracle, reproduction
     "madpinn.commands.value_functions",  # train-value, validate-vs, validate-vhat, fig-value-heatmap, solve-vs-grid,
     #                                     validate-vs-grid, verify-vhat, ship-models, install-shipped

@@ -6,11 +6,9 @@ from pathlib import Path
 from typing import Mapping
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models
-from madpinn.commands.finish import JobRecord, finish, job
+from madpinn.commands.finish import finish, job
 
 ECHO = ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")
-LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg",
-          "safety_rate_2r", "safe_scenarios_2r", "elapsed_s", "policy_us_per_agent_step")
 
 
 def evaluate(
@@ -34,30 +32,26 @@ def evaluate(
     ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
     from dataclasses import replace
 
-    from madpinn.config import ConfigError, check_cell, method_config, run_agents, run_observation, study_backend, study_sim
+    from madpinn.commands.cell_runs import cell_metrics, cell_record
+    from madpinn.config import ConfigError, check_cell, method_config, study_backend
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     check_cell(cfg, n_agents, seed, study=study, run=run, backend=backend)   # as the workflow checks its targets
 
     cs = CellSettings.from_config(cfg, study, run)   # the run's agents override included (run_limits)
-    method, mcfg = method_config(cfg, run)
+    method, _ = method_config(cfg, run)
     if collision_events and not cs.collision_events:
         if method != "madpinn":
             raise ConfigError(f"--collision-events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
         cs = replace(cs, collision_events=True)
     backend = backend or study_backend(cfg, study)
-    record = JobRecord(
-        job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
-        wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
-        params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
-                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": run_observation(cfg, run),
-                "agents": run_agents(cfg, run)},
-    )
+    # the same key, params and metrics as a cell restored from the output cache (madpinn/commands/cell_runs.py)
+    record = cell_record(cfg, study, run, n_agents, seed, backend, restored=False)
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
         record.artifacts = write_cell(cell, out)
         s = cell.summary
-        record.metrics = {**{k: s[k] for k in LOGGED}, **{f"policy_{k}": v for k, v in s.get("policy_stats", {}).items()}}
+        record.metrics = cell_metrics(record.artifacts[0])
         shown = {k: s[k] for k in ECHO}
         if cs.collision_events:   # the onsets' summary (madpinn/evaluation/collisions.py); every event is in the JSON
             from madpinn.evaluation.collisions import summarise

@@ -36,6 +36,10 @@ class JobRecord:
     """step index of the final metrics (iterations done, for training jobs)"""
     models: Mapping[str, Any] = field(default_factory=dict)
     """``torch.nn.Module`` s logged with the ``mlflow.pytorch`` flavour"""
+    register: Mapping[str, str] = field(default_factory=dict)
+    """model artifact name -> model name: registered in the Model Registry as ``<experiment>.<name>``"""
+    tags: Mapping[str, str] = field(default_factory=dict)
+    """extra MLflow tags of the run (e.g. ``madpinn.restored``)"""
 
 
 def write_json(path: str | Path, obj: Any) -> Path:
@@ -46,6 +50,20 @@ def write_json(path: str | Path, obj: Any) -> Path:
     return path
 
 
+def write_commit_record(cfg: Mapping, job_key: str, files: Sequence[str | Path]) -> Path:
+    """``<paths.results>/provenance/<job>.json``: the git commit and config hash that wrote
+    ``files``, with each file's sha256. The files themselves (committed outputs under
+    ``paths.figures``) carry no commit, so identical inputs give identical bytes and a run never
+    dirties the repository; the commit is also the job's MLflow tag ``mlflow.source.git.commit``."""
+    from madpinn.checksum import sha256
+    from madpinn.config import config_hash
+    from madpinn.tracking.mlflow_store import git_commit
+
+    out = Path(cfg["paths"]["results"]) / "provenance" / (job_key.replace("/", "__") + ".json")
+    return write_json(out, {"job": job_key, "commit": git_commit(), "config_hash": config_hash(cfg),
+                            "files": {str(f): sha256(f) for f in files}})
+
+
 @contextmanager
 def job(cfg: Mapping, record: JobRecord, track: bool) -> Iterator[Any]:
     """The job's live MLflow run (:class:`madpinn.tracking.JobRun`; logs nothing when ``track``
@@ -54,7 +72,7 @@ def job(cfg: Mapping, record: JobRecord, track: bool) -> Iterator[Any]:
     from madpinn.tracking import job_run
 
     with job_run(cfg, job_key=record.job_key, rule=record.rule, wildcards=dict(record.wildcards),
-                 params=dict(record.params), track=track) as run:
+                 params=dict(record.params), tags=dict(record.tags), track=track) as run:
         yield run
 
 
@@ -65,7 +83,7 @@ def finish(run: Any, record: JobRecord, echo: Any = None) -> int:
     if missing:
         raise FileNotFoundError(f"job {record.job_key} did not write {missing}")
     run.finish(metrics=dict(record.metrics), artifacts=list(record.artifacts), models=dict(record.models),
-               step=record.step)
+               step=record.step, register=dict(record.register))
     if echo is not None:
         print("\n".join(map(str, echo)) if isinstance(echo, list) else json.dumps(echo))
     return 0

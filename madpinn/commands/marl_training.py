@@ -28,6 +28,7 @@ def train_and_record(cfg: dict, training: "TrainingRun", curves: Sequence[str], 
         record.metrics = {k: v for k, v in result.summary.items() if k not in extra}
         record.step = result.summary["iterations"]   # the curve's length
         record.models = {"actor": result.trainer.actor}
+        record.register = {"actor": record.job_key.rpartition("/")[2]}   # safemarl_nominal, defmarl_<variant>
         finish(run, record, echo=result.summary)
     return result.summary
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of, parse_models
-from madpinn.commands.finish import JobRecord, finish, job
+from madpinn.commands.finish import JobRecord, finish, job, write_commit_record
 
 
 def _table(args) -> int:
@@ -108,7 +108,6 @@ def _reproduction(args) -> int:
     import pandas as pd
 
     from madpinn.evaluation.reproduction import write_report
-    from madpinn.tracking.mlflow_store import git_commit
 
     cfg = config_of(args)
     study_of = _study_of(args.tables)
@@ -120,7 +119,8 @@ def _reproduction(args) -> int:
     record = JobRecord(job_key="report/reproduction", rule="reproduction_report", params={"tables": sorted(tables)})
     with job(cfg, record, not args.no_track) as run:
         record.artifacts = write_report(args.out_dir, tables, cfg, oracle_paths=args.oracle or (),
-                                        model_paths=args.models or (), commit=git_commit())
+                                        model_paths=args.models or ())
+        write_commit_record(cfg, record.job_key, record.artifacts)
         return finish(run, record, echo=list(record.artifacts))
 
 
@@ -131,6 +131,7 @@ def _claims(args) -> int:
     record = JobRecord(job_key="report/claims", rule="claims_table", params={"report": str(args.report)})
     with job(cfg, record, not args.no_track) as run:
         record.artifacts = write_claims(args.report, args.out_dir)
+        write_commit_record(cfg, record.job_key, record.artifacts)
         return finish(run, record, echo=list(record.artifacts))
 
 

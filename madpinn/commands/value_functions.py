@@ -22,6 +22,7 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models, single_model
 from madpinn.commands.finish import JobRecord, finish, job, write_json
+from madpinn.config import REPO_ROOT
 from madpinn.value_functions.build import KINDS
 
 LIVE_POINTS = 1000
@@ -145,6 +146,7 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     record.metrics = {k: v for k, v in summary.items() if isinstance(v, (int, float))}
     record.step = info["iterations"]
     record.models = {f"{kind}_network": net}
+    record.register = {f"{kind}_network": record.job_key.rpartition("/")[2]}   # vs, vhat, vhat_<variant>
     return finish(run, record, echo=summary)
 
 
@@ -305,17 +307,33 @@ def _provenance(args, models: dict) -> dict:
 
 
 def _install_shipped(args) -> int:
-    from madpinn.value_functions.shipping import install
+    from madpinn.value_functions.shipping import install, read_manifest
 
     if not args.config:                       # by hand, without a config: no MLflow run
         print(install(args.dir, args.name, args.out))
         return 0
+    from madpinn.commands.shipped_runs import log_training_curves, manifest_metrics, network, training_log
+
     cfg = config_of(args)
+    entry = read_manifest(args.dir)["models"].get(args.name, {})
+    log = training_log(Path(args.dir) / f"{args.name}.pt", entry.get("sha256", ""))
+    # the run of a shipped training: manifest entry, the committed training log's curves, the network
     record = JobRecord(job_key=f"install/{args.name}", rule="install_shipped_model", wildcards={"name": args.name},
-                       params={"dir": args.dir})
+                       params={"dir": args.dir, "sha256": entry.get("sha256"), "git_commit": entry.get("git_commit"),
+                               "training_config_hash": entry.get("training_config_hash"), "device": entry.get("device"),
+                               "init_from": entry.get("init_from")},
+                       tags={"madpinn.training_log": str(log.relative_to(REPO_ROOT)) if log else
+                             "none committed (trained before training logs were kept; summary: models/manifest.json)"})
     with job(cfg, record, not args.no_track) as run:
-        record.artifacts = [install(args.dir, args.name, args.out)]
-        return finish(run, record, echo=list(record.artifacts))
+        out = install(args.dir, args.name, args.out)
+        if log is not None:
+            log_training_curves(run, log)
+        record.artifacts = [out, *([log] if log else [])]
+        record.metrics = manifest_metrics(entry)
+        record.step = int(entry.get("iterations") or 0)
+        record.models = {f"{args.name}_network": network(out, args.name)}
+        record.register = {f"{args.name}_network": args.name}
+        return finish(run, record, echo=[out])
 
 
 def register(sub) -> None:

@@ -450,7 +450,7 @@ def build_claims(report: Mapping, claims=CLAIMS) -> dict:
                                 "passed": c.passed, "essential": c.essential} for c in checks]})
     prov = report.get("provenance", {})
     return {"claims": out, "verdicts": {c["id"]: c["verdict"] for c in out},
-            "provenance": {"commit": prov.get("commit"), "config_hash": prov.get("config_hash"),
+            "provenance": {"config_hash": prov.get("config_hash"),
                            "collisions": prov.get("collisions"), "intervals": prov.get("intervals"),
                            "rule": "a failed essential check: does not hold; else all checks pass: holds; "
                                    "some: partly; none: does not hold (madpinn/evaluation/claims.py)"}}
@@ -473,7 +473,7 @@ def to_markdown(claims: dict) -> str:
              "`reproduction.json`: each claim of the paper, the report cells it rests on, our figures with their 95 % "
              "intervals, and a verdict computed by the rule written beside it, never typed. "
              f"Verdict rule: {prov['rule']}.", "",
-             f"- report commit `{prov.get('commit')}`, config hash `{prov.get('config_hash')}`",
+             f"- config hash `{prov.get('config_hash')}`",
              f"- collisions: {prov.get('collisions')}", f"- intervals: {prov.get('intervals')}", "",
              "| # | Paper claim | Where | Verdict | Checks passed | Decisive figure (ours, 95 % interval) |",
              "|---|---|---|---|---|---|"]

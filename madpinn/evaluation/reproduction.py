@@ -4,7 +4,7 @@
 ``{table: {run: {N: {safety, safety_std, safe_scenarios, safe_scenarios_std, cost, cost_std,
 cost_time_avg, cost_time_avg_std, cost_all, cost_all_time_avg, n_seeds, paper_safety,
 paper_safety_std, paper_safe_scenarios, paper_safe_scenarios_std, paper_cost}}}}`` plus
-``provenance`` (commit, config hash, sha256 of every model file, the deployment settings of our
+``provenance`` (config hash, sha256 of every model file, the deployment settings of our
 MAD-PINN runs that the paper does not have) and per-table notes;
 :func:`write_report` writes it as ``reproduction.json`` and ``reproduction.md``.
 
@@ -151,8 +151,7 @@ def _num(x) -> float | None:
 
 
 def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_paths: Iterable[str | Path] = (),
-                 model_paths: Iterable[str | Path] = (), commit: str = "unknown",
-                 paper: dict | None = None) -> dict:
+                 model_paths: Iterable[str | Path] = (), paper: dict | None = None) -> dict:
     """``tables``: table name -> its result files (.parquet). Runs of the paper that we did not
     run keep their paper values with our figures null; runs we have and the paper lacks get null
     paper values."""
@@ -196,8 +195,7 @@ def build_report(tables: Mapping[str, Iterable[str | Path]], cfg: dict, oracle_p
         notes[name]["ours"] = ours
     models = sorted({str(p) for p in model_paths})
     cells = _cell_time(p for paths in tables.values() for p in paths)
-    report["provenance"] = {
-        "commit": commit,
+    report["provenance"] = {   # no commit and no date: identical inputs, identical bytes (the commit: the job's side file)
         "experiment": cfg.get("experiment"),
         "config_hash": config_hash(cfg),
         "backend": cfg["sim"]["backend"],
@@ -314,7 +312,7 @@ def to_markdown(report: dict) -> str:
         "collision-free agents. The oracle row is the lone-agent lower bound on the same scenarios "
         "(madpinn/evaluation/oracle.py). Δ: ours − paper (pp: percentage points).",
         "",
-        f"- commit `{prov['commit']}`, experiment `{prov['experiment']}`, config hash `{prov['config_hash']}`, "
+        f"- experiment `{prov['experiment']}`, config hash `{prov['config_hash']}`, "
         f"backend `{prov['backend']}`",
         f"- collisions: {prov.get('collisions', 'collision counted at d ≤ r (not recorded)')}",
     ]

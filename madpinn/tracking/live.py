@@ -152,8 +152,9 @@ class JobRun:
         return log
 
     def finish(self, metrics: Mapping[str, float] | None = None, artifacts: Sequence[str | Path] = (),
-               models: Mapping[str, object] | None = None, step: int = 0) -> None:
-        """After the result files are written: final metrics, the files as artifacts, models."""
+               models: Mapping[str, object] | None = None, step: int = 0, register: Mapping[str, str] | None = None) -> None:
+        """After the result files are written: final metrics, the files as artifacts, models
+        (``register``: model name -> registry name ``<experiment>.<name>``, a new version)."""
         if not self.enabled:
             return
         if metrics:
@@ -162,8 +163,10 @@ class JobRun:
         self.record.artifacts += [str(a) for a in artifacts]
         saved = self._save_models(models or {})
         self.record.models.update(saved)
+        registered = {m: f"{self.settings.experiment}.{n}" for m, n in (register or {}).items() if m in saved}
+        self.record.registered.update(registered)
         if self.live:
-            self._try(lambda: log_files(self._client, self.record.run_id, artifacts, saved))
+            self._try(lambda: log_files(self._client, self.record.run_id, artifacts, saved, registered))
 
     def _save_models(self, models: Mapping[str, object]) -> dict:
         if not models:

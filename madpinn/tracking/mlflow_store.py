@@ -100,18 +100,34 @@ def _artifact_location(settings: TrackingSettings) -> str | None:
 EXPERIMENT_KIND_TAG, EXPERIMENT_KIND = "mlflow.experimentKind", "custom_model_development"
 
 
+# The experiment's description (shown above its runs): which runs and columns are the paper's. The UI
+# keeps the chosen columns per browser; no store setting selects them (docs/reference/tracking.md).
+NOTE_TAG = "mlflow.note.content"
+EXPERIMENT_NOTE = (
+    "madpinn: one run per workflow job (docs/reference/tracking.md). **The paper's cells**: search "
+    "`tags.madpinn.rule = 'evaluate'`, one run per (study, run, N, seed), computed here or restored from "
+    "output_cache/ (tag `madpinn.restored`, provenance hash `madpinn.provenance_hash`). **The paper's columns** "
+    "(Columns menu): metrics `safety_rate` (Tables I–II safety), `safe_scenarios`, `cost_time_avg` (the "
+    "paper's cost), `cost`, `cost_all_time_avg`, `min_separation` (m), `infeasible_share` (MAD-PINN); params "
+    "`study`, `run`, `n_agents`, `seed`. **Training curves**: runs `train/*` and `install/*` (shipped models, "
+    "curves from the committed training logs). **Networks**: the Models tab and the Model Registry, one "
+    "registered model `<experiment>.<name>` per network. Results are files first: tables and figures are built "
+    "from results/, not from this store.")
+
+
 def experiment_id(c, settings: TrackingSettings) -> str:
     """The configuration's experiment (restored when deleted, created when missing), tagged as
-    model training for MLflow 3's UI."""
+    model training for MLflow 3's UI, with :data:`EXPERIMENT_NOTE` as its description."""
+    tags = {EXPERIMENT_KIND_TAG: EXPERIMENT_KIND, NOTE_TAG: EXPERIMENT_NOTE}
     exp = c.get_experiment_by_name(settings.experiment)
     if exp is not None:
         if exp.lifecycle_stage == "deleted":
             c.restore_experiment(exp.experiment_id)
-        if exp.tags.get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:
-            c.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG, EXPERIMENT_KIND)
+        for k, v in tags.items():
+            if exp.tags.get(k) != v:
+                c.set_experiment_tag(exp.experiment_id, k, v)
         return exp.experiment_id
-    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings),
-                               tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND})
+    return c.create_experiment(settings.experiment, artifact_location=_artifact_location(settings), tags=tags)
 
 
 def init_store(settings: TrackingSettings) -> dict:
@@ -151,6 +167,8 @@ def purge_runs(c, settings: TrackingSettings, runs) -> None:
     store = _get_store(settings.uri)
     hard = hasattr(store, "_hard_delete_run")
     for run in runs:
+        for version in c.search_model_versions(filter_string=f"run_id = '{run.info.run_id}'"):
+            c.delete_model_version(version.name, version.version)   # its registry versions first
         for model in c.search_logged_models([run.info.experiment_id],
                                             filter_string=f"source_run_id = '{run.info.run_id}'"):
             c.delete_logged_model(model.model_id)          # the replaced run's models go with it

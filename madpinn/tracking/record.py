@@ -42,6 +42,7 @@ class RunRecord:
     metrics: list = field(default_factory=list)         # [key, value, timestamp_ms, step]
     artifacts: list = field(default_factory=list)       # file paths (result files)
     models: dict = field(default_factory=dict)          # artifact path -> local MLflow model directory
+    registered: dict = field(default_factory=dict)      # artifact path -> Model Registry name
     status: str = "RUNNING"
     end_ms: int | None = None
     run_id: str | None = None                            # the live run, if one was created
@@ -74,8 +75,9 @@ def log_metric_rows(c, run_id: str, rows) -> None:
         c.log_batch(run_id, metrics=metric_entities(rows[i : i + METRICS_PER_BATCH]))
 
 
-def log_files(c, run_id: str, artifacts, models: dict) -> list[str]:
-    """Log result files and model directories; return the result files that no longer exist."""
+def log_files(c, run_id: str, artifacts, models: dict, registered: dict | None = None) -> list[str]:
+    """Log result files and model directories (each model in ``registered`` also registered in the
+    Model Registry under that name); return the result files that no longer exist."""
     missing = []
     for path in artifacts:
         if Path(path).is_file():
@@ -84,8 +86,25 @@ def log_files(c, run_id: str, artifacts, models: dict) -> list[str]:
             missing.append(str(path))
     for name, local in models.items():
         c.log_artifacts(run_id, str(local), artifact_path=name)   # runs:/<run id>/<name>
-        log_logged_model(c, run_id, name, local)
+        model_id = log_logged_model(c, run_id, name, local)
+        if name in (registered or {}):
+            register_model(c, registered[name], model_id, run_id)
     return missing
+
+
+def register_model(c, name: str, model_id: str, run_id: str) -> str:
+    """A new version of registered model ``name`` (created when missing) for logged model
+    ``model_id`` of run ``run_id`` (load: ``mlflow.pytorch.load_model("models:/<name>/<version>")``);
+    returns the version. A replaced run's versions go with it (:func:`madpinn.tracking.mlflow_store.purge_runs`)."""
+    from mlflow.exceptions import MlflowException
+
+    if not c.search_registered_models(filter_string=f"name = '{name}'"):
+        try:
+            c.create_registered_model(name, description="madpinn network (docs/reference/tracking.md); one version per run "
+                                                        "that trained or installed it")
+        except MlflowException:   # created meanwhile by a parallel job
+            pass
+    return c.create_model_version(name, source=f"models:/{model_id}", run_id=run_id, model_id=model_id).version
 
 
 def log_logged_model(c, run_id: str, name: str, local: str | Path) -> str:
@@ -149,7 +168,7 @@ def replay(settings: TrackingSettings, record: RunRecord) -> str | None:
     try:
         log_params(c, run_id, record.params)
         log_metric_rows(c, run_id, record.metrics)
-        missing = log_files(c, run_id, record.artifacts, record.models)
+        missing = log_files(c, run_id, record.artifacts, record.models, record.registered)
         if missing:
             c.set_tag(run_id, "madpinn.missing_artifacts", ",".join(missing)[:5000])
         c.set_tag(run_id, "madpinn.logged_from_pending", "true")

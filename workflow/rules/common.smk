@@ -310,6 +310,12 @@ onstart:
     write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
 
 
+# A run that ran jobs ends with where its outputs are, one line each (Snakemake skips this hook when
+# there was nothing to do).
+onsuccess:
+    print_where_outputs(TRACKING_SETTINGS)
+
+
 # --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
 
 
@@ -328,6 +334,17 @@ def start_tracking(settings, marker):
             sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
         if settings.pending_dir.is_dir():
             sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
+
+
+def print_where_outputs(settings):
+    """Three lines: the tables, the report, and the command that opens the MLflow UI on this store."""
+    mlflow_bin = os.path.relpath(os.path.join(os.path.dirname(sys.executable), "mlflow"))
+    ui = (f"open {settings.uri}" if settings.is_remote else
+          f"{mlflow_bin if not mlflow_bin.startswith('..') else 'mlflow'} ui --backend-store-uri {settings.uri}"
+          f"  (then http://127.0.0.1:5000, experiment {settings.experiment})")
+    print(f"madpinn: tables  {FIGURES}/table_*.{{md,csv,tex,html}} (all beside the paper: {FIGURES}/reproduction.md)\n"
+          f"madpinn: report  {FIGURES}/reproduction.html and {FIGURES}/claims.md (Snakemake's report: add --report report.zip)\n"
+          f"madpinn: MLflow  {ui if settings.enabled else 'tracking disabled (tracking.enabled: false)'}", flush=True)
 
 
 RUN_LOCK_PATH = Path(".snakemake") / "madpinn.lock"

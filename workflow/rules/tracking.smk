@@ -44,3 +44,33 @@ rule tracking_init:
         f"{LOGS}/tracking_init.log",
     shell:
         "python -m madpinn tracking-init --config {params.config:q} --out {output:q} 2>&1 | tee {log:q}"
+
+
+# Every evaluation cell of `all` one MLflow run, also those restored from the output cache (profile
+# shipped), which run no job: after every cell, `track-cells` logs each cell that has no run here
+# from its files (the evaluate job's key, params, metrics and artifacts; tag madpinn.restored=true)
+# and tags every cell run with its provenance hash (madpinn/commands/cell_runs.py). Files first:
+# nothing downstream reads the marker, and a disabled store makes it a no-op.
+TRACKED_CELLS = f"{RESULTS}/tracking/cells.json"
+
+
+rule track_cells:
+    input:
+        tracking=TRACKING,
+        cells=lambda w: [p for s in studies_in_all() for p in study_results(s)],
+    output:
+        TRACKED_CELLS,
+    params:
+        config=RESOLVED,
+    resources:
+        mem_mb=1000,
+        runtime=30,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/track_cells.log",
+    shell:
+        "python -m madpinn track-cells --config {params.config:q} --cells {input.cells:q} --out {output:q} 2>&1 | tee {log:q}"
+
+
+register_targets(TRACKED_CELLS)
