@@ -409,6 +409,11 @@ def madpinn_models(wildcards):
     return {"vhat": vhat, "vs": str(rules.train_vs.output.model)}
 
 
+
+def budget_vhat_args(wildcards):
+    """``RUN=PATH`` of the V̂ each run of study vhat_budget loads (fig_vhat_budget: its training samples)."""
+    return [f"{run}={madpinn_models(SimpleNamespace(run=run))['vhat']}" for run in config["studies"]["vhat_budget"]["runs"]]
+
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
     from madpinn.config import with_vf_variant

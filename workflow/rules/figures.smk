@@ -97,10 +97,6 @@ if "large_arena_frontier" in config["studies"]:
 # Issue 46: safety against V̂'s training samples (each budget a V̂ variant; the paper's Table II as lines).
 if "vhat_budget" in config["studies"]:
 
-    def budget_vhat_args(wildcards):
-        """``RUN=PATH`` of the V̂ each run of study vhat_budget loads (its training samples)."""
-        return [f"{run}={madpinn_models(SimpleNamespace(run=run))['vhat']}" for run in config["studies"]["vhat_budget"]["runs"]]
-
     rule fig_vhat_budget:
         input:
             tracking=TRACKING,
