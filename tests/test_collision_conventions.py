@@ -14,7 +14,8 @@ from madpinn.evaluation.cell import CellSettings
 from madpinn.evaluation.metrics import DISC_FACTOR, safety_curve, scenario_metrics, seed_summary
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.simulation.mujoco.model import COLLISION_CYLINDER
 from tests.mujoco_helpers import DT, DYN

@@ -42,7 +42,8 @@ from madpinn.policies.nominal import NominalSettings
 from madpinn.policies.safemarl import SafeMarlSettings
 from madpinn.policies.safety_filter import CBVFSettings
 from madpinn.scenarios import Arena
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.settings import MujocoSettings
 from madpinn.evaluation.cell import CellSettings
@@ -88,7 +89,7 @@ SETTINGS = [
     Entry(Arena, "arenas.small", lambda c: Arena.from_config(c, "small"), not_config=("name",)),
     Entry(NominalSettings, "methods.nominal", _method("nominal")),
     Entry(MadPinnSettings, "methods.madpinn", _method("madpinn"), keys={"strategy": "neighbours"},
-          not_config=("z_newton",), nested=("safety_filter",)),
+          nested=("safety_filter",)),
     Entry(CBVFSettings, "methods.safemarl", lambda c: _method("safemarl")(c).cbvf, keys={"gamma": "cbvf_gamma"}),
     Entry(MPPISettings, "methods.mppi", _method("mppi"), keys={"dual_lr": "dual_ascent.lr", "penalty_max": "dual_ascent.max"}),
     Entry(SafeMarlSettings, "methods.safemarl", _method("safemarl"), not_config=("cbvf",)),   # cbvf: CBVFSettings of this section

@@ -23,7 +23,8 @@ from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import UNIFORM, Arena, generate_scenarios
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
 

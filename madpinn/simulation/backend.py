@@ -8,13 +8,16 @@ step); ``step()`` advances ``dt`` and returns the new planar state.
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import pairwise_distances
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+
+if TYPE_CHECKING:
+    from madpinn.simulation.settings import SimSettings
 
 
 class SimBackend(Protocol):
@@ -85,7 +88,7 @@ _BACKENDS = {}
 
 def register_backend(name: str):
     """Decorator: register a backend factory ``factory(sim, limits, device, dtype) -> SimBackend``
-    taking :class:`~madpinn.settings.SimSettings` and :class:`~madpinn.settings.AgentSettings`."""
+    taking :class:`~madpinn.simulation.settings.SimSettings` and :class:`~madpinn.settings.AgentSettings`."""
 
     def deco(factory):
         _BACKENDS[name] = factory

@@ -26,7 +26,7 @@ from madpinn.simulation.mujoco.settings import MujocoSettings
 
 @register_backend("mujoco")
 def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
-    """The MuJoCo backend for :class:`~madpinn.settings.SimSettings` ``sim`` (its ``mujoco``
+    """The MuJoCo backend for :class:`~madpinn.simulation.settings.SimSettings` ``sim`` (its ``mujoco``
     section) and :class:`~madpinn.settings.AgentSettings` ``limits``."""
     if sim.mujoco is None:
         raise ValueError("the mujoco backend needs sim.mujoco settings")
