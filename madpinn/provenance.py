@@ -231,7 +231,7 @@ def _labels(cfg: Mapping, *studies: str) -> dict:
     """The labels tables, figures and the report print for the studies' runs."""
     from madpinn.config import method_config
 
-    return {st: {run: method_config(cfg, run)[1].get("label", run) for run in cfg["studies"][st]["runs"]}
+    return {st: {run: method_config(cfg, run)[1]["label"] for run in cfg["studies"][st]["runs"]}
             for st in studies}
 
 
@@ -272,14 +272,23 @@ def _cell(cfg: Mapping, study: str, run: str) -> dict:
     return {**job_config(cfg, study, run), "dtype": cfg["dtype"]}
 
 
+def _study_sim_override(cfg: Mapping, study: str) -> dict | None:
+    """A study's own ``sim`` overrides (None: none)."""
+    return cfg["studies"][study]["sim"] or None
+
+
 def _gap_rows(cfg: Mapping) -> dict:
     """What names the gap decomposition's rows (its cells are its inputs): the section, the
     configured carrot margin, each gap study's backend and its runs' settings."""
-    from madpinn.config import method_config, study_backend
+    from madpinn.config import as_written, method_config, study_backend
+
+    def settings(run):
+        method, mcfg = method_config(cfg, run)
+        return as_written(cfg, f"methods.{method}", mcfg)
 
     gap = cfg["gap_decomposition"]
     return {"gap_decomposition": gap, "carrot_margin": cfg["observation"]["carrot_margin"],
-            "studies": {s: {"backend": study_backend(cfg, s), "runs": {r: method_config(cfg, r)[1] for r in cfg["studies"][s]["runs"]}}
+            "studies": {s: {"backend": study_backend(cfg, s), "runs": {r: settings(r) for r in cfg["studies"][s]["runs"]}}
                         for s in gap["studies"]}}
 
 
@@ -309,7 +318,7 @@ READS = {
     "claims": _keys("experiment"),
     "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
     "controller-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies),
-                                                 "readings": {s: cfg["studies"][s].get("sim") for s in studies}},
+                                                 "readings": {s: _study_sim_override(cfg, s) for s in studies}},
     "render-clip": _keys("sim.mujoco", "arenas"),
     "gap-decomposition": lambda cfg: _gap_rows(cfg),
 }

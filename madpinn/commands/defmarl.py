@@ -31,10 +31,10 @@ def resume_hash(cfg: dict, variant: str) -> str:
 
     c = copy.deepcopy(cfg)
     c["methods"]["defmarl"]["training"]["ppo"]["iterations"] = 0
-    c["methods"]["defmarl"].pop("validation", None)
-    for v in c["methods"]["defmarl"].get("variants", {}).values():
-        v.get("training", {}).get("ppo", {}).pop("iterations", None)
-        v.pop("validation", None)
+    c["methods"]["defmarl"]["validation"] = None
+    for v in c["methods"]["defmarl"]["variants"].values():   # overlays: a variant may set its own iterations
+        if "ppo" in (v.get("training") or {}):
+            v["training"]["ppo"].pop("iterations", None)
     return marl_training_hash(c, f"defmarl_{variant}")
 
 
@@ -57,7 +57,7 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
     tcfg = mcfg["training"]
     if init is not None and not (checkpoint is not None and Path(checkpoint).is_file()):   # read only to start
         _check_init(init, mcfg)
-    validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if "validation" in mcfg else None
+    validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if mcfg["validation"] is not None else None
     curves = DEFMARL_CURVES + (validation.curves() if validation is not None else ())
     training = TrainingRun(
         build=lambda: build_defmarl_trainer(cfg, run)[0], seed=int(tcfg["seed"]), out=Path(out), desc=f"DEF-MARL ({variant})",
@@ -71,7 +71,7 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
         cfg, training, curves,
         JobRecord(job_key=f"train/defmarl_{variant}", rule="train_defmarl", wildcards={"variant": variant},
                   params={"training": tcfg, "epigraph": mcfg["epigraph"], "agents": cfg["agents"],
-                          "observation": cfg["observation"], "validation": mcfg.get("validation")}),
+                          "observation": cfg["observation"], "validation": mcfg["validation"]}),
         track=track)
 
 

@@ -61,7 +61,7 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
         if run not in models:
             raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
         meta = read_checkpoint(models[run], "vhat")["meta"]
-        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1].get("label", run)), samples=model_samples(meta)))
+        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta)))
     return plot_vhat_budget(args.inputs, runs, Path(args.out_dir) / args.name)
 
 

@@ -120,7 +120,7 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{out.stem}.ckpt.pt"
     chash = record.params["config_hash"]
-    total = stage_iterations(settings, vcfg.get("fine_tune"))
+    total = stage_iterations(settings, vcfg["fine_tune"])
     every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     deadline = None if args.time_limit is None else time.monotonic() + args.time_limit
     net, info = train_stages(problem, settings, vcfg.get("fine_tune"), ckpt, out.with_name(f"{out.stem}_stage1.pt"), chash,

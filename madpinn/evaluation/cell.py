@@ -85,16 +85,16 @@ class CellSettings:
             raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
         st = cfg["studies"][study]
         method, mcfg = method_config(cfg, run)
-        if st.get("collision_events") and method != "madpinn":
+        if st["collision_events"] and method != "madpinn":
             raise ConfigError(f"studies.{study}.collision_events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
         sim = SimSettings.from_config(cfg, study)
         return cls(
             study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=run_limits(cfg, mcfg),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st["pattern"]), scenarios=int(st["scenarios"]), limits=run_limits(cfg, mcfg),
             sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": run_observation(cfg, run)}),
-            policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
+            policy_period=sim.policy_period_steps if mcfg["policy_period_steps"] is None else int(mcfg["policy_period_steps"]),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),
-            collision_events=bool(st.get("collision_events", False)),
+            collision_events=bool(st["collision_events"]),
         )
 
     @property

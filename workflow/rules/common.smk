@@ -43,7 +43,7 @@ TRACKING = f"{RESULTS}/tracking/store.json"
 # the same job comes again, on any machine that has the directory (docs/reliability.md). Only read
 # when --cache is given; $SNAKEMAKE_OUTPUT_CACHE, when set, wins over paths.output_cache.
 OUTPUT_CACHE = os.environ.setdefault(
-    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
+    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"]["output_cache"] or f"{RESULTS}/output_cache")
 )
 def check_output_cache(directory):
     """Stop before any job when an entry of the output cache cannot be read (madpinn/output_cache.py)."""
@@ -130,7 +130,7 @@ def study_results(study):
 
 def studies_in_all():
     """The studies whose cells `all` builds (all but those with `in_all: false`, e.g. the gap decomposition's)."""
-    return [s for s, st in config["studies"].items() if st.get("in_all", True)]
+    return [s for s, st in config["studies"].items() if st["in_all"]]
 
 
 def run_models(wildcards):
@@ -361,7 +361,7 @@ def init_model(kind, variant=None):
     its merged settings) starts from (or nothing)."""
     from madpinn.config import with_vf_variant
 
-    path = with_vf_variant(config, kind, variant)["value_functions"][kind].get("init_from")
+    path = with_vf_variant(config, kind, variant)["value_functions"][kind]["init_from"]
     if not path:
         return []
     return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
@@ -397,7 +397,7 @@ def train_runtime(kind, variant=None):
     from madpinn.config import with_vf_variant
 
     v = with_vf_variant(config, kind, variant)["value_functions"][kind]
-    its = int(v["iterations"]) + int((v.get("fine_tune") or {}).get("iterations", 0))
+    its = int(v["iterations"]) + (int(v["fine_tune"]["iterations"]) if v["fine_tune"] else 0)
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
 

@@ -3,7 +3,7 @@
 # validation seeds; studies.gap_*, `in_all: false`). The evaluate rule computes the cells like any
 # other (cache, parallel cells, an MLflow run each); this job only builds the table. Not part of all:
 #   snakemake -j2 gap_decomposition [--configfile workflow/configs/smoke.yaml]
-if config.get("gap_decomposition"):
+if config["gap_decomposition"]:
 
     rule gap_decomposition:
         input:
