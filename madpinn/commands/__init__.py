@@ -57,6 +57,19 @@ def handler_entry(command: str) -> str:
     return handlers[command]
 
 
+def command_reads() -> dict:
+    """command -> ``reads(cfg, **job)``: what its jobs read of the config, as each command declares
+    it beside its parser (:mod:`madpinn.commands.reads`); commands that produce no result
+    (``validate-config``, ``ship-models``, ...) declare none."""
+    return {name: p.get_default("reads") for name, p in _subparsers().items() if p.get_default("reads") is not None}
+
+
+@functools.lru_cache(maxsize=1)
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    return dict(next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices)
+
+
 @functools.lru_cache(maxsize=1)
 def _handlers() -> dict[str, str]:
     parser = build_parser()

@@ -18,6 +18,7 @@ from pathlib import Path
 from madpinn.commands.args import config_of
 from madpinn.commands.finish import JobRecord
 from madpinn.commands.marl_training import add_training_parser, train_and_record
+from madpinn.commands.reads import marl
 
 EXIT_PAUSED = 75   # as train-value: the time limit stopped a piece, the checkpoint is kept
 
@@ -100,7 +101,8 @@ def _train(args) -> int:
 def register(sub) -> None:
     from madpinn.commands.value_functions import _seconds
 
-    p = add_training_parser(sub, "train-defmarl", "train one DEF-MARL model (epigraph-form MARL)", _train, variant=True)
+    p = add_training_parser(sub, "train-defmarl", "train one DEF-MARL model (epigraph-form MARL)", _train,
+                            reads=lambda cfg, variant: marl(cfg, f"defmarl_{variant}"), variant=True)
     p.add_argument("--checkpoint", default=None,
                    help="resumable training state: saved at every validation and when stopping, resumed when it exists")
     p.add_argument("--time-limit", type=_seconds, default=None, metavar="SECONDS",

@@ -7,6 +7,7 @@ from typing import Mapping
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job
+from madpinn.commands.reads import cell
 
 ECHO = ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")
 LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg",
@@ -34,24 +35,23 @@ def evaluate(
     ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
     from dataclasses import replace
 
-    from madpinn.config import ConfigError, check_cell, method_config, run_agents, run_observation, study_backend, study_sim
+    from madpinn.config import ConfigError, RunSettings, check_cell
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     check_cell(cfg, n_agents, seed, study=study, run=run, backend=backend)   # as the workflow checks its targets
 
-    cs = CellSettings.from_config(cfg, study, run)   # the run's agents override included (run_limits)
-    method, mcfg = method_config(cfg, run)
+    r = RunSettings.resolve(cfg, study, run)   # the run, merged once
+    cs = CellSettings.from_run(cfg, r)   # the run's agents override included (run_limits)
     if collision_events and not cs.collision_events:
-        if method != "madpinn":
+        if r.method != "madpinn":
             raise ConfigError(f"--collision-events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
         cs = replace(cs, collision_events=True)
-    backend = backend or study_backend(cfg, study)
+    backend = backend or str(r.sim["backend"])
     record = JobRecord(
         job_key=f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}", rule="evaluate",
         wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
-        params={"method": method, "method_config": mcfg, "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
-                "scenarios": cs.scenarios, "sim": study_sim(cfg, study), "observation": run_observation(cfg, run),
-                "agents": run_agents(cfg, run)},
+        params={"method": r.method, "method_config": r.method_config, "arena": r.arena, "scenarios": cs.scenarios,
+                "sim": r.sim, "observation": r.observation, "agents": r.agents},
     )
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
@@ -88,4 +88,4 @@ def register(sub) -> None:
                    help="classify every collision onset of a MAD-PINN cell into its JSON summary (madpinn/evaluation/collisions.py)")
     add_model_arg(p, ("madpinn: vhat, vs", "safemarl: nominal, vs", "defmarl-<variant>: policy"))
     add_job_args(p)
-    p.set_defaults(func=_evaluate)
+    p.set_defaults(func=_evaluate, reads=cell)

@@ -3,6 +3,7 @@ a study's ``sim`` overrides merged over ``sim``, and the config part an evaluati
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 from madpinn.config.errors import ConfigError
@@ -12,8 +13,6 @@ from madpinn.config.vf_variants import vf_model_name
 
 def study_pattern(study: Mapping[str, Any]) -> str:
     """A study's scenarios: ``uniform`` (SPEC §2, the default) or its structured-conflict pattern."""
-    from madpinn.scenarios import UNIFORM
-
     return str(study["pattern"])
 
 
@@ -54,16 +53,14 @@ def run_observation(cfg: Mapping[str, Any], run: str) -> dict:
     """The ``observation`` section run ``method[-variant]``'s cells deploy with: ``observation``
     with the run's own deployment overrides (``methods.<method>[.variants.<v>].observation``, e.g.
     the gap decomposition's old mapping) merged over it; the plain ``observation`` without them."""
-    override = method_config(cfg, run)[1].get("observation")
-    return deep_merge(cfg["observation"], override) if override else dict(cfg["observation"])
+    return _merged(cfg["observation"], method_config(cfg, run)[1].get("observation"))   # only MAD-PINN runs have one
 
 
 def run_agents(cfg: Mapping[str, Any], run: str) -> dict:
     """The ``agents`` section run ``method[-variant]``'s cells simulate with: ``agents`` with the
     run's own deployment override (``methods.<method>[.variants.<v>].agents``, e.g. a lower
     ``v_max``: the speed governor of issue 33) merged over it; V̂ and V_s are trained on ``agents``."""
-    override = method_config(cfg, run)[1].get("agents")
-    return deep_merge(cfg["agents"], override) if override else dict(cfg["agents"])
+    return _merged(cfg["agents"], method_config(cfg, run)[1].get("agents"))   # only MAD-PINN runs have one
 
 
 def run_vhat(cfg: Mapping[str, Any], run: str) -> str:
@@ -78,22 +75,71 @@ def study_backend(cfg: Mapping[str, Any], study: str) -> str:
     return str(study_sim(cfg, study)["backend"])
 
 
+@dataclass(frozen=True)
+class RunSettings:
+    """One run ``method[-variant]`` of one study, resolved once (:meth:`resolve`): every merge a
+    cell's settings, its record and its hash need, so that no helper merges the config again.
+    Sections are plain dicts (the validated config's values); treat them as read-only."""
+
+    study: str
+    """study name (``studies.<study>``)"""
+    run: str
+    """run name ``method[-variant]``"""
+    method: str
+    """the run's method (``methods.<method>``)"""
+    method_config: dict
+    """the run's settings: its variant merged over its method (``variants`` left out)"""
+    study_config: dict
+    """``studies.<study>``"""
+    arena: dict
+    """the study's arena (``arenas.<name>``)"""
+    sim: dict
+    """``sim`` with the study's own overrides merged over it (:func:`study_sim`)"""
+    observation: dict
+    """``observation`` with the run's deployment overrides merged over it (:func:`run_observation`)"""
+    agents: dict
+    """``agents`` with the run's deployment override merged over it (:func:`run_agents`)"""
+    job_config: dict
+    """the part of the config the run's cells depend on (:func:`job_config`)"""
+
+    @classmethod
+    def resolve(cls, cfg: Mapping[str, Any], study: str, run: str) -> "RunSettings":
+        """The run's settings from the validated ``cfg``; :class:`ConfigError` for an unknown study,
+        method or variant."""
+        from madpinn.config.schema import as_written
+
+        if study not in cfg["studies"]:
+            raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
+        method, mcfg = method_config(cfg, run)
+        st = cfg["studies"][study]
+        sim, observation = study_sim(cfg, study), _merged(cfg["observation"], mcfg.get("observation"))
+        hashed = {
+            "study": {k: v for k, v in as_written(cfg, f"studies.{study}").items() if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
+            "arena": cfg["arenas"][st["arena"]],
+            "agents": cfg["agents"],
+            "sim": sim,
+            "observation": observation,
+            "method": method,
+            "method_config": {k: v for k, v in as_written(cfg, f"methods.{method}", mcfg).items() if k not in TRAINING_ONLY_KEYS},
+        }
+        return cls(study=study, run=run, method=method, method_config=mcfg, study_config=st, arena=cfg["arenas"][st["arena"]],
+                   sim=sim, observation=observation, agents=_merged(cfg["agents"], mcfg.get("agents")), job_config=hashed)
+
+    @property
+    def vhat(self) -> str:
+        """The V̂ model a MAD-PINN run loads (:func:`run_vhat`)."""
+        return vf_model_name("vhat", self.method_config.get("vhat"))   # a run of another method has no such key
+
+
+def _merged(section: Mapping[str, Any], override: Mapping[str, Any] | None) -> dict:
+    """``section`` with a run's deployment ``override`` merged over it (none: a copy of it)."""
+    return deep_merge(section, override) if override else dict(section)
+
+
 def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
     """The part of the config an evaluation job depends on (hashed to trigger re-runs). The study's
     fan-out (``runs``, ``agent_counts``, ``seeds``) and what only the workflow reads (``in_all``)
     are left out: adding a run or a seed to a study does not change the cells already computed.
     Keys the loader filled with their default are left out too (:func:`~madpinn.config.schema.as_written`):
-    filling them at load changes no cell's hash."""
-    from madpinn.config.schema import as_written
-
-    method, mcfg = method_config(cfg, run)
-    return {
-        "study": {k: v for k, v in as_written(cfg, f"studies.{study}").items()
-                  if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
-        "arena": cfg["arenas"][cfg["studies"][study]["arena"]],
-        "agents": cfg["agents"],
-        "sim": study_sim(cfg, study),
-        "observation": run_observation(cfg, run),
-        "method": method,
-        "method_config": {k: v for k, v in as_written(cfg, f"methods.{method}", mcfg).items() if k not in TRAINING_ONLY_KEYS},
-    }
+    filling them at load changes no cell's hash. :attr:`RunSettings.job_config`."""
+    return RunSettings.resolve(cfg, study, run).job_config

@@ -41,9 +41,14 @@ class SimSettings:
     def from_config(cls, cfg: Mapping, study: str | None = None) -> "SimSettings":
         """``sim``, with ``studies.<study>.sim`` merged over it when ``study`` is given."""
         from madpinn.config import study_sim
+
+        return cls.from_section(study_sim(cfg, study))
+
+    @classmethod
+    def from_section(cls, s: Mapping) -> "SimSettings":
+        """From a resolved ``sim`` section (e.g. :attr:`madpinn.config.RunSettings.sim`)."""
         from madpinn.simulation.mujoco.settings import MujocoSettings   # here: the mujoco package imports the backends
 
-        s = study_sim(cfg, study)
         mujoco = MujocoSettings.from_config(s["mujoco"])
         return cls(backend=str(s["backend"]), dt=float(s["dt"]), policy_period_steps=int(s["policy_period_steps"]),
                    scenario_batch=int(s["scenario_batch"]), start_separation=float(s["start_separation"]),

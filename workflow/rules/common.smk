@@ -239,7 +239,7 @@ def all_targets(wildcards=None):
 
 # --- what each job depends on: the config it reads and the package code it runs (params -> rerun-triggers) ---
 # A rule's `settings` param hashes the part of the config its command's jobs read, said once by the
-# package (madpinn.provenance.READS: a trained model's own training hash, an evaluation cell's
+# package (each command's `reads`, declared beside its parser, madpinn/commands/reads.py: a trained model's own training hash, an evaluation cell's
 # job_config, the subtrees a check or an output reads): a change of exactly that reruns the job and
 # everything downstream; a deployment knob or a validation setting never reruns a training.
 
