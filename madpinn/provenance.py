@@ -22,9 +22,9 @@ Two refinements keep unrelated edits from rerunning hours of jobs:
 :data:`GLUE` (the command layer, config parsing, tracking, checksums, atomic writes) changes no
 result: it is neither hashed nor followed beyond an entry.
 
-**Config** (:func:`job_settings`, :func:`settings_hash`): per command, the one package function
-that says what its jobs read, declared beside the command's parser (``reads``,
-:mod:`madpinn.commands.reads`): a trained model's own training hash
+**Config** (:func:`madpinn.commands.job_settings`, :func:`madpinn.commands.settings_hash`):
+per command, the one package function that says what its jobs read, declared beside the command's
+parser (``reads``, :mod:`madpinn.commands.reads`): a trained model's own training hash
 (:func:`madpinn.value_functions.build.training_hash`, :func:`madpinn.marl_hash.marl_training_hash`:
 never validation or deployment-only settings), an evaluation cell's
 :func:`madpinn.config.job_config`, and for the checks and outputs the config subtrees they read.
@@ -220,31 +220,14 @@ def plugin_module(module: str, name: str) -> str | None:
     return registry(module).get(name)
 
 
-# --- the config a job reads: declared by each command beside its parser (madpinn/commands/reads.py) ---
+# --- the config a job reads: declared by each command beside its parser, hashed by
+# madpinn.commands.settings_hash (the command layer; this module stays below it) ---
 
 def model_training_hash(cfg: Mapping, name: str) -> str | None:
     """The training hash of value-function model ``name`` (``vhat``, ``vs``, ``vhat_<variant>``:
     its variant's merged settings), None for any other name (the shipped overlay's check)."""
-    from madpinn.commands.reads import model_training_hash as training
+    from madpinn.config import split_vf_model, with_vf_variant
+    from madpinn.value_functions.build import training_hash
 
-    return training(cfg, name)
-
-
-def job_settings(cfg: Mapping, command: str, **job) -> object:
-    """The part of the validated config that one job of ``python -m madpinn <command>`` reads
-    (``job``: e.g. ``kind``, ``study`` and ``run``, ``arena``): the ``reads`` the command declares
-    beside its parser (:func:`madpinn.commands.command_reads`)."""
-    from madpinn.commands import command_reads
-
-    reads = command_reads()
-    if command not in reads:
-        raise ValueError(f"no config dependency declared for command '{command}' (its parser's `reads`, "
-                         "madpinn/commands/reads.py)")
-    return reads[command](cfg, **job)
-
-
-def settings_hash(cfg: Mapping, command: str, **job) -> str:
-    """Hash (12 hex) of :func:`job_settings`: the rules' ``settings`` param."""
-    from madpinn.config import config_hash
-
-    return config_hash(job_settings(cfg, command, **job))
+    split = split_vf_model(name)
+    return training_hash(with_vf_variant(cfg, split[0], split[1]), split[0]) if split else None

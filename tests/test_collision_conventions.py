@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from madpinn.config import job_config, load_config
+from madpinn.config import job_config, load_config, validate_config
 from madpinn.evaluation.cell import CellSettings
 from madpinn.evaluation.metrics import DISC_FACTOR, safety_curve, scenario_metrics, seed_summary
 from madpinn.policies import PolicyContext, make_policy, policy_settings
@@ -184,6 +184,7 @@ def test_collision_readings_table_from_real_cells(tmp_path):
     base = dict(arena="small", agent_counts=[12], seeds=[100], scenarios=2, runs=["madpinn-k1", "madpinn-kinf"])
     cfg["studies"]["ablation_update"] = {**base, "sim": {"contacts": False}}
     cfg["studies"]["ablation_update_contacts"] = {**base, "sim": {"contacts": True}}
+    validate_config(cfg)   # fills the new studies' defaults, as the loader does
     paths = []
     for study in ("ablation_update", "ablation_update_contacts"):
         for run in base["runs"]:

@@ -11,8 +11,7 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import deep_merge
-from madpinn.commands import command_reads
-from madpinn.provenance import settings_hash
+from madpinn.commands import command_reads, settings_hash
 from madpinn.value_functions.build import training_hash
 
 RULES = REPO / "workflow" / "rules"

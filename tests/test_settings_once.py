@@ -18,7 +18,8 @@ from conftest import REPO
 from madpinn.config import FILLED, as_written, deep_merge, load_config, validate_config
 from madpinn.config.schema import OVERLAY, _schema, node_at, object_branch, resolve
 from madpinn.marl_hash import marl_training_hash
-from madpinn.provenance import model_training_hash, settings_hash
+from madpinn.commands import settings_hash
+from madpinn.provenance import model_training_hash
 
 SCHEMA = _schema()
 ENTRIES = "x-entries"   # schema keyword of a mapping of named entries (studies, methods): no defaults

@@ -32,15 +32,6 @@ def training(cfg: Mapping, kind: str, variant: str | None = None) -> str:
     return training_hash(with_vf_variant(cfg, kind, variant), kind)
 
 
-def model_training_hash(cfg: Mapping, name: str) -> str | None:
-    """The training hash of value-function model ``name`` (``vhat``, ``vs``, ``vhat_<variant>``:
-    its variant's merged settings), None for any other name (the shipped overlay's check)."""
-    from madpinn.config import split_vf_model
-
-    split = split_vf_model(name)
-    return training(cfg, *split) if split else None
-
-
 def marl(cfg: Mapping, name: str) -> str:
     from madpinn.marl_hash import marl_training_hash
 

@@ -10,7 +10,7 @@ from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.provenance import plugin_module, registry
-from madpinn.provenance import settings_hash as package_settings_hash
+from madpinn.commands import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 from snakemake_interface_executor_plugins.settings import ExecMode
