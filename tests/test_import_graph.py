@@ -1,8 +1,9 @@
 """The package's import graph has no circle and no upward arrow (issue 48 point 3): every import,
 module-level or inside a function, as :mod:`madpinn.provenance` reads it.
 
-Circles: the one left is listed here and must go, not grow: the MuJoCo backend registers itself
-with the backend registry that imports it by name (``simulation/backend.py::_load_optional_backends``).
+Circles: none (the last, the MuJoCo backend registering itself with the registry that imported it
+by name, went with issue 48: ``simulation/backend.py`` names the backend's module, which no longer
+imports the registry).
 
 Arrows: each top-level module and sub-package (an *area*) has a rank in :data:`LAYERS`, and a
 module may import only areas of a lower rank (the house order of ``madpinn/__init__.py``:
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 from madpinn.provenance import PACKAGE, imports
 
-KNOWN = [{"madpinn.simulation.backend", "madpinn.simulation.mujoco"}]
+KNOWN: list[set[str]] = []
 """circles not yet removed (issue 48); a new one fails, and so does a removed one left listed"""
 
 
