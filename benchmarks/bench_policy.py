@@ -40,11 +40,12 @@ import torch
 
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.observation import ObservationSettings, build_observation
-from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings, cold_budget_search
+from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import in_domain, make_selector, pair_scores_brute_force, select_lowest
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
+from newton_search import cold_budget_search  # benchmarks/newton_search.py
 from timing import best_of  # benchmarks/timing.py
 
 PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)

@@ -12,7 +12,7 @@ are 6 s), torch one thread. Variants, each the same scenarios from the same star
   protocol's z search — the protocol's cell, same answers as ``old``;
 - ``warm``: bounded scoring and the warm-started z search (``warm_start: true``, a speed option that
   changes answers where V̂ is not monotone in z);
-- ``newton``: bounded scoring and the Newton-stepped warm search (``MadPinnSettings.z_newton``).
+- ``newton``: bounded scoring and the Newton-stepped warm search (:func:`newton_search.newton_policy`).
 
 Prints policy time (wall, as the evaluation cells' ``policy_us_per_agent_step``) and process CPU
 time per agent-step, V̂ rows per agent-step and, per scenario, collided agents, mean cost and
@@ -39,6 +39,7 @@ their names).
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import replace
 
 import argparse
@@ -58,6 +59,7 @@ from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
 import madpinn.policies.madpinn as madpinn_policy
+from newton_search import newton_policy   # benchmarks/newton_search.py
 from zsearch_floor import certifiable_rows, floor_us_per_agent_step, row_costs_us   # benchmarks/zsearch_floor.py
 
 PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
@@ -110,13 +112,13 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
         selector, settings = old_selector(vs, SPEC.n_neighbours), BASE_SETTINGS
     else:
         selector = make_selector("value", SPEC.n_neighbours, vs=vs)   # includes the margin calibration
-        settings = BASE_SETTINGS if variant == "neighbours" else replace(BASE_SETTINGS, warm_start=True,
-                                                                          z_newton=variant == "newton")
+        settings = BASE_SETTINGS if variant == "neighbours" else replace(BASE_SETTINGS, warm_start=True)
     pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     SEARCH.update(cpu=0.0, calls=0, kept=[])
     cpu = time.process_time()
-    result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
+    with newton_policy() if variant == "newton" else nullcontext():
+        result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
     cpu = time.process_time() - cpu
     agent_steps = steps * starts.shape[0] * starts.shape[1]
     s = MadPinnPolicy.summarise_stats(pol.stats)

@@ -12,8 +12,8 @@ gradient; the cold search needs 1 + steps + 1 = 12), the warm hit rate, policy C
 runs (collided agents, mean cost). With ``--verify`` every warm step also runs the cold search on
 the same observations and counts answers that differ (index, feasibility), and how many of
 those rows have a V̂ that is not monotone in z between the two answers. With ``--newton`` a third
-run uses the Newton-stepped search (``MadPinnSettings.z_newton``,
-:func:`madpinn.policies.z_search.newton_search`), and every step of the warm run also runs the
+run uses the Newton-stepped search (:func:`newton_search.newton_policy`,
+:func:`newton_search.newton_search`, benchmarks/newton_search.py), and every step of the warm run also runs the
 Newton search on the same observations and prediction, counting its rows and the answers that
 differ from the warm search's (index, feasibility; V̂ not monotone in between).
 
@@ -25,6 +25,7 @@ Last line: ``warm_vhat_evals_per_agent_step: X`` (mean over the cells); with ``-
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import replace
 
 import argparse
@@ -37,12 +38,13 @@ from madpinn.config import REPO_ROOT, load_config
 from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.madpinn import MadPinnPolicy, MadPinnSettings
 from madpinn.policies.neighbours import make_selector
-from madpinn.policies.z_search import newton_search, predict_index
+from madpinn.policies.z_search import predict_index
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import ZGrid, cold_search
+from newton_search import newton_policy, newton_search   # benchmarks/newton_search.py
 
 PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
 SPEC = ObservationSettings.from_config(PAPER).base_mapping()
@@ -115,12 +117,13 @@ def run_cell(vhat, vs, N: int, arena: Arena, scenarios: int, seed: int, warm: bo
     if warm and compare_newton and not newton:
         cls = NewtonComparedPolicy
     pol = cls(vhat, make_selector("value", SPEC.n_neighbours, vs=vs), SPEC,
-              replace(BASE_SETTINGS, warm_start=warm, z_newton=newton), DT)
+              replace(BASE_SETTINGS, warm_start=warm), DT)
     t_search = time.process_time()
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
     # policy CPU time: run_episode times the policy in wall time; we take process time around it
     steps = int(round(arena.episode_s / DT))
-    result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
+    with newton_policy() if newton else nullcontext():
+        result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
     cpu = time.process_time() - t_search
     s = MadPinnPolicy.summarise_stats(pol.stats)
     out = {"evals": s["vhat_evals_per_agent_step"], "grad_evals": s["vhat_grad_evals_per_agent_step"],

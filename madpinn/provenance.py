@@ -22,8 +22,9 @@ Two refinements keep unrelated edits from rerunning hours of jobs:
 :data:`GLUE` (the command layer, config parsing, tracking, checksums, atomic writes) changes no
 result: it is neither hashed nor followed beyond an entry.
 
-**Config** (:func:`job_settings`, :func:`settings_hash`): per command, the one package function
-that says what its jobs read: a trained model's own training hash
+**Config** (:func:`madpinn.commands.job_settings`, :func:`madpinn.commands.settings_hash`):
+per command, the one package function that says what its jobs read, declared beside the command's
+parser (``reads``, :mod:`madpinn.commands.reads`): a trained model's own training hash
 (:func:`madpinn.value_functions.build.training_hash`, :func:`madpinn.marl_hash.marl_training_hash`:
 never validation or deployment-only settings), an evaluation cell's
 :func:`madpinn.config.job_config`, and for the checks and outputs the config subtrees they read.
@@ -37,7 +38,6 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from madpinn.config import lookup_key
 
 PACKAGE = Path(__file__).resolve().parent
 GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
@@ -220,112 +220,14 @@ def plugin_module(module: str, name: str) -> str | None:
     return registry(module).get(name)
 
 
-# --- the config a job reads ---
-
-def _keys(*keys: str):
-    """A job that reads these config subtrees (dotted keys) and nothing else."""
-    return lambda cfg, **_: {k: lookup_key(cfg, k) for k in keys}
-
-
-def _labels(cfg: Mapping, *studies: str) -> dict:
-    """The labels tables, figures and the report print for the studies' runs."""
-    from madpinn.config import method_config
-
-    return {st: {run: method_config(cfg, run)[1].get("label", run) for run in cfg["studies"][st]["runs"]}
-            for st in studies}
-
-
-def _training(cfg: Mapping, kind: str, variant: str | None = None) -> str:
-    from madpinn.config import with_vf_variant
-    from madpinn.value_functions.build import training_hash
-
-    return training_hash(with_vf_variant(cfg, kind, variant), kind)
-
+# --- the config a job reads: declared by each command beside its parser, hashed by
+# madpinn.commands.settings_hash (the command layer; this module stays below it) ---
 
 def model_training_hash(cfg: Mapping, name: str) -> str | None:
     """The training hash of value-function model ``name`` (``vhat``, ``vs``, ``vhat_<variant>``:
     its variant's merged settings), None for any other name (the shipped overlay's check)."""
-    from madpinn.config import split_vf_model
+    from madpinn.config import split_vf_model, with_vf_variant
+    from madpinn.value_functions.build import training_hash
 
     split = split_vf_model(name)
-    return _training(cfg, *split) if split else None
-
-
-def _marl(cfg: Mapping, name: str) -> str:
-    from madpinn.marl_hash import marl_training_hash
-
-    return marl_training_hash(cfg, name)
-
-
-def _governors(cfg: Mapping, study: str) -> dict:
-    """What fig_large_arena_frontier reads of each run of ``study`` besides its cells: its V̂, carrot
-    and speed bound (:class:`madpinn.figures.frontier.FrontierRun`)."""
-    from madpinn.config import run_agents, run_observation, run_vhat
-
-    return {run: {"vhat": run_vhat(cfg, run), "observation": run_observation(cfg, run), "agents": run_agents(cfg, run)}
-            for run in cfg["studies"][study]["runs"]}
-
-
-def _cell(cfg: Mapping, study: str, run: str) -> dict:
-    from madpinn.config import job_config
-
-    return {**job_config(cfg, study, run), "dtype": cfg["dtype"]}
-
-
-def _gap_rows(cfg: Mapping) -> dict:
-    """What names the gap decomposition's rows (its cells are its inputs): the section, the
-    configured carrot margin, each gap study's backend and its runs' settings."""
-    from madpinn.config import method_config, study_backend
-
-    gap = cfg["gap_decomposition"]
-    return {"gap_decomposition": gap, "carrot_margin": cfg["observation"]["carrot_margin"],
-            "studies": {s: {"backend": study_backend(cfg, s), "runs": {r: method_config(cfg, r)[1] for r in cfg["studies"][s]["runs"]}}
-                        for s in gap["studies"]}}
-
-
-_VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
-_Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search
-READS = {
-    "train-value": lambda cfg, kind, variant=None: _training(cfg, kind, variant),
-    "train-safemarl-nominal": lambda cfg: _marl(cfg, "safemarl_nominal"),
-    "train-defmarl": lambda cfg, variant: _marl(cfg, f"defmarl_{variant}"),
-    "evaluate": _cell,
-    "validate-vs": _keys("value_functions.vs.validation", *_VF_RUN),
-    "validate-vhat": _keys("value_functions.vhat.validation.samples", *_VF_RUN),
-    "verify-vhat": _keys("value_functions.vhat.validation.scenario", _Z_TOL, *_VF_RUN),
-    "fig-value-heatmap": _keys("arenas.small.half_width", _Z_TOL, *_VF_RUN),
-    "solve-vs-grid": _keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
-                           "value_functions.vs.v_range", "value_functions.vs.validation.grid"),
-    "validate-vs-grid": _keys(*_VF_RUN),
-    "oracle": lambda cfg, arena: {"oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena],
-               "start_separation": cfg["sim"]["start_separation"]},
-    "table": lambda cfg, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study)},
-    "figure": lambda cfg, name, study: {"experiment": cfg["experiment"], "labels": _labels(cfg, study),
-                                        **({"trajectories": cfg["figures"]["trajectories"]}
-                                           if name == "fig_trajectories" else {}),
-                                        **({"governors": _governors(cfg, study)}
-                                           if name == "fig_large_arena_frontier" else {})},
-    "reproduction": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
-    "claims": _keys("experiment"),
-    "collision-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies)},
-    "controller-readings": lambda cfg, studies: {"experiment": cfg["experiment"], "labels": _labels(cfg, *studies),
-                                                 "readings": {s: cfg["studies"][s].get("sim") for s in studies}},
-    "render-clip": _keys("sim.mujoco", "arenas"),
-    "gap-decomposition": lambda cfg: _gap_rows(cfg),
-}
-"""command -> function(cfg, **job) -> what its jobs read (``job``: the job's wildcards)"""
-
-
-def job_settings(cfg: Mapping, command: str, **job) -> object:
-    """The part of the validated config that one job of ``python -m madpinn <command>`` reads
-    (``job``: e.g. ``kind``, ``study`` and ``run``, ``arena``)."""
-    if command not in READS:
-        raise ValueError(f"no config dependency declared for command '{command}' (madpinn.provenance.READS)")
-    return READS[command](cfg, **job)
-
-
-def settings_hash(cfg: Mapping, command: str, **job) -> str:
-    """Hash (12 hex) of :func:`job_settings`: the rules' ``settings`` param."""
-    from madpinn.config import config_hash
-
-    return config_hash(job_settings(cfg, command, **job))
+    return training_hash(with_vf_variant(cfg, split[0], split[1]), split[0]) if split else None

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 import torch
 
-from madpinn.config import job_config, load_config
+from madpinn.config import job_config, load_config, validate_config
 from madpinn.evaluation.cell import CellSettings
 from madpinn.evaluation.metrics import DISC_FACTOR, safety_curve, scenario_metrics, seed_summary
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.scenarios import Arena, generate_scenarios
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation import make_backend, run_episode
 from madpinn.simulation.mujoco.model import COLLISION_CYLINDER
 from tests.mujoco_helpers import DT, DYN
@@ -183,6 +184,7 @@ def test_collision_readings_table_from_real_cells(tmp_path):
     base = dict(arena="small", agent_counts=[12], seeds=[100], scenarios=2, runs=["madpinn-k1", "madpinn-kinf"])
     cfg["studies"]["ablation_update"] = {**base, "sim": {"contacts": False}}
     cfg["studies"]["ablation_update_contacts"] = {**base, "sim": {"contacts": True}}
+    validate_config(cfg)   # fills the new studies' defaults, as the loader does
     paths = []
     for study in ("ablation_update", "ablation_update_contacts"):
         for run in base["runs"]:

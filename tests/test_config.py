@@ -140,7 +140,7 @@ def test_conflict_pattern_is_checked_before_any_job():
 
 
 def _scenario_settings(cfg):
-    from madpinn.config import _agent_count_settings
+    from madpinn.config.rules import _agent_count_settings
 
     return sorted({(arena, n) for _, arena, counts in _agent_count_settings(cfg) for n in counts})
 

@@ -14,7 +14,8 @@ import torch
 from conftest import REPO, SMOKE
 from madpinn.commands import main
 from madpinn.config import ConfigError, deep_merge, load_config, run_agents, run_vhat, with_vf_variant
-from madpinn.provenance import model_training_hash, settings_hash
+from madpinn.commands import settings_hash
+from madpinn.provenance import model_training_hash
 from madpinn.value_functions.build import training_hash
 from policy_models import tiny_model_dir
 from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, write_overlay

@@ -1,4 +1,5 @@
-"""What config a job depends on is said once, by the package (``madpinn.provenance.READS``), and the
+"""What config a job depends on is said once, by each command beside its parser (``reads``,
+``madpinn.commands.command_reads``), and the
 workflow's rules carry it: a training reruns for its own training settings only (never for a
 deployment knob or a validation setting), a check for the settings it reads."""
 
@@ -10,7 +11,7 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import deep_merge
-from madpinn.provenance import READS, settings_hash
+from madpinn.commands import command_reads, settings_hash
 from madpinn.value_functions.build import training_hash
 
 RULES = REPO / "workflow" / "rules"
@@ -40,7 +41,7 @@ def test_value_training_reruns_for_its_training_settings_only(smoke_cfg, kind):
     # the package's own training hash (checked against shipped models) is the rule's param
     assert settings_hash(smoke_cfg, "train-value", kind=kind) == settings_hash(
         deep_merge(smoke_cfg, {"value_functions": {kind: {"validation": {}}}}), "train-value", kind=kind)
-    assert training_hash(smoke_cfg, kind) in str(READS["train-value"](smoke_cfg, kind=kind))
+    assert training_hash(smoke_cfg, kind) in str(command_reads()["train-value"](smoke_cfg, kind=kind))
 
 
 def test_marl_trainings_rerun_for_their_own_method_only(smoke_cfg):
@@ -73,7 +74,7 @@ def test_outputs_and_cells_follow_what_they_read(smoke_cfg):
 
 def test_every_rule_declares_the_settings_of_the_command_it_runs():
     """Each rule's ``settings=settings_hash("<command>", ...)`` names its ``shell:`` command, and
-    every such command has its config dependency in READS."""
+    every such command declares its config dependency beside its parser (`reads`)."""
     checked = 0
     for smk in sorted(RULES.glob("*.smk")):
         for block in re.split(r"\n\s*rule\b", smk.read_text())[1:]:
@@ -82,6 +83,6 @@ def test_every_rule_declares_the_settings_of_the_command_it_runs():
             if shell is None or shell.group(1) in ("tracking-init", "track-cells", "install-shipped"):   # MLflow glue, model copy
                 continue
             assert settings is not None, (smk.name, shell.group(1))
-            assert settings.group(1) == shell.group(1) and settings.group(1) in READS, (smk.name, settings.group(0))
+            assert settings.group(1) == shell.group(1) and settings.group(1) in command_reads(), (smk.name, settings.group(0))
             checked += 1
     assert checked >= 15, checked

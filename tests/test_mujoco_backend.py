@@ -6,7 +6,8 @@ import pytest
 import torch
 
 from madpinn.config import REPO_ROOT, load_config
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation import make_backend as make_registered_backend
 from madpinn.simulation.mujoco import MujocoBackend, MujocoSettings, PhysicsDivergedError
 from mujoco_helpers import DT, bang_bang, make_backend

@@ -10,7 +10,8 @@ import inspect
 from conftest import REPO
 from madpinn.config import load_config, method_config
 from madpinn.policies import PolicyContext, policy_settings
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 
 PACKAGE = REPO / "madpinn"
 

@@ -6,8 +6,8 @@ registered in ``SETTINGS`` below, and all are named ``*Settings``):
 
 - a field read from the config has no default of its own (fields that are no config key are
   listed in ``not_config``);
-- a key the schema leaves optional is read, when absent, as the schema's ``default`` (the one
-  place the absent value is written);
+- a key the schema leaves optional is read, when absent, as the schema's ``default``, which the
+  loader fills in (the one place the absent value is written; ``tests/test_settings_once.py``);
 - a dataclass check never disagrees with a schema bound: a value just inside every schema bound
   (``minimum``, ``maximum``, exclusive ones, ``enum``) builds, and values just outside and far
   outside are either both accepted (the schema alone holds the bound) or both rejected (the
@@ -25,7 +25,8 @@ from typing import Any, Callable
 import pytest
 
 from conftest import REPO
-from madpinn.config import ConfigError, _schema, method_config, validate_config
+from madpinn.config import ConfigError, method_config, validate_config
+from madpinn.config.schema import _schema, node_at, object_branch
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.evaluation.oracle import OracleSettings
@@ -42,7 +43,8 @@ from madpinn.policies.nominal import NominalSettings
 from madpinn.policies.safemarl import SafeMarlSettings
 from madpinn.policies.safety_filter import CBVFSettings
 from madpinn.scenarios import Arena
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.settings import MujocoSettings
 from madpinn.evaluation.cell import CellSettings
@@ -88,7 +90,7 @@ SETTINGS = [
     Entry(Arena, "arenas.small", lambda c: Arena.from_config(c, "small"), not_config=("name",)),
     Entry(NominalSettings, "methods.nominal", _method("nominal")),
     Entry(MadPinnSettings, "methods.madpinn", _method("madpinn"), keys={"strategy": "neighbours"},
-          not_config=("z_newton",), nested=("safety_filter",)),
+          nested=("safety_filter",)),
     Entry(CBVFSettings, "methods.safemarl", lambda c: _method("safemarl")(c).cbvf, keys={"gamma": "cbvf_gamma"}),
     Entry(MPPISettings, "methods.mppi", _method("mppi"), keys={"dual_lr": "dual_ascent.lr", "penalty_max": "dual_ascent.max"}),
     Entry(SafeMarlSettings, "methods.safemarl", _method("safemarl"), not_config=("cbvf",)),   # cbvf: CBVFSettings of this section
@@ -116,7 +118,7 @@ SETTINGS = [
     Entry(OracleSettings, "agents", lambda c: OracleSettings.from_config(c, "small"),
           not_config=("horizon_s", "dt")),        # the arena's episode length and episode / oracle.steps
     Entry(TrackingSettings, "tracking", TrackingSettings.from_config, keys={"experiment": "/experiment"},
-          not_config=("uri", "pending_dir", "config_hash", "source", "flush_every_s")),
+          not_config=("uri", "pending_dir", "config_hash", "source", "results", "flush_every_s")),
     Entry(EpigraphSystem, "value_functions.vhat", EpigraphSystem.from_config,
           keys={"u_max": "/agents.u_max", "v_max": "/agents.v_max"},
           not_config=("spec", "z_max")),   # spec: ObservationSettings at the training mapping; z_max: a number or `auto` (computed)
@@ -154,17 +156,10 @@ def _resolve(node: dict) -> dict:
 
 
 def _node(path: str) -> dict:
-    """Resolved schema node of a dotted config path (``""``: the root)."""
-    node = _resolve(SCHEMA)
-    for part in filter(None, path.split(".")):
-        props = node["properties"]
-        if part in props:
-            node = _resolve(props[part])
-        elif isinstance(node.get("additionalProperties"), dict):
-            node = _resolve(node["additionalProperties"])
-        else:
-            raise KeyError(f"schema has no '{part}' in '{path}'")
-    return node
+    """Resolved schema node of a dotted config path (``""``: the root; a section that may also be
+    null, e.g. ``methods.defmarl.validation``: its mapping branch)."""
+    node = node_at(path, SCHEMA)
+    return object_branch(node, SCHEMA) or node if "oneOf" in node else node
 
 
 def _key_path(entry: Entry, name: str) -> str:
@@ -266,6 +261,7 @@ def test_optional_keys_read_as_the_schema_default(entry, paper_cfg):
         cfg = copy.deepcopy(paper_cfg)
         parent, _, key = path.rpartition(".")
         _at(cfg, parent).pop(key, None)
+        validate_config(cfg)   # the loader fills the absent key (the only place it is filled)
         value = getattr(entry.build(cfg), name)
         value = list(value) if isinstance(value, tuple) else value   # a YAML list held as a frozen tuple
         assert value == node["default"], f"absent {path} must read as the schema default"

@@ -15,6 +15,7 @@ from settings_helpers import pair_system
 def problem(fraction, radius=0.3, **speed_aware):
     cfg = load_config([REPO / "config.yaml"])
     cfg["value_functions"]["vhat"]["conflict_sampling"] = {"fraction": fraction, "radius": radius, **speed_aware}
+    validate_config(cfg)   # fills the keys left out with their schema defaults, as the loader does
     return problem_from_config(cfg, "vhat")
 
 
@@ -126,6 +127,7 @@ def test_near_rows_fill_the_inner_box_and_leave_the_rest():
     cfg = load_config([REPO / "config.yaml"])
     cfg["value_functions"]["vs"]["conflict_sampling"] = {"fraction": 0.25, "radius": 0.3}
     cfg["value_functions"]["vs"]["near_sampling"] = {"fraction": 0.5, "p_range": 1.0, "v_range": 3.0}
+    validate_config(cfg)
     p = problem_from_config(cfg, "vs")
     s = p.sample_training_states(4000, torch.Generator().manual_seed(3), torch.float64)
     near, rest = s[2000:], s[:2000]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib
+from typing import Mapping
 
 from madpinn.commands.errors import debug_requested, run_reporting
 
@@ -56,6 +57,37 @@ def handler_entry(command: str) -> str:
     if command not in handlers:
         raise ValueError(f"unknown command '{command}' (have {sorted(handlers)})")
     return handlers[command]
+
+
+def command_reads() -> dict:
+    """command -> ``reads(cfg, **job)``: what its jobs read of the config, as each command declares
+    it beside its parser (:mod:`madpinn.commands.reads`); commands that produce no result
+    (``validate-config``, ``ship-models``, ...) declare none."""
+    return {name: p.get_default("reads") for name, p in _subparsers().items() if p.get_default("reads") is not None}
+
+
+def job_settings(cfg: Mapping, command: str, **job) -> object:
+    """The part of the validated config that one job of ``python -m madpinn <command>`` reads
+    (``job``: e.g. ``kind``, ``study`` and ``run``, ``arena``): the ``reads`` the command declares
+    beside its parser (:func:`madpinn.commands.command_reads`)."""
+    reads = command_reads()
+    if command not in reads:
+        raise ValueError(f"no config dependency declared for command '{command}' (its parser's `reads`, "
+                         "madpinn/commands/reads.py)")
+    return reads[command](cfg, **job)
+
+
+def settings_hash(cfg: Mapping, command: str, **job) -> str:
+    """Hash (12 hex) of :func:`job_settings`: the rules' ``settings`` param."""
+    from madpinn.config import config_hash
+
+    return config_hash(job_settings(cfg, command, **job))
+
+
+@functools.lru_cache(maxsize=1)
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    return dict(next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices)
 
 
 @functools.lru_cache(maxsize=1)

@@ -19,6 +19,7 @@ from typing import Iterable
 
 from madpinn.commands.args import add_config_arg, config_of
 from madpinn.commands.finish import JobRecord, finish, job, write_json
+from madpinn.config import RunSettings
 
 RESTORED_TAG = "madpinn.restored"          # "true": restored from the output cache, "false": computed here
 PROVENANCE_TAG = "madpinn.provenance_hash"      # Snakemake's provenance hash of the cell (its cache entry)
@@ -32,19 +33,16 @@ def cell_job_key(backend: str, study: str, run: str, n_agents: int, seed: int) -
     return f"evaluate/{backend}/{study}/{run}/n{n_agents}/seed{seed}"
 
 
-def cell_record(cfg: dict, study: str, run: str, n_agents: int, seed: int, backend: str, restored: bool) -> JobRecord:
-    """The cell's job record before its figures: key, wildcards, params (what the cell depends on,
-    and its coordinates for the runs table's columns) and the ``restored`` tag."""
-    from madpinn.config import method_config, run_agents, run_observation, study_sim
-
-    method, mcfg = method_config(cfg, run)
-    st = cfg["studies"][study]
+def cell_record(r: RunSettings, n_agents: int, seed: int, backend: str, restored: bool) -> JobRecord:
+    """The cell's job record before its figures, from its resolved run ``r``
+    (:class:`madpinn.config.RunSettings`): key, wildcards, params (what the cell depends on, and its
+    coordinates for the runs table's columns) and the ``restored`` tag."""
     return JobRecord(
-        job_key=cell_job_key(backend, study, run, n_agents, seed), rule="evaluate",
-        wildcards={"backend": backend, "study": study, "run": run, "n": n_agents, "seed": seed},
-        params={"study": study, "run": run, "n_agents": n_agents, "seed": seed, "method": method, "method_config": mcfg,
-                "arena": cfg["arenas"][st["arena"]], "scenarios": st["scenarios"], "sim": study_sim(cfg, study),
-                "observation": run_observation(cfg, run), "agents": run_agents(cfg, run)},
+        job_key=cell_job_key(backend, r.study, r.run, n_agents, seed), rule="evaluate",
+        wildcards={"backend": backend, "study": r.study, "run": r.run, "n": n_agents, "seed": seed},
+        params={"study": r.study, "run": r.run, "n_agents": n_agents, "seed": seed, "method": r.method,
+                "method_config": r.method_config, "arena": r.arena, "scenarios": r.study_config["scenarios"], "sim": r.sim,
+                "observation": r.observation, "agents": r.agents},
         tags={RESTORED_TAG: str(restored).lower()},
     )
 
@@ -147,8 +145,8 @@ def track_cells(cfg: dict, cells: Iterable[str | Path]) -> dict:
                 c.set_tag(run.info.run_id, k, v)
             counts["tagged"] += bool(missing)
             continue
-        record = cell_record(cfg, where["study"], where["run"], where["n_agents"], where["seed"], where["backend"],
-                             restored=prov is not None)
+        record = cell_record(RunSettings.resolve(cfg, where["study"], where["run"]), where["n_agents"], where["seed"],
+                             where["backend"], restored=prov is not None)
         record.tags = {**record.tags, **({PROVENANCE_TAG: prov} if prov else {}),
                        **({"madpinn.logged_from_files": "true"} if prov is None else {})}
         with job(cfg, record, True) as tracker:

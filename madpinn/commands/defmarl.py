@@ -18,6 +18,7 @@ from pathlib import Path
 from madpinn.commands.args import config_of
 from madpinn.commands.finish import JobRecord
 from madpinn.commands.marl_training import add_training_parser, train_and_record
+from madpinn.commands.reads import marl
 
 EXIT_PAUSED = 75   # as train-value: the time limit stopped a piece, the checkpoint is kept
 
@@ -31,10 +32,10 @@ def resume_hash(cfg: dict, variant: str) -> str:
 
     c = copy.deepcopy(cfg)
     c["methods"]["defmarl"]["training"]["ppo"]["iterations"] = 0
-    c["methods"]["defmarl"].pop("validation", None)
-    for v in c["methods"]["defmarl"].get("variants", {}).values():
-        v.get("training", {}).get("ppo", {}).pop("iterations", None)
-        v.pop("validation", None)
+    c["methods"]["defmarl"]["validation"] = None
+    for v in c["methods"]["defmarl"]["variants"].values():   # overlays: a variant may set its own iterations
+        if "ppo" in (v.get("training") or {}):
+            v["training"]["ppo"].pop("iterations", None)
     return marl_training_hash(c, f"defmarl_{variant}")
 
 
@@ -57,7 +58,7 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
     tcfg = mcfg["training"]
     if init is not None and not (checkpoint is not None and Path(checkpoint).is_file()):   # read only to start
         _check_init(init, mcfg)
-    validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if "validation" in mcfg else None
+    validation = CellValidation(cfg, run, tcfg["agent_counts"], threads) if mcfg["validation"] is not None else None
     curves = DEFMARL_CURVES + (validation.curves() if validation is not None else ())
     training = TrainingRun(
         build=lambda: build_defmarl_trainer(cfg, run)[0], seed=int(tcfg["seed"]), out=Path(out), desc=f"DEF-MARL ({variant})",
@@ -71,7 +72,7 @@ def train_defmarl(cfg: dict, variant: str, out: str | Path, threads: int = 1, pr
         cfg, training, curves,
         JobRecord(job_key=f"train/defmarl_{variant}", rule="train_defmarl", wildcards={"variant": variant},
                   params={"training": tcfg, "epigraph": mcfg["epigraph"], "agents": cfg["agents"],
-                          "observation": cfg["observation"], "validation": mcfg.get("validation")}),
+                          "observation": cfg["observation"], "validation": mcfg["validation"]}),
         track=track)
 
 
@@ -100,7 +101,8 @@ def _train(args) -> int:
 def register(sub) -> None:
     from madpinn.commands.value_functions import _seconds
 
-    p = add_training_parser(sub, "train-defmarl", "train one DEF-MARL model (epigraph-form MARL)", _train, variant=True)
+    p = add_training_parser(sub, "train-defmarl", "train one DEF-MARL model (epigraph-form MARL)", _train,
+                            reads=lambda cfg, variant: marl(cfg, f"defmarl_{variant}"), variant=True)
     p.add_argument("--checkpoint", default=None,
                    help="resumable training state: saved at every validation and when stopping, resumed when it exists")
     p.add_argument("--time-limit", type=_seconds, default=None, metavar="SECONDS",

@@ -7,6 +7,7 @@ from typing import Mapping
 
 from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, config_of, parse_models
 from madpinn.commands.finish import finish, job
+from madpinn.commands.reads import cell
 
 ECHO = ("run", "n_agents", "seed", "safety_rate", "safe_scenarios", "cost", "cost_time_avg", "elapsed_s")
 
@@ -33,20 +34,20 @@ def evaluate(
     from dataclasses import replace
 
     from madpinn.commands.cell_runs import cell_metrics, cell_record
-    from madpinn.config import ConfigError, check_cell, method_config, study_backend
+    from madpinn.config import ConfigError, RunSettings, check_cell
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     check_cell(cfg, n_agents, seed, study=study, run=run, backend=backend)   # as the workflow checks its targets
 
-    cs = CellSettings.from_config(cfg, study, run)   # the run's agents override included (run_limits)
-    method, _ = method_config(cfg, run)
+    r = RunSettings.resolve(cfg, study, run)   # the run, merged once
+    cs = CellSettings.from_run(cfg, r)   # the run's agents override included (run_limits)
     if collision_events and not cs.collision_events:
-        if method != "madpinn":
+        if r.method != "madpinn":
             raise ConfigError(f"--collision-events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
         cs = replace(cs, collision_events=True)
-    backend = backend or study_backend(cfg, study)
+    backend = backend or str(r.sim["backend"])
     # the same key, params and metrics as a cell restored from the output cache (madpinn/commands/cell_runs.py)
-    record = cell_record(cfg, study, run, n_agents, seed, backend, restored=False)
+    record = cell_record(r, n_agents, seed, backend, restored=False)
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
         record.artifacts = write_cell(cell, out)
@@ -82,4 +83,4 @@ def register(sub) -> None:
                    help="classify every collision onset of a MAD-PINN cell into its JSON summary (madpinn/evaluation/collisions.py)")
     add_model_arg(p, ("madpinn: vhat, vs", "safemarl: nominal, vs", "defmarl-<variant>: policy"))
     add_job_args(p)
-    p.set_defaults(func=_evaluate)
+    p.set_defaults(func=_evaluate, reads=cell)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from madpinn.commands.args import add_config_arg, add_job_args, config_of
 from madpinn.commands.finish import JobRecord, finish, job
+from madpinn.commands.reads import gap_rows
 
 
 def _gap(args) -> int:
@@ -30,4 +31,4 @@ def register(sub) -> None:
     p.add_argument("--inputs", nargs="+", required=True, help="the gap studies' cell files (.json, or their .parquet)")
     p.add_argument("--out-dir", required=True, help="writes decomposition.{csv,md,json} here")
     add_job_args(p, progress=False)
-    p.set_defaults(func=_gap)
+    p.set_defaults(func=_gap, reads=gap_rows)

@@ -38,13 +38,14 @@ def live_curves(run, keys: Sequence[str]) -> Callable[[dict], None]:
     return lambda stats: run.log_metrics({k: stats[k] for k in keys if k in stats}, step=int(stats["iteration"]))
 
 
-def add_training_parser(sub, name: str, help: str, func, variant: bool = False):
-    """Sub-command ``name`` of a MARL training job: ``--config``, [``--variant``], ``--out``, job options."""
+def add_training_parser(sub, name: str, help: str, func, reads, variant: bool = False):
+    """Sub-command ``name`` of a MARL training job: ``--config``, [``--variant``], ``--out``, job
+    options; ``reads``: what its jobs read of the config (:mod:`madpinn.commands.reads`)."""
     p = sub.add_parser(name, help=help)
     add_config_arg(p)
     if variant:
         p.add_argument("--variant", required=True, help="variant of methods.defmarl (e.g. n3, n8)")
     p.add_argument("--out", required=True, help="checkpoint path (.pt)")
     add_job_args(p)
-    p.set_defaults(func=func)
+    p.set_defaults(func=func, reads=reads)
     return p

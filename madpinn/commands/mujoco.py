@@ -10,6 +10,7 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of
 from madpinn.commands.finish import JobRecord, finish, job, write_json
+from madpinn.commands.reads import keys
 
 
 def _render_clip(args) -> int:
@@ -43,4 +44,4 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="status JSON; the clip is written next to it as .gif")
     p.add_argument("--key", default=None, help="MLflow job key (default: the trajectory's name)")
     p.add_argument("--no-track", action="store_true", help="do not log to MLflow")
-    p.set_defaults(func=_render_clip)
+    p.set_defaults(func=_render_clip, reads=keys("sim.mujoco", "arenas"))

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job, write_commit_record
+from madpinn.commands.reads import governors, keys, labels, study_sim_override
 
 
 def _table(args) -> int:
@@ -61,7 +62,7 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
         if run not in models:
             raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
         meta = read_checkpoint(models[run], "vhat")["meta"]
-        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1].get("label", run)), samples=model_samples(meta)))
+        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta)))
     return plot_vhat_budget(args.inputs, runs, Path(args.out_dir) / args.name)
 
 
@@ -167,7 +168,7 @@ def register(sub) -> None:
     p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files: adds the lower-bound rows")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_table)
+    p.set_defaults(func=_table, reads=lambda cfg, study: {"experiment": cfg["experiment"], "labels": labels(cfg, study)})
 
     p = sub.add_parser("reproduction", help="reproduction report: every table beside the paper's values")
     add_config_arg(p)
@@ -177,14 +178,15 @@ def register(sub) -> None:
     p.add_argument("--models", nargs="*", default=None, help="model files whose sha256 the provenance lists")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_reproduction)
+    p.set_defaults(func=_reproduction,
+                   reads=lambda cfg, studies: {"experiment": cfg["experiment"], "labels": labels(cfg, *studies)})
 
     p = sub.add_parser("claims", help="the paper's claims tested on a reproduction report -> claims.{json,md,html}")
     add_config_arg(p)
     p.add_argument("--report", required=True, help="reproduction.json (python -m madpinn reproduction)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_claims)
+    p.set_defaults(func=_claims, reads=keys("experiment"))
 
     p = sub.add_parser("collision-readings", help="every paper cell under each collision reading (issue 38)")
     add_config_arg(p)
@@ -192,14 +194,17 @@ def register(sub) -> None:
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of the base and <base>_contacts studies")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_collision_readings)
+    p.set_defaults(func=_collision_readings,
+                   reads=lambda cfg, studies: {"experiment": cfg["experiment"], "labels": labels(cfg, *studies)})
 
     p = sub.add_parser("controller-readings", help="every cell under each reading of the tracking controller (issue 46)")
     add_config_arg(p)
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of the ctl_* studies (JSON and _traj.npz beside them)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_controller_readings)
+    p.set_defaults(func=_controller_readings,
+                   reads=lambda cfg, studies: {"experiment": cfg["experiment"], "labels": labels(cfg, *studies),
+                                               "readings": {s: study_sim_override(cfg, s) for s in studies}})
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)
@@ -210,7 +215,9 @@ def register(sub) -> None:
     p.add_argument("--pattern", default=None, help="a structured conflict pattern (madpinn/conflicts.py); default: uniform (SPEC §2)")
     p.add_argument("--out", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_oracle)
+    p.set_defaults(func=_oracle, reads=lambda cfg, arena: {
+        "oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena],
+        "start_separation": cfg["sim"]["start_separation"]})
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")
     add_config_arg(p)
@@ -223,4 +230,7 @@ def register(sub) -> None:
     p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_figure)
+    p.set_defaults(func=_figure, reads=lambda cfg, name, study: {
+        "experiment": cfg["experiment"], "labels": labels(cfg, study),
+        **({"trajectories": cfg["figures"]["trajectories"]} if name == "fig_trajectories" else {}),
+        **({"governors": governors(cfg, study)} if name == "fig_large_arena_frontier" else {})})

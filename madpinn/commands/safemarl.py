@@ -12,6 +12,7 @@ from pathlib import Path
 from madpinn.commands.args import config_of
 from madpinn.commands.finish import JobRecord
 from madpinn.commands.marl_training import add_training_parser, train_and_record
+from madpinn.commands.reads import marl
 
 FIRST = ("episode_return", "final_distance", "collision_rate")
 LAST = ("episode_return", "final_distance", "reached_rate", "collision_rate")
@@ -43,4 +44,5 @@ def _train(args) -> int:
 
 
 def register(sub) -> None:
-    add_training_parser(sub, "train-safemarl-nominal", "train SafeMARL's nominal goal-reaching PPO policy", _train)
+    add_training_parser(sub, "train-safemarl-nominal", "train SafeMARL's nominal goal-reaching PPO policy", _train,
+                        reads=lambda cfg: marl(cfg, "safemarl_nominal"))

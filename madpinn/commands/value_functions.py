@@ -24,6 +24,7 @@ from madpinn.commands.args import add_config_arg, add_job_args, add_model_arg, c
 from madpinn.commands.finish import JobRecord, finish, job, write_json
 from madpinn.config import REPO_ROOT
 from madpinn.value_functions.build import KINDS
+from madpinn.commands.reads import VF_RUN, Z_TOL, keys, training
 
 LIVE_POINTS = 1000
 """training curves: at most this many live MLflow points per run"""
@@ -121,7 +122,7 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{out.stem}.ckpt.pt"
     chash = record.params["config_hash"]
-    total = stage_iterations(settings, vcfg.get("fine_tune"))
+    total = stage_iterations(settings, vcfg["fine_tune"])
     every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     deadline = None if args.time_limit is None else time.monotonic() + args.time_limit
     net, info = train_stages(problem, settings, vcfg.get("fine_tune"), ckpt, out.with_name(f"{out.stem}_stage1.pt"), chash,
@@ -355,41 +356,42 @@ def register(sub) -> None:
                    help=f"stop after the first iteration that ends past this many seconds, keeping a checkpoint, "
                         f"and exit {EXIT_PAUSED}: long trainings as time-boxed pieces (docs/reference/value_functions.md)")
     p.add_argument("--no-progress", action="store_true")
-    p.set_defaults(func=_train)
+    p.set_defaults(func=_train, reads=lambda cfg, kind, variant=None: training(cfg, kind, variant))
 
     p = sub.add_parser("validate-vs", help="V_s rollout verification (false-safe rate) and slices figure")
     common(p, "vs")
     p.add_argument("--out", required=True, help="JSON report")
     p.add_argument("--fig-stem", required=True, help="figure path without extension (.pdf and .png written)")
-    p.set_defaults(func=_validate_vs)
+    p.set_defaults(func=_validate_vs, reads=keys("value_functions.vs.validation", *VF_RUN))
 
     p = sub.add_parser("validate-vhat", help="V̂ held-out HJB residual statistics")
     common(p, "vhat")
     p.add_argument("--out", required=True, help="JSON report")
-    p.set_defaults(func=_validate_vhat)
+    p.set_defaults(func=_validate_vhat, reads=keys("value_functions.vhat.validation.samples", *VF_RUN))
 
     p = sub.add_parser("fig-value-heatmap", help="paper figure: learned value over the ego position")
     common(p, "vhat")
     p.add_argument("--out-stem", required=True, help="figure path without extension (.pdf and .png written)")
-    p.set_defaults(func=_heatmap)
+    p.set_defaults(func=_heatmap, reads=keys("arenas.small.half_width", Z_TOL, *VF_RUN))
 
     p = sub.add_parser("solve-vs-grid", help="grid reference of V_s (hj_reachability) with its convergence check")
     add_config_arg(p)
     add_job_args(p, threads_default=None)
     p.add_argument("--out", required=True, help="solution file (.npz)")
-    p.set_defaults(func=_solve_vs_grid)
+    p.set_defaults(func=_solve_vs_grid, reads=keys("agents", "value_functions.vs.horizon", "value_functions.vs.p_range",
+                                                   "value_functions.vs.v_range", "value_functions.vs.validation.grid"))
 
     p = sub.add_parser("validate-vs-grid", help="V_s against the grid reference: MAE, sign agreement, false safe")
     common(p, "vs")
     p.add_argument("--grid", required=True, help="solution file of solve-vs-grid (.npz)")
     p.add_argument("--out", required=True, help="JSON report")
     p.add_argument("--fig-stem", required=True, help="figure path without extension (.pdf and .png written)")
-    p.set_defaults(func=_validate_vs_grid)
+    p.set_defaults(func=_validate_vs_grid, reads=keys(*VF_RUN))
 
     p = sub.add_parser("verify-vhat", help="scenario-based (ε, β) verification of V̂ in the exact 3-agent dynamics")
     common(p, "vhat")
     p.add_argument("--out", required=True, help="JSON report")
-    p.set_defaults(func=_verify_vhat)
+    p.set_defaults(func=_verify_vhat, reads=keys("value_functions.vhat.validation.scenario", Z_TOL, *VF_RUN))
 
     p = sub.add_parser("ship-models", help="copy trained models into models/ and record them in models/manifest.json")
     add_model_arg(p, ("vs", "vhat", "safemarl_nominal", "defmarl_<variant>", "..."))

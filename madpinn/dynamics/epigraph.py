@@ -200,7 +200,7 @@ class EpigraphSystem(BoxControlSystem):
         spec = ObservationSettings.from_config(cfg).base_mapping()
         vcfg = cfg["value_functions"]["vhat"]
         u_max, v_max, T = float(cfg["agents"]["u_max"]), float(cfg["agents"]["v_max"]), float(vcfg["horizon"])
-        z_max = vcfg.get("z_max", "auto")
-        z_max = cls.default_z_max(spec, v_max, u_max, T) if z_max in (None, "auto") else float(z_max)
+        z_max = vcfg["z_max"]
+        z_max = cls.default_z_max(spec, v_max, u_max, T) if z_max == "auto" else float(z_max)
         return cls(spec=spec, u_max=u_max, v_max=v_max, horizon=T, z_max=z_max,
-                   velocity_saturation=bool(vcfg.get("velocity_saturation", False)))
+                   velocity_saturation=bool(vcfg["velocity_saturation"]))

@@ -17,13 +17,14 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from madpinn.config import ConfigError, config_hash, job_config, method_config, run_observation
+from madpinn.config import ConfigError, RunSettings, config_hash
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
-from madpinn.scenarios import UNIFORM, Arena, generate_scenarios
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.settings import AgentSettings
+from madpinn.simulation.settings import SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
 
 
@@ -74,26 +75,29 @@ class CellSettings:
     """``dtype`` setting"""
     job_config_hash: str
     """hash of the config part the cell depends on (:func:`madpinn.config.job_config`)"""
-    collision_events: bool = False
+    collision_events: bool
     """the study's ``collision_events``: classify every collision onset
     (:class:`madpinn.evaluation.collisions.CollisionProbe`, MAD-PINN runs) into the cell's summary"""
 
     @classmethod
     def from_config(cls, cfg: Mapping, study: str, run: str) -> "CellSettings":
-        if study not in cfg["studies"]:
-            raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
-        st = cfg["studies"][study]
-        method, mcfg = method_config(cfg, run)
-        if st.get("collision_events") and method != "madpinn":
-            raise ConfigError(f"studies.{study}.collision_events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
-        sim = SimSettings.from_config(cfg, study)
+        return cls.from_run(cfg, RunSettings.resolve(cfg, study, run))
+
+    @classmethod
+    def from_run(cls, cfg: Mapping, r: RunSettings) -> "CellSettings":
+        """From the run resolved once (:class:`madpinn.config.RunSettings`) and the config's shared
+        sections (``agents``, ``device``, ``dtype``)."""
+        st, mcfg = r.study_config, r.method_config
+        if st["collision_events"] and r.method != "madpinn":
+            raise ConfigError(f"studies.{r.study}.collision_events classifies MAD-PINN collisions; run '{r.run}' is not a MAD-PINN run")
+        sim = SimSettings.from_section(r.sim)
         return cls(
-            study=study, run=run, method=method, method_settings=policy_settings(method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st.get("pattern", UNIFORM)), scenarios=int(st["scenarios"]), limits=run_limits(cfg, mcfg),
-            sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": run_observation(cfg, run)}),
-            policy_period=int(mcfg.get("policy_period_steps", sim.policy_period_steps)),
-            device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(job_config(cfg, study, run)),
-            collision_events=bool(st.get("collision_events", False)),
+            study=r.study, run=r.run, method=r.method, method_settings=policy_settings(r.method, mcfg),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st["pattern"]), scenarios=int(st["scenarios"]), limits=run_limits(cfg, mcfg),
+            sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": r.observation}),
+            policy_period=sim.policy_period_steps if mcfg["policy_period_steps"] is None else int(mcfg["policy_period_steps"]),
+            device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(r.job_config),
+            collision_events=bool(st["collision_events"]),
         )
 
     @property

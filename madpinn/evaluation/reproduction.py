@@ -88,7 +88,7 @@ def deployment(cfg: Mapping, runs: Iterable[str]) -> dict[str, dict]:
 
     out = {}
     for run in sorted(set(runs)):
-        if run.partition("-")[0] != "madpinn" or "madpinn" not in cfg.get("methods", {}):
+        if run.partition("-")[0] != "madpinn" or "madpinn" not in cfg["methods"]:
             continue
         method, mcfg = method_config(cfg, run)
         settings = policy_settings(method, mcfg)
@@ -114,7 +114,7 @@ def reference_run(cfg: Mapping, runs: Iterable[str]) -> str | None:
     runs = list(dict.fromkeys(runs))
     if OURS in runs:
         return OURS
-    if OURS not in cfg.get("methods", {}):
+    if OURS not in cfg["methods"]:
         return None
     unlabelled = lambda run: {k: v for k, v in method_config(cfg, run)[1].items() if k != "label"}   # noqa: E731
     base = unlabelled(OURS)

@@ -70,9 +70,9 @@ def run_order(df: pd.DataFrame, cfg: dict) -> dict[str, int]:
     """Rank of each run of ``df``: the order of its studies' ``runs`` lists in ``cfg``, then any
     other run in the order met (whatever order the result files came in)."""
     order: dict[str, int] = {}
-    studies = cfg.get("studies", {})
+    studies = cfg["studies"]
     for study in dict.fromkeys(df["study"]) if "study" in df else ():
-        for run in studies.get(study, {}).get("runs", []):
+        for run in studies[study]["runs"] if study in studies else ():
             order.setdefault(str(run), len(order))
     for run in dict.fromkeys(df["run"]):
         order.setdefault(run, len(order))
@@ -128,7 +128,7 @@ def oracle_summary(oracle: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:
 
 def label_of(cfg: dict, run: str) -> str:
     try:
-        return method_config(cfg, run)[1].get("label", run)
+        return method_config(cfg, run)[1]["label"]
     except Exception:  # noqa: BLE001 - a result of a run no longer configured keeps its name
         return run
 

@@ -53,7 +53,7 @@ class FrontierRun:
         from madpinn.config import method_config, run_agents, run_observation, run_vhat
 
         obs = run_observation(cfg, run)
-        return cls(run=run, label=str(method_config(cfg, run)[1].get("label", run)), vhat=run_vhat(cfg, run),
+        return cls(run=run, label=str(method_config(cfg, run)[1]["label"]), vhat=run_vhat(cfg, run),
                    carrot=float(obs["goal_range"]) - float(obs["carrot_margin"]),
                    v_max=float(run_agents(cfg, run)["v_max"]), neighbour_goal=str(obs["neighbour_goal"]))
 

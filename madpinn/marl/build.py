@@ -27,7 +27,7 @@ def build_trainer(cfg: dict, tcfg: dict, trainer_cls=PPOTrainer, device=None, dt
     return trainer_cls(
         env, PPOSettings.from_config(tcfg["ppo"]), RewardSettings.from_config(tcfg["reward"]),
         tcfg["agent_counts"], hidden=int(tcfg["network"]["hidden"]), seed=int(tcfg["seed"]),
-        encoder=str(tcfg["network"].get("encoder", DEFAULT_ENCODER)),
+        encoder=str(tcfg["network"]["encoder"]),
     )
 
 

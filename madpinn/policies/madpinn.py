@@ -42,7 +42,7 @@ from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
 from madpinn.policies.neighbours import make_selector
 from madpinn.policies.safety_filter import CBVFFilter, CBVFSettings, SafetyFilteredPolicy, make_cbvf_filter
-from madpinn.policies.z_search import newton_search, predict_index, warm_search
+from madpinn.policies.z_search import predict_index, warm_search
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.symmetry import symmetrize
 from madpinn.value_functions.z_search import ZGrid, cold_search
@@ -63,9 +63,7 @@ class MadPinnSettings:
     τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
     the measured state); vs_band: V_s clamped into its exact band [free-drift bound, ψ]
     (:meth:`madpinn.value_functions.PairValue.banded`, issue 37); infeasible: the control where no
-    budget is feasible (:data:`INFEASIBLE`); z_newton: the warm search takes a Newton step on ∂V̂/∂z
-    (:func:`newton_search`, fewer V̂ rows; may return another verified crossing where V̂ is not
-    monotone in z, so not the default and not read from the config yet, issue 37)."""
+    budget is feasible (:data:`INFEASIBLE`)."""
 
     strategy: str
     update_every: int | None
@@ -77,7 +75,6 @@ class MadPinnSettings:
     look_ahead: float
     vs_band: bool
     infeasible: str
-    z_newton: bool = False   # not a config key (issue 37)
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -89,12 +86,6 @@ class MadPinnSettings:
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
                    look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]),
                    infeasible=str(mcfg["infeasible"]))
-
-
-def cold_budget_search(vhat, obs: torch.Tensor, steps: int):
-    """``(z* [B], feasible [B])`` by ``steps`` halvings of ``[0, z_max]`` (SPEC §6; :func:`cold_search`)."""
-    r = cold_search(vhat, obs, ZGrid(vhat.z_max, steps))
-    return r.z, r.feasible
 
 
 def check_compatible(vhat, vs, spec: ObservationSettings, u_max: float) -> None:
@@ -176,8 +167,7 @@ class MadPinnPolicy:
         obs = obs.reshape(S * N, -1)
         grid = ZGrid.of(self.vhat.z_max, self.settings.z_tolerance)
         if self.settings.warm_start and self._k_last is not None and self._k_last.shape[0] == obs.shape[0]:
-            search = newton_search if self.settings.z_newton else warm_search
-            r = search(self.vhat, obs, grid, predict_index(self._k_last, self._k_before, grid.cells))
+            r = warm_search(self.vhat, obs, grid, predict_index(self._k_last, self._k_before, grid.cells))
         else:
             r = cold_search(self.vhat, obs, grid)
             self._k_last = None

@@ -8,13 +8,16 @@ step); ``step()`` advances ``dt`` and returns the new planar state.
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import pairwise_distances
-from madpinn.settings import AgentSettings, SimSettings
+from madpinn.settings import AgentSettings
+
+if TYPE_CHECKING:
+    from madpinn.simulation.settings import SimSettings
 
 
 class SimBackend(Protocol):
@@ -80,21 +83,12 @@ class DoubleIntegratorBackend:
             self.frozen |= new
 
 
-_BACKENDS = {}
+BACKEND_MODULES = {"mujoco": "madpinn.simulation.mujoco"}
+"""backends in their own package: name -> the module whose ``make_backend(sim, limits, device,
+dtype)`` builds it, imported by name when a cell asks for it. The module does not import this one:
+the two import one way (``tests/test_import_graph.py``)."""
 
 
-def register_backend(name: str):
-    """Decorator: register a backend factory ``factory(sim, limits, device, dtype) -> SimBackend``
-    taking :class:`~madpinn.settings.SimSettings` and :class:`~madpinn.settings.AgentSettings`."""
-
-    def deco(factory):
-        _BACKENDS[name] = factory
-        return factory
-
-    return deco
-
-
-@register_backend("double_integrator")
 def _make_double_integrator(sim: SimSettings, limits: AgentSettings, device, dtype):
     return DoubleIntegratorBackend(limits.dynamics(), dt=sim.dt,
                                    freeze_radius=limits.collision_radius if sim.contacts else None)
@@ -102,20 +96,10 @@ def _make_double_integrator(sim: SimSettings, limits: AgentSettings, device, dty
 
 def make_backend(name: str, sim: SimSettings, limits: AgentSettings, device, dtype) -> SimBackend:
     """The backend ``name`` (``sim.backend`` or an override) for ``sim`` and the agents' ``limits``."""
-    if name not in _BACKENDS:
-        _load_optional_backends()
-    if name not in _BACKENDS:
-        raise ValueError(f"unknown simulation backend '{name}' (available: {sorted(_BACKENDS)})")
-    return _BACKENDS[name](sim, limits, device, dtype)
-
-
-def _load_optional_backends() -> None:
-    """Import backends that live in their own modules (they register themselves)."""
+    if name == "double_integrator":
+        return _make_double_integrator(sim, limits, device, dtype)
+    if name not in BACKEND_MODULES:
+        raise ValueError(f"unknown simulation backend '{name}' (available: {['double_integrator', *BACKEND_MODULES]})")
     import importlib
 
-    for module in ("madpinn.simulation.mujoco",):
-        try:
-            importlib.import_module(module)
-        except ModuleNotFoundError as exc:
-            if exc.name != module:
-                raise
+    return importlib.import_module(BACKEND_MODULES[name]).make_backend(sim, limits, device, dtype)

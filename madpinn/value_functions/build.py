@@ -27,11 +27,12 @@ def problem_from_config(cfg: dict, kind: str):
 
 def training_hash(cfg: dict, kind: str) -> str:
     """Hash of everything the trained weights depend on (not validation settings)."""
-    from madpinn.config import DEPLOYMENT_ONLY_KEYS
+    from madpinn.config import DEPLOYMENT_ONLY_KEYS, as_written
 
-    vcfg = {k: v for k, v in cfg["value_functions"][kind].items() if k != "validation"}
-    if not vcfg.get("velocity_saturation", True):   # off = the dynamics every earlier model was trained with: same hash
-        vcfg.pop("velocity_saturation")
+    # as the config files wrote it (keys filled with their default at load change no hash)
+    vcfg = {k: v for k, v in as_written(cfg, f"value_functions.{kind}").items() if k != "validation"}
+    if vcfg.get("velocity_saturation") is False:   # off = the dynamics every earlier model was trained with: same hash
+        del vcfg["velocity_saturation"]
     observation = {k: v for k, v in cfg["observation"].items() if k not in DEPLOYMENT_ONLY_KEYS}   # deployment-only keys do not retrain
     return config_hash({"kind": kind, "agents": cfg["agents"], "observation": observation, "vf": vcfg,
                         "seed": cfg["value_functions"]["seed"], "dtype": cfg["dtype"]})

@@ -56,9 +56,8 @@ class ConflictSamplingSettings:
     @classmethod
     def from_config(cls, vcfg: dict) -> "ConflictSamplingSettings":
         c = vcfg["conflict_sampling"]
-        speed = c.get("closing_speed")   # absent: schema default (null: the uniform velocities)
-        return cls(fraction=float(c["fraction"]), radius=float(c["radius"]),
-                   tau=tuple(float(x) for x in c.get("tau", (0.0, 1.0))),   # absent: schema default [0, 1]
+        speed = c["closing_speed"]   # null: the uniform velocities
+        return cls(fraction=float(c["fraction"]), radius=float(c["radius"]), tau=tuple(float(x) for x in c["tau"]),
                    closing_speed=None if speed is None else tuple(float(x) for x in speed))
 
 

@@ -35,7 +35,7 @@ class TrainingDiverged(RuntimeError):
     """The loss or a gradient became non-finite."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class TrainSettings:
     iterations: int
     batch_size: int
@@ -48,7 +48,7 @@ class TrainSettings:
     network: dict
     seed: int
     init_from: str | None
-    """fine-tune from this model (None: from scratch; absent key: the schema's ``default``)"""
+    """fine-tune from this model (None: from scratch)"""
     obstacle_weight: float
     """Weight of the obstacle penalty ``mean(relu-violation)`` (same norm as the residual) added to
     the residual loss; 0 = the paper's loss. The VI's min passes its gradient to one branch only, so
@@ -61,7 +61,7 @@ class TrainSettings:
             lr_final=float(vcfg["lr_final"]), curriculum_fraction=float(vcfg["curriculum_fraction"]),
             checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg["loss"]),
             output_scale=float(vcfg["output_scale"]), network=dict(vcfg["network"]), seed=int(seed),
-            init_from=vcfg.get("init_from"), obstacle_weight=float(vcfg.get("obstacle_weight", 0.0)),   # absent: schema default
+            init_from=vcfg["init_from"], obstacle_weight=float(vcfg["obstacle_weight"]),
         )
 
 

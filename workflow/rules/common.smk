@@ -10,7 +10,7 @@ from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.provenance import plugin_module, registry
-from madpinn.provenance import settings_hash as package_settings_hash
+from madpinn.commands import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 from snakemake_interface_executor_plugins.settings import ExecMode
@@ -43,7 +43,7 @@ TRACKING = f"{RESULTS}/tracking/store.json"
 # the same job comes again, on any machine that has the directory (docs/reference/reliability.md). Only read
 # when --cache is given; $SNAKEMAKE_OUTPUT_CACHE, when set, wins over paths.output_cache.
 OUTPUT_CACHE = os.environ.setdefault(
-    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"].get("output_cache", f"{RESULTS}/output_cache"))
+    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"]["output_cache"] or f"{RESULTS}/output_cache")
 )
 def check_output_cache(directory):
     """Stop before any job when an entry of the output cache cannot be read (madpinn/output_cache.py)."""
@@ -130,7 +130,7 @@ def study_results(study):
 
 def studies_in_all():
     """The studies whose cells `all` builds (all but those with `in_all: false`, e.g. the gap decomposition's)."""
-    return [s for s, st in config["studies"].items() if st.get("in_all", True)]
+    return [s for s, st in config["studies"].items() if st["in_all"]]
 
 
 def run_models(wildcards):
@@ -239,7 +239,7 @@ def all_targets(wildcards=None):
 
 # --- what each job depends on: the config it reads and the package code it runs (params -> rerun-triggers) ---
 # A rule's `settings` param hashes the part of the config its command's jobs read, said once by the
-# package (madpinn.provenance.READS: a trained model's own training hash, an evaluation cell's
+# package (each command's `reads`, declared beside its parser, madpinn/commands/reads.py: a trained model's own training hash, an evaluation cell's
 # job_config, the subtrees a check or an output reads): a change of exactly that reruns the job and
 # everything downstream; a deployment knob or a validation setting never reruns a training.
 
@@ -378,7 +378,7 @@ def init_model(kind, variant=None):
     its merged settings) starts from (or nothing)."""
     from madpinn.config import with_vf_variant
 
-    path = with_vf_variant(config, kind, variant)["value_functions"][kind].get("init_from")
+    path = with_vf_variant(config, kind, variant)["value_functions"][kind]["init_from"]
     if not path:
         return []
     return [path if os.path.isabs(path) else f"{RESULTS}/{path}"]
@@ -419,7 +419,7 @@ def train_runtime(kind, variant=None):
     from madpinn.config import with_vf_variant
 
     v = with_vf_variant(config, kind, variant)["value_functions"][kind]
-    its = int(v["iterations"]) + int((v.get("fine_tune") or {}).get("iterations", 0))
+    its = int(v["iterations"]) + (int(v["fine_tune"]["iterations"]) if v["fine_tune"] else 0)
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
 

@@ -4,7 +4,7 @@
 # other (cache, parallel cells, an MLflow run each); this job only builds the table, under
 # paths.figures (the protocol's committed copy: paper_figures/gap_decomposition/). Not part of all:
 #   snakemake -j2 gap_decomposition [--configfile workflow/configs/smoke.yaml]
-if config.get("gap_decomposition"):
+if config["gap_decomposition"]:
 
     rule gap_decomposition:
         input:

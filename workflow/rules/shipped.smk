@@ -1,8 +1,8 @@
 # Included after every training rule: each ruleorder below names a training rule that must exist.
 # Shipped checkpoints (workflow/configs/shipped.yaml): results/models/<name>.pt comes from the
 # sha256-checked models/<name>.pt instead of its training rule.
-SHIPPED = config.get("shipped_models") or {}
-if SHIPPED.get("enabled") and SHIPPED.get("names"):
+SHIPPED = config["shipped_models"]
+if SHIPPED["enabled"] and SHIPPED["names"]:
     check_shipped_models(SHIPPED)   # before any job: a model trained for another config stops here
 
     # The model file is the only input and its manifest entry's sha256 a param: the job's provenance

@@ -17,17 +17,16 @@ import sys
 if "mujoco" not in sys.modules and "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
     os.environ["MUJOCO_GL"] = "egl"
 
-from madpinn.simulation.backend import register_backend
 from madpinn.simulation.mujoco.backend import MujocoBackend, PhysicsDivergedError
 from madpinn.simulation.mujoco.controller import CascadedController, ControllerSettings
 from madpinn.simulation.mujoco.model import CrazyflieSpec, compile_world, mixer_matrix, world_xml
 from madpinn.simulation.mujoco.settings import MujocoSettings
 
 
-@register_backend("mujoco")
-def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
-    """The MuJoCo backend for :class:`~madpinn.settings.SimSettings` ``sim`` (its ``mujoco``
-    section) and :class:`~madpinn.settings.AgentSettings` ``limits``."""
+def make_backend(sim, limits, device, dtype) -> MujocoBackend:
+    """The MuJoCo backend for :class:`~madpinn.simulation.settings.SimSettings` ``sim`` (its ``mujoco``
+    section) and :class:`~madpinn.settings.AgentSettings` ``limits`` (named by
+    :data:`madpinn.simulation.backend.BACKEND_MODULES`)."""
     if sim.mujoco is None:
         raise ValueError("the mujoco backend needs sim.mujoco settings")
     return MujocoBackend(limits.dynamics(), dt=sim.dt, settings=sim.mujoco, device=device, dtype=dtype,
@@ -36,5 +35,5 @@ def make_mujoco_backend(sim, limits, device, dtype) -> MujocoBackend:
 
 __all__ = [
     "MujocoBackend", "PhysicsDivergedError", "CascadedController", "ControllerSettings", "CrazyflieSpec",
-    "MujocoSettings", "compile_world", "mixer_matrix", "world_xml", "make_mujoco_backend",
+    "MujocoSettings", "compile_world", "mixer_matrix", "world_xml", "make_backend",
 ]

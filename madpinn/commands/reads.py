@@ -1,0 +1,77 @@
+"""What each command's jobs read of the config: one function per command, ``reads(cfg, **job)``,
+set beside the command's parser (``p.set_defaults(reads=...)``) and hashed into the rules'
+``settings`` param (:func:`madpinn.provenance.settings_hash`). A trained model's own training hash
+(never validation or deployment-only settings), an evaluation cell's :func:`madpinn.config.job_config`,
+and for the checks and outputs the config subtrees they read. Light: no torch, read while the
+workflow plans."""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+from madpinn.config import lookup_key
+
+
+def keys(*keys: str):
+    """A job that reads these config subtrees (dotted keys) and nothing else."""
+    return lambda cfg, **_: {k: lookup_key(cfg, k) for k in keys}
+
+
+def labels(cfg: Mapping, *studies: str) -> dict:
+    """The labels tables, figures and the report print for the studies' runs."""
+    from madpinn.config import method_config
+
+    return {st: {run: method_config(cfg, run)[1]["label"] for run in cfg["studies"][st]["runs"]}
+            for st in studies}
+
+
+def training(cfg: Mapping, kind: str, variant: str | None = None) -> str:
+    from madpinn.config import with_vf_variant
+    from madpinn.value_functions.build import training_hash
+
+    return training_hash(with_vf_variant(cfg, kind, variant), kind)
+
+
+def marl(cfg: Mapping, name: str) -> str:
+    from madpinn.marl_hash import marl_training_hash
+
+    return marl_training_hash(cfg, name)
+
+
+def governors(cfg: Mapping, study: str) -> dict:
+    """What fig_large_arena_frontier reads of each run of ``study`` besides its cells: its V̂, carrot
+    and speed bound (:class:`madpinn.figures.frontier.FrontierRun`)."""
+    from madpinn.config import RunSettings
+
+    runs = (RunSettings.resolve(cfg, study, run) for run in cfg["studies"][study]["runs"])
+    return {r.run: {"vhat": r.vhat, "observation": r.observation, "agents": r.agents} for r in runs}
+
+
+def cell(cfg: Mapping, study: str, run: str) -> dict:
+    from madpinn.config import RunSettings
+
+    return {**RunSettings.resolve(cfg, study, run).job_config, "dtype": cfg["dtype"]}
+
+
+def study_sim_override(cfg: Mapping, study: str) -> dict | None:
+    """A study's own ``sim`` overrides (None: none)."""
+    return cfg["studies"][study]["sim"] or None
+
+
+def gap_rows(cfg: Mapping) -> dict:
+    """What names the gap decomposition's rows (its cells are its inputs): the section, the
+    configured carrot margin, each gap study's backend and its runs' settings."""
+    from madpinn.config import as_written, method_config, study_backend
+
+    def settings(run):
+        method, mcfg = method_config(cfg, run)
+        return as_written(cfg, f"methods.{method}", mcfg)
+
+    gap = cfg["gap_decomposition"]
+    return {"gap_decomposition": gap, "carrot_margin": cfg["observation"]["carrot_margin"],
+            "studies": {s: {"backend": study_backend(cfg, s), "runs": {r: settings(r) for r in cfg["studies"][s]["runs"]}}
+                        for s in gap["studies"]}}
+
+
+VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
+Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search

@@ -1,0 +1,142 @@
+"""Cross-field rules of a configuration that its schema cannot state: names that must exist,
+agent counts that must fit their arena, the gap decomposition's and the deployment overrides' limits."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from madpinn.config.runs import method_config, study_backend, study_pattern, study_sim
+
+
+def _agent_count_settings(cfg: Mapping[str, Any]):
+    """``(key path, arena name, agent counts)`` of every place that samples uniform scenarios: the
+    studies without a conflict pattern and any method setting (or variant) holding an ``arena``
+    with ``agent_counts``."""
+    from madpinn.scenarios import UNIFORM
+
+    for name, study in cfg["studies"].items():
+        if study_pattern(study) == UNIFORM:
+            yield f"studies.{name}", study["arena"], study["agent_counts"]
+
+    def walk(node, path):
+        if isinstance(node, Mapping):
+            if isinstance(node.get("arena"), str) and isinstance(node.get("agent_counts"), list):
+                yield path, node["arena"], node["agent_counts"]
+            for key, value in node.items():
+                yield from walk(value, f"{path}.{key}")
+
+    for method in cfg["methods"]:
+        yield from walk(cfg["methods"][method], f"methods.{method}")
+        for variant in cfg["methods"][method]["variants"]:
+            _, merged = method_config(cfg, f"{method}-{variant}")
+            yield from walk(merged, f"methods.{method}.variants.{variant}")
+
+
+def _infeasible_agent_counts(cfg: Mapping[str, Any]) -> list[str]:
+    """Agent counts the scenario sampler cannot place in their arena (``madpinn.scenarios``)."""
+    from madpinn.scenarios import max_agents
+
+    sep = float(cfg["sim"]["start_separation"])
+    lines, seen = [], set()
+    for path, arena, counts in _agent_count_settings(cfg):
+        if arena not in cfg["arenas"]:
+            continue  # reported by _cross_field_errors
+        limit = max_agents(float(cfg["arenas"][arena]["half_width"]), sep)
+        for n in counts:
+            if n > limit and (path, n) not in seen:
+                seen.add((path, n))
+                lines.append(
+                    f"  - '{path}.agent_counts': {n} agents do not fit in arena '{arena}' with start separation "
+                    f"{sep:g} m (at most {limit}: the scenario sampler's coverage limit); "
+                    f"use fewer agents or a larger arena"
+                )
+    return lines
+
+
+def _infeasible_patterns(cfg: Mapping[str, Any]) -> list[str]:
+    """Agent counts a study's conflict pattern cannot lay out in its arena (its first scenario)."""
+    from madpinn.scenarios import UNIFORM, Arena, ScenarioInfeasibleError, generate_scenario
+
+    lines = []
+    for name, study in cfg["studies"].items():
+        pattern = study_pattern(study)
+        if pattern == UNIFORM or study["arena"] not in cfg["arenas"]:
+            continue
+        arena = Arena.from_config(cfg, study["arena"])
+        for n in study["agent_counts"]:
+            try:
+                generate_scenario(arena, n, min(study["seeds"]), 0, float(study_sim(cfg, name)["start_separation"]), pattern)
+            except ScenarioInfeasibleError as exc:
+                lines.append(f"  - 'studies.{name}.agent_counts': {exc}")
+    return lines
+
+
+def _gap_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """The gap decomposition's studies exist, run MAD-PINN only (its collision probe) on validation
+    seeds (≥ 100); its reference row is one of their (backend, run) rows."""
+    gap = cfg["gap_decomposition"]
+    if not gap:
+        return []
+    lines, studies = [], cfg["studies"]
+    for name in gap["studies"]:
+        st = studies.get(name)
+        if st is None:
+            lines.append(f"  - 'gap_decomposition.studies': unknown study '{name}'")
+            continue
+        if min(st["seeds"]) < 100:
+            lines.append(f"  - 'studies.{name}.seeds': the gap decomposition runs on validation seeds ≥ 100 only, got {st['seeds']}")
+        if any(r.partition("-")[0] != "madpinn" for r in st["runs"]):
+            lines.append(f"  - 'studies.{name}.runs': the gap decomposition runs MAD-PINN runs only (madpinn[-variant])")
+    ref = gap["reference"]
+    if not any(study_backend(cfg, s) == ref["backend"] and ref["run"] in studies[s]["runs"]
+               for s in gap["studies"] if s in studies):
+        lines.append(f"  - 'gap_decomposition.reference': no study of the decomposition runs {ref['run']} on {ref['backend']}")
+    return lines
+
+
+def _variant_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """Deployment overrides of MAD-PINN runs name an existing V̂ variant and only lower the speed
+    bound (a governor: V̂ and V_s are trained at ``agents.v_max``)."""
+    lines = []
+    madpinn = cfg["methods"].get("madpinn")
+    if madpinn is None:
+        return lines
+    known = sorted(cfg["value_functions"]["vhat_variants"])
+    for variant in [None, *madpinn["variants"]]:
+        where = "methods.madpinn" + (f".variants.{variant}" if variant else "")
+        mcfg = madpinn if variant is None else madpinn["variants"][variant]
+        if mcfg.get("vhat") is not None and mcfg["vhat"] not in known:   # a variant: absent keeps the base's
+            lines.append(f"  - '{where}.vhat': unknown V̂ variant '{mcfg['vhat']}' (value_functions.vhat_variants: "
+                         f"{', '.join(known) or 'none'})")
+        v_max = (mcfg.get("agents") or {}).get("v_max")
+        if v_max is not None and v_max > cfg["agents"]["v_max"]:
+            lines.append(f"  - '{where}.agents.v_max': {v_max} exceeds agents.v_max = {cfg['agents']['v_max']} "
+                         "(a run may only lower the speed bound its models were trained with)")
+    return lines
+
+
+def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
+    lines = []
+    arenas = cfg["arenas"]
+    methods = cfg["methods"]
+    for name, study in cfg["studies"].items():
+        if study["arena"] not in arenas:
+            lines.append(f"  - 'studies.{name}.arena': unknown arena '{study['arena']}' (have {sorted(arenas)})")
+        for run in study["runs"]:
+            method, _, variant = run.partition("-")
+            if method not in methods:
+                lines.append(f"  - 'studies.{name}.runs': unknown method '{method}' in run '{run}'")
+            elif variant and variant not in methods[method]["variants"]:
+                lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
+    lines += _gap_errors(cfg)
+    lines += _variant_errors(cfg)
+    traj = cfg["figures"]["trajectories"]
+    study = cfg["studies"].get(traj["study"])
+    if study is None:
+        lines.append(f"  - 'figures.trajectories.study': unknown study '{traj['study']}'")
+    else:
+        if traj["n_agents"] not in study["agent_counts"]:
+            lines.append(f"  - 'figures.trajectories.n_agents': {traj['n_agents']} is not among studies.{traj['study']}.agent_counts")
+        if traj["seed"] not in study["seeds"]:
+            lines.append(f"  - 'figures.trajectories.seed': {traj['seed']} is not among studies.{traj['study']}.seeds")
+    return lines

@@ -1,0 +1,145 @@
+"""A study's and a run's resolved settings: a run ``method[-variant]`` merged over its method,
+a study's ``sim`` overrides merged over ``sim``, and the config part an evaluation cell depends on."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from madpinn.config.errors import ConfigError
+from madpinn.config.merge import deep_merge
+from madpinn.config.vf_variants import vf_model_name
+
+
+def study_pattern(study: Mapping[str, Any]) -> str:
+    """A study's scenarios: ``uniform`` (SPEC §2, the default) or its structured-conflict pattern."""
+    return str(study["pattern"])
+
+
+def method_config(cfg: Mapping[str, Any], run: str) -> tuple[str, dict]:
+    """Split a run name ``method[-variant]`` and return ``(method, merged method config)``."""
+    method, _, variant = run.partition("-")
+    if method not in cfg["methods"]:
+        raise ConfigError(f"unknown method '{method}' (configured: {sorted(cfg['methods'])})")
+    base = {k: v for k, v in cfg["methods"][method].items() if k != "variants"}
+    if not variant:
+        return method, base
+    variants = cfg["methods"][method]["variants"]
+    if variant not in variants:
+        raise ConfigError(f"unknown variant '{variant}' of method '{method}' (have {sorted(variants)})")
+    return method, deep_merge(base, variants[variant])
+
+FAN_OUT_KEYS = ("runs", "agent_counts", "seeds")
+
+WORKFLOW_ONLY_KEYS = ("in_all",)
+"""study keys only the workflow reads (which targets build the study's cells): not in the cells' hash"""
+TRAINING_ONLY_KEYS = ("validation",)
+"""method keys that only a training job reads (its validation curve): not in the cells' hash"""
+
+# ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
+# (value_functions.build.training_hash leaves them out); here, not in madpinn.observation, so that
+# the workflow reads them without importing torch
+DEPLOYMENT_ONLY_KEYS = ("carrot_margin", "neighbour_goal")
+
+
+def study_sim(cfg: Mapping[str, Any], study: str | None = None) -> dict:
+    """The ``sim`` section a study's cells run with: ``sim`` with the study's own ``sim`` overrides
+    (e.g. ``{contacts: true}``) merged over it; the plain ``sim`` when ``study`` is None."""
+    override = (cfg["studies"].get(study) or {}).get("sim") if study is not None else None
+    return deep_merge(cfg["sim"], override) if override else dict(cfg["sim"])
+
+
+def run_observation(cfg: Mapping[str, Any], run: str) -> dict:
+    """The ``observation`` section run ``method[-variant]``'s cells deploy with: ``observation``
+    with the run's own deployment overrides (``methods.<method>[.variants.<v>].observation``, e.g.
+    the gap decomposition's old mapping) merged over it; the plain ``observation`` without them."""
+    return _merged(cfg["observation"], method_config(cfg, run)[1].get("observation"))   # only MAD-PINN runs have one
+
+
+def run_agents(cfg: Mapping[str, Any], run: str) -> dict:
+    """The ``agents`` section run ``method[-variant]``'s cells simulate with: ``agents`` with the
+    run's own deployment override (``methods.<method>[.variants.<v>].agents``, e.g. a lower
+    ``v_max``: the speed governor of issue 33) merged over it; V̂ and V_s are trained on ``agents``."""
+    return _merged(cfg["agents"], method_config(cfg, run)[1].get("agents"))   # only MAD-PINN runs have one
+
+
+def run_vhat(cfg: Mapping[str, Any], run: str) -> str:
+    """The V̂ model a MAD-PINN run ``madpinn[-variant]`` loads: ``vhat``, or ``vhat_<name>`` when
+    its settings select a V̂ variant (``vhat: <name>``, a key of ``value_functions.vhat_variants``)."""
+    return vf_model_name("vhat", method_config(cfg, run)[1].get("vhat"))
+
+
+def study_backend(cfg: Mapping[str, Any], study: str) -> str:
+    """The backend a study's cells run on: its own ``sim.backend`` (e.g. the gap decomposition's
+    double-integrator study), else ``sim.backend``."""
+    return str(study_sim(cfg, study)["backend"])
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """One run ``method[-variant]`` of one study, resolved once (:meth:`resolve`): every merge a
+    cell's settings, its record and its hash need, so that no helper merges the config again.
+    Sections are plain dicts (the validated config's values); treat them as read-only."""
+
+    study: str
+    """study name (``studies.<study>``)"""
+    run: str
+    """run name ``method[-variant]``"""
+    method: str
+    """the run's method (``methods.<method>``)"""
+    method_config: dict
+    """the run's settings: its variant merged over its method (``variants`` left out)"""
+    study_config: dict
+    """``studies.<study>``"""
+    arena: dict
+    """the study's arena (``arenas.<name>``)"""
+    sim: dict
+    """``sim`` with the study's own overrides merged over it (:func:`study_sim`)"""
+    observation: dict
+    """``observation`` with the run's deployment overrides merged over it (:func:`run_observation`)"""
+    agents: dict
+    """``agents`` with the run's deployment override merged over it (:func:`run_agents`)"""
+    job_config: dict
+    """the part of the config the run's cells depend on (:func:`job_config`)"""
+
+    @classmethod
+    def resolve(cls, cfg: Mapping[str, Any], study: str, run: str) -> "RunSettings":
+        """The run's settings from the validated ``cfg``; :class:`ConfigError` for an unknown study,
+        method or variant."""
+        from madpinn.config.schema import as_written
+
+        if study not in cfg["studies"]:
+            raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
+        method, mcfg = method_config(cfg, run)
+        st = cfg["studies"][study]
+        sim, observation = study_sim(cfg, study), _merged(cfg["observation"], mcfg.get("observation"))
+        hashed = {
+            "study": {k: v for k, v in as_written(cfg, f"studies.{study}").items() if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
+            "arena": cfg["arenas"][st["arena"]],
+            "agents": cfg["agents"],
+            "sim": sim,
+            "observation": observation,
+            "method": method,
+            "method_config": {k: v for k, v in as_written(cfg, f"methods.{method}", mcfg).items() if k not in TRAINING_ONLY_KEYS},
+        }
+        return cls(study=study, run=run, method=method, method_config=mcfg, study_config=st, arena=cfg["arenas"][st["arena"]],
+                   sim=sim, observation=observation, agents=_merged(cfg["agents"], mcfg.get("agents")), job_config=hashed)
+
+    @property
+    def vhat(self) -> str:
+        """The V̂ model a MAD-PINN run loads (:func:`run_vhat`)."""
+        return vf_model_name("vhat", self.method_config.get("vhat"))   # a run of another method has no such key
+
+
+def _merged(section: Mapping[str, Any], override: Mapping[str, Any] | None) -> dict:
+    """``section`` with a run's deployment ``override`` merged over it (none: a copy of it)."""
+    return deep_merge(section, override) if override else dict(section)
+
+
+def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
+    """The part of the config an evaluation job depends on (hashed to trigger re-runs). The study's
+    fan-out (``runs``, ``agent_counts``, ``seeds``) and what only the workflow reads (``in_all``)
+    are left out: adding a run or a seed to a study does not change the cells already computed.
+    Keys the loader filled with their default are left out too (:func:`~madpinn.config.schema.as_written`):
+    filling them at load changes no cell's hash. :attr:`RunSettings.job_config`."""
+    return RunSettings.resolve(cfg, study, run).job_config

@@ -1,0 +1,45 @@
+"""Value-function variants (``value_functions.vhat_variants``): model names and the merged
+settings a variant trains with."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from madpinn.config.errors import ConfigError
+from madpinn.config.merge import deep_merge
+from madpinn.config.schema import FILLED, without_filled
+
+
+VF_VARIANTS = {"vhat": "vhat_variants"}
+"""value-function kind -> its section of variants (``value_functions.<section>.<name>``, each
+deep-merged over ``value_functions.<kind>``; trained model ``<kind>_<name>``)"""
+
+
+def vf_model_name(kind: str, variant: str | None = None) -> str:
+    """The model name of value function ``kind`` (``vhat``) or of its variant (``vhat_h04``)."""
+    return f"{kind}_{variant}" if variant else kind
+
+
+def split_vf_model(name: str) -> tuple[str, str | None] | None:
+    """``(kind, variant)`` of a value-function model name (``vhat`` -> ``("vhat", None)``,
+    ``vhat_h04`` -> ``("vhat", "h04")``); None for any other name."""
+    if name in ("vhat", "vs"):
+        return name, None
+    kind, _, variant = name.partition("_")
+    return (kind, variant) if kind in VF_VARIANTS and variant else None
+
+
+def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> dict:
+    """``cfg`` with ``value_functions.<kind>`` replaced by variant ``variant`` deep-merged over it
+    (``variant`` None: ``cfg`` itself). What a variant's training, its training hash and its checks
+    read: every other key is the base configuration's. A key the variant writes is written, even
+    where the loader filled the base's with the same default (:func:`~madpinn.config.as_written`)."""
+    if not variant:
+        return cfg
+    section = VF_VARIANTS.get(kind)
+    variants = cfg["value_functions"][section] if section else {}
+    if variant not in variants:
+        raise ConfigError(f"unknown {kind} variant '{variant}' (value_functions.{section or kind + '_variants'}: "
+                          f"{sorted(variants) or 'none'})")
+    vf = {**cfg["value_functions"], kind: deep_merge(cfg["value_functions"][kind], variants[variant])}
+    return {**cfg, "value_functions": vf, FILLED: without_filled(cfg, f"value_functions.{kind}", variants[variant])}
