@@ -152,6 +152,8 @@ def _cost(mean: float, std: float, n_seeds: int = 2, ci: tuple[float, float] | N
 
 
 def _fmt(r, metric: str) -> str:
+    if f"{metric}_mean" not in r:   # a reading these rows do not hold (e.g. no per-agent separations)
+        return "–"
     f = _pct if metric.startswith(("safety_rate", "safe_scenarios")) else _cost
     lo, hi = r.get(f"{metric}_ci_lo"), r.get(f"{metric}_ci_hi")
     return f(r[f"{metric}_mean"], r[f"{metric}_std"], int(r["n_seeds"]), None if lo is None else (lo, hi))
