@@ -31,6 +31,6 @@ if "safemarl" in config["methods"]:
             "python -m madpinn train-safemarl-nominal --config {params.config:q} --out {output.model:q}"
             " --threads {threads} 2>&1 | tee {log:q}"
 
-    # `all` trains the nominal policy when a study runs SafeMARL (filtered or not).
-    if any(run.split("-")[0] == "safemarl" for st in config["studies"].values() for run in st["runs"]):
+    # `all` trains the nominal policy when a study it builds runs SafeMARL (filtered or not).
+    if any(run.split("-")[0] == "safemarl" for s in studies_in_all() for run in config["studies"][s]["runs"]):
         register_targets(rules.train_safemarl_nominal.output.model)
