@@ -9,13 +9,15 @@ from madpinn.evaluation.tables import ORACLE_RUN
 from madpinn.figures.cost_safety import ORACLE_LABEL, ZOOM_SAFETY_PCT, draw_cost_safety
 from settings_helpers import pair_system
 
-RUNS = {   # run -> (label, {N: (safety fraction, cost ÷ T)}): a crowd at 100 % as in the protocol
+RUNS = {   # run -> (label, {N: (safety fraction, cost ÷ T)}): a crowd at 100 % and an outlier, as in the protocol
     "madpinn": ("Ours (paper's deployment)", {3: (1.0, 0.284), 16: (0.980, 0.552)}),
     "madpinn-lookahead": ("Ours + 75 ms look-ahead (not in paper)", {3: (1.0, 0.289), 16: (0.992, 0.562)}),
     "safemarl": ("SafeMARL", {3: (1.0, 0.296), 16: (0.987, 0.573)}),
+    "safemarl-layered": ("SafeMARL (layered filter)", {3: (1.0, 0.557), 16: (1.0, 1.347)}),
     "mppi": ("MPPI", {3: (0.996, 0.38), 16: (0.775, 0.44)}),
     "nominal": ("Nominal PD (no safety)", {3: (0.841, 0.293), 16: (0.339, 0.24)}),
 }
+OUTLIER = "SafeMARL (layered filter)"
 
 
 def _agg():
@@ -33,8 +35,10 @@ def _markers(ax):
             if l.get_marker() not in (None, "None", "") and not l.get_label().startswith("_")]
 
 
-def test_cost_safety_shows_every_run_whole_and_zooms_into_the_crowd_at_100():
+def test_cost_safety_shows_every_run_whole_apart_and_zooms_into_the_crowd_at_100():
     import matplotlib.pyplot as plt
+
+    from madpinn.figures.placement import overlapping_pairs
 
     fig = draw_cost_safety(_agg())
     fig.canvas.draw()
@@ -45,22 +49,26 @@ def test_cost_safety_shows_every_run_whole_and_zooms_into_the_crowd_at_100():
         assert {m[0] for m in _markers(top)} == {label for label, _ in RUNS.values()}
         crowd = {label for label, cells in RUNS.values() if 100 * cells[n][0] >= ZOOM_SAFETY_PCT}
         assert {m[0] for m in _markers(zoom)} == crowd
-        for ax in (top, zoom):                                 # each whole marker inside its axes
+        for ax in (top, zoom):
+            marks = _markers(ax)
             box = ax.get_window_extent()
-            for label, x, y, ms in _markers(ax):
+            (x0, x1), (y0, y1) = sorted(ax.get_xlim()), ax.get_ylim()
+            for label, x, y, ms in marks:                       # each whole marker inside its axes
+                assert x0 <= x <= x1 and y0 <= y <= y1, (n, label)
                 px, py = ax.transData.transform((x, y))
                 r = ms / 2 * fig.dpi / 72
                 assert box.x0 <= px - r and px + r <= box.x1 and box.y0 <= py - r and py + r <= box.y1, (n, label)
-        # the zoom separates the three runs at 100 % that the overview stacks (3 agents: costs 0.284 … 0.296)
-        if n == 3:
-            ys = sorted(zoom.transData.transform((100.0, c))[1] for _, cells in RUNS.values()
-                        for s, c in [cells[3]] if s == 1.0)
-            ys_top = sorted(top.transData.transform((100.0, c))[1] for _, cells in RUNS.values()
-                            for s, c in [cells[3]] if s == 1.0)
-            assert ys[-1] - ys[0] > 2 * (ys_top[-1] - ys_top[0])
+            # no marker covers another (the protocol's crowd at 100 % used to stack)
+            assert not overlapping_pairs(ax, max(m[3] for m in marks), [m[0] for m in marks],
+                                         np.array([m[1:3] for m in marks])), (n, ax.get_xlabel())
+            # the outlier sits on the top edge, its cost written beside it; the others set the scale
+            assert y1 < RUNS["safemarl-layered"][1][n][1]
+            assert any(t.get_text().startswith(f"{RUNS['safemarl-layered'][1][n][1]:.2f}") for t in ax.texts)
+    # the zoom's cost range is set by the crowd: 16 agents spans 0.55 … 0.57, not up to the outlier's 1.35
+    assert np.diff(axes[1][1].get_ylim())[0] < 0.1
     assert axes[0][0].get_ylabel().startswith("cost ÷ T")
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert labels[-1] == ORACLE_LABEL and "Ours + 75 ms look-ahead (not in paper)" in labels
+    assert ORACLE_LABEL in labels and "Ours + 75 ms look-ahead (not in paper)" in labels
     plt.close(fig)
 
 
