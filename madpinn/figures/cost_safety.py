@@ -20,7 +20,6 @@ possible range. Every marker lies whole inside its frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
@@ -33,7 +32,7 @@ from matplotlib.ticker import NullLocator
 
 from madpinn.evaluation.tables import ORACLE_RUN, table_data
 from madpinn.figures import style
-from madpinn.figures.placement import dodge
+from madpinn.figures.placement import Point, draw_points
 
 MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "h", "*", "p")
 MARKER_PT = 7.5            # marker size (points), the same for every run
@@ -42,21 +41,6 @@ GAP_LINEAR_PCT = 0.1       # bottom row: the unsafe-share axis is linear below t
 OUTLIER_FACTOR = 1.5       # a run costing more than this × the panel's median run cost sits on the top edge
 ORACLE_LABEL = "Oracle (lone-agent lower bound)"
 MOVED_LABEL = "true position of a marker moved sideways"
-
-
-@dataclass(frozen=True)
-class Point:
-    """One run in one panel: ``x`` in the panel's x unit, bars ``x_lo``/``x_hi`` (lengths, ≥ 0), cost ``y`` ± ``sy``."""
-
-    run: str
-    label: str
-    colour: tuple
-    marker: str
-    x: float
-    x_lo: float
-    x_hi: float
-    y: float
-    sy: float
 
 
 def plot_cost_safety(result_paths: Iterable[str | Path], cfg: dict, out_prefix: str | Path,
@@ -75,8 +59,8 @@ def outliers(costs: Iterable[float]) -> np.ndarray:
 
 def _zoom_y(points: list[Point]) -> tuple[float, float]:
     """Cost range of a zoom panel: the runs' mean ± std with 15 % padding, at least ±4 % of the mean."""
-    lo = min(p.y - p.sy for p in points)
-    hi = max(p.y + p.sy for p in points)
+    lo = min(p.y - p.y_lo for p in points)
+    hi = max(p.y + p.y_hi for p in points)
     mid = 0.5 * (lo + hi)
     half = max(0.5 * (hi - lo) * 1.15, 0.04 * abs(mid), 1e-3)
     return mid - half, mid + half
@@ -95,39 +79,10 @@ def _points(agg_n: pd.DataFrame, runs: list[str], colours: dict, zoom: bool) -> 
         if zoom and s < ZOOM_SAFETY_PCT:
             continue
         x, lo, hi = 100.0 - s, min(ss, 100.0 - s), min(ss, s)
-        sy = r["cost_time_avg_std"] if np.isfinite(r["cost_time_avg_std"]) else 0.0
-        out.append(Point(run, r["label"], colours[run], MARKERS[i % len(MARKERS)], x, lo, hi,
-                         float(r["cost_time_avg_mean"]), float(sy)))
+        y = float(r["cost_time_avg_mean"])
+        sy = float(r["cost_time_avg_std"]) if np.isfinite(r["cost_time_avg_std"]) else 0.0
+        out.append(Point(r["label"], colours[run], MARKERS[i % len(MARKERS)], x, lo, hi, y, min(sy, y), sy))
     return out
-
-
-def _draw_points(ax, points: list[Point], off_scale: np.ndarray) -> None:
-    """Markers (moved sideways where they would overlap), their bars, and the outliers
-    (``off_scale``) on the top edge with their cost. Call once the axes' layout is final."""
-    fig = ax.figure
-    half_px = MARKER_PT * fig.dpi / 72.0 / 2
-    box = ax.get_window_extent()
-    top_y = float(ax.transData.inverted().transform((box.x0, box.y1 - half_px - 2))[1])
-    wanted = [(p.x, top_y if out else p.y) for p, out in zip(points, off_scale)]
-    # outliers first: they hold the top edge, the others move around them
-    order = [i for i in range(len(points)) if off_scale[i]] + [i for i in range(len(points)) if not off_scale[i]]
-    placed = dict(zip(order, dodge(ax, [wanted[i] for i in order], MARKER_PT)))
-    for i, p in enumerate(points):
-        (x0, y0), (x, y) = wanted[i], placed[i]
-        if p.x_lo > 0 or p.x_hi > 0:      # the safety bar around the true value
-            ax.errorbar(x0, y, xerr=[[p.x_lo], [p.x_hi]], fmt="none", capsize=2.5, elinewidth=1.0, color=p.colour, zorder=2)
-        if not off_scale[i] and p.sy > 0:  # the cost bar through the marker
-            ax.errorbar(x, y, yerr=[[min(p.sy, p.y)], [p.sy]], fmt="none", capsize=2.5, elinewidth=1.0,
-                        color=p.colour, zorder=2)
-        if not np.isclose(x, x0):
-            ax.plot([x0, x], [y, y], "-", color=p.colour, lw=0.8, zorder=2, label="_moved")
-            ax.plot(x0, y, ".", color=p.colour, ms=4, zorder=3, label="_true")
-        ax.plot(x, y, p.marker, ms=MARKER_PT, mfc="white", mew=1.6, color=p.colour, label=p.label, zorder=4 + i)
-        if off_scale[i]:
-            right = ax.transData.transform((x, y))[0] < 0.5 * (box.x0 + box.x1)
-            ax.annotate(f"{p.y:.2f} ↑", (x, y), xytext=(0.9 * MARKER_PT if right else -0.9 * MARKER_PT, 0),
-                        textcoords="offset points", ha="left" if right else "right", va="center",
-                        fontsize=8, color=p.colour, zorder=60)
 
 
 OVERVIEW_TICKS = (50, 10, 1, GAP_LINEAR_PCT, 0)         # labelled unsafe shares (%), top row
@@ -165,7 +120,7 @@ def draw_cost_safety(agg: pd.DataFrame) -> plt.Figure:
         ax = axes[0][col]
         pts = _points(agg_n, runs, colours, zoom=False)
         off = outliers([p.y for p in pts])
-        ymax = max((p.y + p.sy for p, o in zip(pts, off) if not o), default=1.0)
+        ymax = max((p.y + p.y_hi for p, o in zip(pts, off) if not o), default=1.0)
         o = oracle[oracle["n_agents"] == n]
         if not o.empty:
             ax.axhline(o.iloc[0]["cost_time_avg_mean"], ls="--", lw=1.0, color="0.3", zorder=1)
@@ -211,5 +166,5 @@ def draw_cost_safety(agg: pd.DataFrame) -> plt.Figure:
     fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=ncol, frameon=False,
                bbox_to_anchor=(0.5, 0.0))
     for ax, pts, off in panels:
-        _draw_points(ax, pts, off)
+        draw_points(ax, pts, MARKER_PT, off)
     return fig
