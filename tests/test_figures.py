@@ -89,12 +89,13 @@ def _headless():
     matplotlib.use("Agg")
 
 
-def _traj_file(path, collide: bool):
+def _traj_file(path, collide: bool, wander: bool = False):
     """A trajectory file in the layout evaluation/cell.py writes: 3 agents on straight lines to their
-    goals over 1 s (agents 1 and 2 meet at the centre when ``collide``)."""
+    goals over 1 s (agents 1 and 2 meet at the centre when ``collide``; agent 3 heads far out of
+    the arena when ``wander``)."""
     times = np.linspace(0.0, 1.0, 21)
     start = np.array([[-0.8, 0.0], [0.8, 0.0], [0.0, -0.8]])
-    goals = np.array([[0.8, 0.0], [-0.8, 0.0] if collide else [0.8, 0.6], [0.0, 0.8]])
+    goals = np.array([[0.8, 0.0], [-0.8, 0.0] if collide else [0.8, 0.6], [1.9, 0.8] if wander else [0.0, 0.8]])
     pos = start[None] + times[:, None, None] * (goals - start)[None]
     first = np.array([200, 200, -1]) if collide else np.full(3, -1)
     np.savez(path, times=times, positions=pos.astype(np.float32), goals=goals.astype(np.float32),
@@ -107,14 +108,22 @@ def test_trajectories_one_panel_per_run_with_numbered_agents_and_goals(tmp_path)
 
     from madpinn.figures import trajectories
 
-    paths = [_traj_file(tmp_path / "a.npz", True), _traj_file(tmp_path / "b.npz", False)]
+    paths = [_traj_file(tmp_path / "a.npz", True), _traj_file(tmp_path / "b.npz", False, wander=True)]
     files = trajectories.plot_trajectories(paths, ["Run A", "Run B"], tmp_path / "fig_trajectories")
-    fig = trajectories.draw_trajectories([np.load(p) for p in paths], ["Run A", "Run B"])
+    data = [np.load(p) for p in paths]
+    fig = trajectories.draw_trajectories(data, ["Run A", "Run B"])
+    fig.canvas.draw()
     assert [f.suffix for f in files] == [".pdf", ".png"] and all(f.stat().st_size > 1000 for f in files)
     axes = [ax for ax in fig.axes if ax.get_visible()]
     assert [ax.get_title() for ax in axes] == ["Run A\n2 of 3 agents collided", "Run B\nno collision"]
-    for ax in axes:   # every agent's number twice (start and goal)
+    for ax, d in zip(axes, data):   # every agent's number twice (start and goal), legible in print
         assert sorted(t.get_text() for t in ax.texts) == ["1", "1", "2", "2", "3", "3"]
+        assert min(t.get_fontsize() for t in ax.texts) >= 8
+        # cropped to its own scenario: its data span at least half the panel's area, although the
+        # other run's agent left the arena (it once set every panel's scale)
+        pts = np.concatenate([d["positions"].reshape(-1, 2), d["goals"]])
+        span = np.prod(pts.max(0) - pts.min(0))
+        assert span >= 0.5 * np.diff(ax.get_xlim())[0] * np.diff(ax.get_ylim())[0], ax.get_title()
     colours = trajectories.agent_colours(12)
     assert len({tuple(c) for c in colours[:9]}) == 9
     assert all(not (c[0] > 0.7 and c[1] < 0.3 and c[2] < 0.3) for c in colours)     # no red: red marks collisions
