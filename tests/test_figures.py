@@ -153,6 +153,28 @@ def test_value_heatmap_scale_is_not_set_by_the_rims():
     plt.close(fig)
 
 
+def test_value_heatmap_prints_at_300_dpi_on_a_fine_grid_with_legible_labels(tmp_path):
+    import matplotlib.pyplot as plt
+    import torch
+    from PIL import Image
+
+    from madpinn.value_functions.figures import HEATMAP_POINTS, draw_value_heatmap, value_heatmap
+
+    axis = torch.linspace(-1.0, 1.0, 21)
+    yy, xx = torch.meshgrid(axis, axis, indexing="ij")
+    z = 1.5 + ((xx + 0.5) ** 2 + yy ** 2).sqrt()
+    feasible = ((xx + 0.3) ** 2 + (yy - 0.4) ** 2).sqrt() > 0.12
+    fig = draw_value_heatmap(axis, z, feasible)
+    ax, cbar = fig.axes
+    assert min(ax.xaxis.label.get_fontsize(), ax.yaxis.label.get_fontsize(), ax.title.get_fontsize(),
+               cbar.yaxis.label.get_fontsize(), *(t.get_fontsize() for t in ax.get_xticklabels())) >= 9.5
+    plt.close(fig)
+    png = next(p for p in value_heatmap(axis, z, feasible, tmp_path / "fig_value_heatmap") if p.suffix == ".png")
+    assert Image.open(png).info["dpi"][0] >= 299.5
+    # the workflow's grid: a cell at most 1 % of the arena's width (smooth contours in print)
+    assert 2.0 / (HEATMAP_POINTS - 1) <= 0.01
+
+
 def test_vs_grid_tick_labels_of_neighbouring_panels_do_not_meet():
     import matplotlib.pyplot as plt
     import torch

@@ -13,13 +13,19 @@ import numpy as np  # noqa: E402
 from madpinn.value_functions.validation import HEATMAP  # noqa: E402
 
 
+PNG_DPI = 300                   # print resolution of the value-function figures' PNGs
+HEATMAP_POINTS = 301            # ego positions per axis of the V̂ heatmap (smooth contours at print size)
+
+
 def _save(fig, stem: Path) -> list[Path]:
+    """``stem.pdf`` and ``stem.png`` (``PNG_DPI``; no creation date in the PDF, so a rerun leaves
+    the committed files unchanged)."""
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     out = []
     for ext in (".pdf", ".png"):
         path = stem.with_suffix(ext)
-        fig.savefig(path, dpi=150, bbox_inches="tight")
+        fig.savefig(path, dpi=PNG_DPI, bbox_inches="tight", metadata={"CreationDate": None} if ext == ".pdf" else None)
         out.append(path)
     plt.close(fig)
     return out
@@ -63,26 +69,29 @@ def draw_value_heatmap(axis, z_star, feasible):
     z = np.where(ok, z_star.numpy(), np.nan)
     lo, hi = float(np.nanmin(z)), float(np.nanpercentile(z, HEATMAP_CLIP_PERCENTILE))
     zmax = float(np.nanmax(z))
-    fig, ax = plt.subplots(figsize=(5.0, 4.2))
+    fig, ax = plt.subplots(figsize=(5.4, 4.5))
     im = ax.pcolormesh(ax_np, ax_np, z, cmap="viridis", vmin=lo, vmax=hi, shading="auto", rasterized=True)
     levels = matplotlib.ticker.MaxNLocator(8).tick_values(lo, hi)
-    ax.contour(ax_np, ax_np, z, levels=levels, colors="white", linewidths=0.5, alpha=0.6)
+    # contours only within the colour scale: the steep rims above it would pack every level into a white band
+    ax.contour(ax_np, ax_np, np.where(z <= hi, z, np.nan), levels=levels, colors="white", linewidths=0.6, alpha=0.7)
     unsafe = np.ma.masked_where(ok, np.ones(z.shape))
     ax.pcolormesh(ax_np, ax_np, unsafe, cmap=matplotlib.colors.ListedColormap(["0.35"]), shading="auto", rasterized=True)
-    ax.contour(ax_np, ax_np, ok.astype(float), levels=[0.5], colors="k", linewidths=0.8)
+    ax.contour(ax_np, ax_np, ok.astype(float), levels=[0.5], colors="k", linewidths=1.0)
     cb = fig.colorbar(im, ax=ax, extend="max" if zmax > hi else "neither")
     cb.set_label(rf"$V_d = z^*$ (cost); scale clipped at the {HEATMAP_CLIP_PERCENTILE:g}th percentile"
-                 "\n" + rf"({hi:.2f}; larger values, up to {zmax:.1f}, in the top colour)", fontsize=8)
+                 "\n" + rf"({hi:.2f}; larger values, up to {zmax:.1f}, in the top colour)", fontsize=10)
+    cb.ax.tick_params(labelsize=10)
     for (x, y), (gx, gy) in zip(HEATMAP["neighbours"], HEATMAP["neighbour_goals"]):
-        ax.plot(x, y, "ko", ms=5)
+        ax.plot(x, y, "ko", ms=6)
         ax.annotate("", xy=(x + 0.25 * HEATMAP["neighbour_velocity"][0], y), xytext=(x, y),
-                    arrowprops={"arrowstyle": "->", "color": "k"})
-    ax.plot(*HEATMAP["ego_goal"], "*", color="white", mec="k", ms=13, label="ego goal")
-    ax.set_xlabel("ego x (m)")
-    ax.set_ylabel("ego y (m)")
+                    arrowprops={"arrowstyle": "->", "color": "k", "lw": 1.2})
+    ax.plot(*HEATMAP["ego_goal"], "*", color="white", mec="k", ms=15, label="ego goal")
+    ax.set_xlabel("ego x (m)", fontsize=11)
+    ax.set_ylabel("ego y (m)", fontsize=11)
+    ax.tick_params(labelsize=10)
     ax.set_aspect("equal")
-    ax.set_title(r"learned value, ego $v=[1,0]$ m/s; grey: $\hat V(0,o,z_{max})>0$", fontsize=8)
-    ax.legend(loc="lower right", fontsize=7)
+    ax.set_title(r"learned value, ego $v=[1,0]$ m/s; grey: $\hat V(0,o,z_{max})>0$", fontsize=10.5)
+    ax.legend(loc="lower right", fontsize=9.5)
     return fig
 
 
@@ -110,7 +119,7 @@ def validation_figure(model, kind: str, half_width: float, slice_velocities, z_t
     from madpinn.value_functions import validation
 
     if kind == "vhat":
-        axis, z_star, feasible, _ = validation.heatmap_values(model, z_tolerance, half_width)
+        axis, z_star, feasible, _ = validation.heatmap_values(model, z_tolerance, half_width, HEATMAP_POINTS)
         return value_heatmap(axis, z_star, feasible, stem)
     axis, values = validation.vs_slices(model, slice_velocities)
     return vs_slices_figure(axis, values, slice_velocities, model.collision_radius, stem)
