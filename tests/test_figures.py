@@ -175,23 +175,48 @@ def test_value_heatmap_prints_at_300_dpi_on_a_fine_grid_with_legible_labels(tmp_
     assert 2.0 / (HEATMAP_POINTS - 1) <= 0.01
 
 
-def test_vs_grid_tick_labels_of_neighbouring_panels_do_not_meet():
+def test_vs_grid_panels_show_different_velocities_with_labels_apart():
+    """fig_vs_grid's panels once were four times of one velocity, and V_s = 0 is the same at every
+    time of the grid: each panel now shows another relative velocity (its own curves), the
+    collision disk is named in the legend, and neighbouring tick labels do not meet."""
     import matplotlib.pyplot as plt
     import torch
 
     from conftest import REPO
-    from madpinn.dynamics.pair import PairSystem
     from madpinn.value_functions import load_vs
     from madpinn.value_functions.figures import draw_vs_grid
     from madpinn.value_functions.grid_reference import solve_pair_grid
 
     sol = solve_pair_grid(pair_system(), 9, 1.0, 6.0, (0.0, 0.25, 0.5, 0.75), accuracy="low")
-    fig = draw_vs_grid(sol, load_vs(REPO / "models" / "vs.pt", dtype=torch.float64), (-3.0, 0.0))
+    fig = draw_vs_grid(sol, load_vs(REPO / "models" / "vs.pt", dtype=torch.float64))
     fig.canvas.draw()
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(titles) == 4 and len(set(titles)) == 4 and all("v_{rel}" in t for t in titles)
+    curves = [np.concatenate([p.vertices for p in ax.collections[1].get_paths()]) for ax in fig.axes]   # the PINN's
+    assert all(not (a.shape == b.shape and np.allclose(a, b)) for i, a in enumerate(curves) for b in curves[i + 1:])
+    assert any("collision disk" in t.get_text() for t in fig.legends[0].get_texts())
     renderer = fig.canvas.get_renderer()
     boxes = [[t.get_window_extent(renderer) for t in ax.get_xticklabels() + ax.get_yticklabels() if t.get_text()]
              for ax in fig.axes]
-    assert len(boxes) == 4
     for left, right in zip(boxes, boxes[1:]):
         assert max(b.x1 for b in left) < min(b.x0 for b in right)      # a gap between neighbours' labels
+    plt.close(fig)
+
+
+def test_vs_slices_colour_scale_is_centred_at_zero_and_the_circle_is_named():
+    """The unsafe set (V_s < 0, a few cm deep) gets half the colour scale, not a sliver of it, and
+    the magenta circle is the collision disk the legend names."""
+    import matplotlib.pyplot as plt
+    import torch
+
+    from madpinn.value_functions.figures import draw_vs_slices
+
+    axis = torch.linspace(-1.2, 1.2, 49)
+    yy, xx = torch.meshgrid(axis, axis, indexing="ij")
+    psi = (xx ** 2 + yy ** 2).sqrt() - 0.1                     # V_s of a static pair: -0.1 … 1.6 m
+    fig = draw_vs_slices(axis, torch.stack([psi, psi - 0.05]), [(0.0, 0.0), (-2.0, 0.0)], 0.1)
+    mesh = fig.axes[0].collections[0]
+    assert mesh.norm(0.0) == pytest.approx(0.5) and mesh.norm(float(psi.min()) - 0.05) == pytest.approx(0.0, abs=1e-6)
+    assert any("collision disk" in t.get_text() for t in fig.legends[0].get_texts())
+    assert [ax.get_title() for ax in fig.axes[:2]] == [r"$v_{rel}$ = (0, 0) m/s", r"$v_{rel}$ = (-2, 0) m/s"]
     plt.close(fig)
