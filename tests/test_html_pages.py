@@ -64,7 +64,7 @@ def test_landing_page_starts_at_the_claims_and_hides_the_rule_graph():
 
     text = (REPO / "workflow" / "report" / "workflow.rst").read_text()
     text += "\n\n.. _claims.html: javascript:app.showResultInfo('paper_figures%2Fclaims.html')\n"
-    page = publish_parts(Template(text).render(snakemake=Snakemake), writer_name="html")["html_body"]
+    page = publish_parts(Template(text).render(snakemake=Snakemake), writer="html")["html_body"]
     assert page.index('href="javascript:app.showResultInfo(') < page.index("Sections, in reading order")
     assert "#rulegraph{display:none}" in page and ":checked) #rulegraph{display:block}" in page
     assert '<input type="checkbox" id="madpinn-show-rulegraph">' in page
