@@ -37,7 +37,9 @@ from madpinn.figures.placement import Point, draw_points
 MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "h", "*", "p")
 MARKER_PT = 7.5            # marker size (points), the same for every run
 ZOOM_SAFETY_PCT = 95.0     # the bottom row shows the runs at safety rates from here to 100 %
-GAP_LINEAR_PCT = 0.1       # bottom row: the unsafe-share axis is linear below this (%), logarithmic above
+GAP_LINEAR_PCT = 0.1       # the unsafe-share axis is linear below this (%), logarithmic above
+OVERVIEW_TICKS = (50, 10, 1, GAP_LINEAR_PCT, 0)         # labelled unsafe shares (%), top row
+ZOOM_TICKS = (5, 2, 1, 0.5, 0.2, GAP_LINEAR_PCT, 0)      # and bottom row
 OUTLIER_FACTOR = 1.5       # a run costing more than this × the panel's median run cost sits on the top edge
 ORACLE_LABEL = "Oracle (lone-agent lower bound)"
 MOVED_LABEL = "true position of a marker moved sideways"
@@ -83,10 +85,6 @@ def _points(agg_n: pd.DataFrame, runs: list[str], colours: dict, zoom: bool) -> 
         sy = float(r["cost_time_avg_std"]) if np.isfinite(r["cost_time_avg_std"]) else 0.0
         out.append(Point(r["label"], colours[run], MARKERS[i % len(MARKERS)], x, lo, hi, y, min(sy, y), sy))
     return out
-
-
-OVERVIEW_TICKS = (50, 10, 1, GAP_LINEAR_PCT, 0)         # labelled unsafe shares (%), top row
-ZOOM_TICKS = (5, 2, 1, 0.5, 0.2, GAP_LINEAR_PCT, 0)      # and bottom row
 
 
 def _gap_axis(ax, gap_max: float, ticks: tuple) -> None:

@@ -121,7 +121,7 @@ def draw_vs_slices(axis, values, velocities, collision_radius: float):
 
     k = len(velocities)
     fig, axes = plt.subplots(1, k, figsize=(3.0 * k, 3.6), squeeze=False, sharex=True, sharey=True,
-                             gridspec_kw={"bottom": 0.27, "top": 0.9, "left": 0.06, "right": 0.9})
+                             gridspec_kw={"bottom": 0.22, "top": 0.9, "left": 0.06, "right": 0.9})
     ax_np, vals = axis.numpy(), values.numpy()
     norm = TwoSlopeNorm(vcenter=0.0, vmin=min(float(np.nanmin(vals)), -1e-3), vmax=max(float(np.nanmax(vals)), 1e-3))
     for a, vel, val in zip(axes[0], velocities, vals):
