@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 
@@ -148,6 +149,36 @@ def test_frontier_figure_draws_every_run_sweep_and_the_papers_point(cells, tmp_p
     assert [f.suffix for f in files] == [".pdf", ".png"] and all(f.stat().st_size > 0 for f in files)
     with pytest.raises(ValueError, match="no deployment given"):
         draw_large_arena_frontier(agg, present[:1], paper)
+
+
+def test_frontier_markers_lie_inside_the_frame_and_apart():
+    """The protocol's crowd (three governors within 1 % safety and 0.1 cost of each other, runs at
+    100 %): every marker whole inside its panel, none covering another or the paper's star."""
+    import matplotlib.pyplot as plt
+
+    from madpinn.figures.frontier import MARKER_PT, FrontierRun, draw_large_arena_frontier
+    from madpinn.figures.placement import overlapping_pairs
+
+    cells = {"madpinn": (0.68, 1.66), "madpinn-carrot05": (0.985, 2.52), "madpinn-vmax1": (0.975, 2.48),
+             "madpinn-vmax08": (0.98, 2.50), "madpinn-both": (1.0, 2.93)}
+    runs = [FrontierRun(r, r, "vhat", 1.8 if r != "madpinn-carrot05" else 0.5, 2.0) for r in cells]
+    agg = pd.DataFrame([dict(run=r, n_agents=128, safety_rate_mean=s, safety_rate_std=np.nan, safety_rate_ci_lo=s - 0.01,
+                             safety_rate_ci_hi=min(1.0, s + 0.01), cost_time_avg_mean=c, cost_time_avg_std=np.nan,
+                             cost_time_avg_ci_lo=c - 0.05, cost_time_avg_ci_hi=c + 0.05) for r, (s, c) in cells.items()])
+    fig = draw_large_arena_frontier(agg, runs, {128: {"cost": 1.68, "safety": 0.9875}})
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    marks = [(l.get_label(), *l.get_xydata()[0]) for l in ax.get_lines() if l.get_label() in cells]
+    assert sorted(m[0] for m in marks) == sorted(cells)
+    box = ax.get_window_extent()
+    r = MARKER_PT / 2 * fig.dpi / 72
+    for label, x, y in marks:
+        px, py = ax.transData.transform((x, y))
+        assert box.x0 <= px - r and px + r <= box.x1 and box.y0 <= py - r and py + r <= box.y1, label
+    star = next(l for l in ax.get_lines() if l.get_label() == "Paper (Table II)").get_xydata()[0]
+    xy = np.array([m[1:] for m in marks] + [star])
+    assert not overlapping_pairs(ax, MARKER_PT, [m[0] for m in marks] + ["paper"], xy)
+    plt.close(fig)
 
 
 def test_workflow_plans_a_variant_training_only_where_a_study_uses_it(tmp_path):

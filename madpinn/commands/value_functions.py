@@ -231,7 +231,7 @@ def _validate_vs_grid(args) -> int:
         solution, header = load_solution(args.grid)
         report = compare_vs(vs, solution, header)
         out = write_json(args.out, report)
-        figs = figures.vs_grid_figure(solution, vs, (-3.0, 0.0), Path(args.fig_stem))
+        figs = figures.vs_grid_figure(solution, vs, figures.VS_GRID_VELOCITIES, Path(args.fig_stem))
         record.artifacts = [out, *figs]
         record.metrics = {f"{k}_t{t}": m[k] for t, m in report["vs_vs_grid"].items() for k in ("mae", "unsafe_called_safe")}
         return finish(run, record, echo={"meets_target": report["meets_target"], **record.metrics})

@@ -3,6 +3,12 @@ which shows HTML inline but offers Markdown and CSV only as downloads.
 
 Covers the Markdown subset our writers emit: ``#`` headings, paragraphs, ``-`` lists, pipe tables,
 inline ``code`` and ``**bold**``. Everything else is escaped text.
+
+Tables fit the report's pane (about 1 100 px beside its menu): a table whose headers are
+``group · column`` (e.g. ``8 agents · Safety``) is shown as one table per group, one below the
+other, the row names repeated; in other tables a number's ``± std …`` goes on a second line; text
+cells wrap. Whatever is still wider scrolls sideways inside its own box, its first column (the row
+names) staying in view.
 """
 
 from __future__ import annotations
@@ -10,12 +16,19 @@ from __future__ import annotations
 import html
 import re
 
+GROUP_SEP = " · "     # header "group · column": the column belongs to a group (e.g. an agent count)
+NUMBER = re.compile(r"^[-+−–]?\d|^[–—-]$|^n/a$")   # a cell that is a number (or a dash or n/a for none)
+
 STYLE = (
     "body{font-family:system-ui,sans-serif;font-size:14px;margin:1em;color:#222}"
-    "table{border-collapse:collapse;margin:0.6em 0 1.2em}th,td{border:1px solid #ccc;padding:3px 7px;"
-    "text-align:right;white-space:nowrap}th{background:#f2f2f2}td:first-child,th:first-child{text-align:left}"
+    ".wide{overflow-x:auto;max-width:100%;margin:0.3em 0 1.2em}"
+    "table{border-collapse:collapse}th,td{border:1px solid #ccc;padding:3px 7px;vertical-align:top}"
+    "th{background:#f2f2f2;text-align:center}td.num{text-align:right;white-space:nowrap}"
+    "td.text{text-align:left;min-width:6em;max-width:30em}"
+    "td:first-child,th:first-child{text-align:left;position:sticky;left:0;background:#fff;z-index:1;max-width:18em}"
+    "th:first-child{background:#f2f2f2}.sd{color:#666;font-size:0.9em}"
     "tr:nth-child(even) td{background:#fafafa}code{background:#f4f4f4;padding:0 3px}h1{font-size:1.4em}"
-    "h2{font-size:1.2em;margin-top:1.4em}"
+    "h2{font-size:1.2em;margin-top:1.4em}h3{font-size:1.05em;margin:1em 0 0.2em}"
 )
 
 
@@ -27,6 +40,44 @@ def _inline(text: str) -> str:
 
 def _cells(line: str) -> list[str]:
     return [c.strip() for c in line.strip().strip("|").split("|")]
+
+
+def _cell(text: str, sd_below: bool) -> str:
+    """A body cell: numbers right-aligned, unbroken (``sd_below``: a ``± std …`` on a second line);
+    text wraps."""
+    if NUMBER.match(text):
+        mean, sep, sd = text.partition(" ± ")
+        if sep and sd_below:
+            return f'<td class="num">{_inline(mean)}<br><span class="sd">± {_inline(sd)}</span></td>'
+        return f'<td class="num">{_inline(text)}</td>'
+    return f'<td class="text">{_inline(text)}</td>'
+
+
+def _groups(head: list[str]) -> list[tuple[str, list[int]]] | None:
+    """``[(group, [column index, ...]), ...]`` when every header but the first is ``group · column``
+    and there are at least two groups, else None."""
+    if len(head) < 3 or not all(GROUP_SEP in h for h in head[1:]):
+        return None
+    out: dict[str, list[int]] = {}
+    for i, h in enumerate(head[1:], 1):
+        out.setdefault(h.split(GROUP_SEP, 1)[0], []).append(i)
+    return list(out.items()) if len(out) >= 2 else None
+
+
+def _html_table(head: list[str], rows: list[list[str]], sd_below: bool) -> str:
+    thead = "<tr>" + "".join(f"<th>{_inline(c)}</th>" for c in head) + "</tr>"
+    body = "".join("<tr>" + "".join(_cell(c, sd_below) for c in r) + "</tr>" for r in rows)
+    return f'<div class="wide"><table><thead>{thead}</thead><tbody>{body}</tbody></table></div>'
+
+
+def table_html(head: list[str], rows: list[list[str]]) -> str:
+    """HTML of one pipe table (header cells ``head``, body ``rows``), laid out to fit (module doc)."""
+    groups = _groups(head)
+    if groups is None:
+        return _html_table(head, rows, sd_below=True)
+    return "".join(f"<h3>{_inline(g)}</h3>" + _html_table(
+        [head[0], *(head[i].split(GROUP_SEP, 1)[1] for i in cols)], [[r[0], *(r[i] for i in cols)] for r in rows],
+        sd_below=False) for g, cols in groups)
 
 
 def markdown_page(md: str, title: str) -> str:
@@ -48,9 +99,7 @@ def markdown_page(md: str, title: str) -> str:
                 rows.append(_cells(lines[i]))
                 i += 1
             head, rest = rows[0], [r for r in rows[1:] if not all(re.fullmatch(r":?-+:?", c) for c in r)]
-            body.append("<table><thead><tr>" + "".join(f"<th>{_inline(c)}</th>" for c in head) + "</tr></thead><tbody>"
-                        + "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in r) + "</tr>" for r in rest)
-                        + "</tbody></table>")
+            body.append(table_html(head, rest))
         elif line.startswith("- "):
             items = []
             while i < len(lines) and lines[i].startswith("- "):

@@ -7,6 +7,10 @@ deviation over seeds. Each governor sweep of one V̂ (goal-carrot length, speed 
 joined by a line through that V̂'s own point, ordered from the longest carrot / highest speed; the
 paper's Table II points (``paper_values.yaml``) are overlaid as black stars with their numbers, so a
 reader sees whether they lie on any frontier we reach (up and left is better).
+
+Every marker lies whole inside its frame (the safety axis leaves room above 100 %); markers that
+would overlap each other or the star move sideways (:func:`madpinn.figures.placement.dodge`,
+deterministic), a thin line joining a moved marker to a dot at its true position.
 """
 
 from __future__ import annotations
@@ -18,11 +22,13 @@ from typing import Iterable, Mapping, Sequence
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.lines import Line2D
 
 from madpinn.evaluation.metrics import across_seeds
 from madpinn.evaluation.reproduction import paper_values
 from madpinn.evaluation.tables import load_results, per_seed
 from madpinn.figures import style
+from madpinn.figures.placement import Point, draw_points
 
 PAPER_TABLE = "table_ours_scaling"     # Table II of paper_values.yaml
 PAPER_RUN = "madpinn"
@@ -30,6 +36,9 @@ MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "h", "p", "*")
 SWEEP_STYLE = {"carrot": "-", "v_max": "--"}
 SWEEP_NAME = {"carrot": "carrot sweep", "v_max": "v_max sweep"}
 PAPER_LABEL = "Paper (Table II)"
+MARKER_PT = 7.0        # run marker size (points)
+STAR_PT = 14.0         # the paper's star (points)
+MOVED_LABEL = "true position of a marker moved sideways"
 
 
 @dataclass(frozen=True)
@@ -116,7 +125,8 @@ def draw_large_arena_frontier(agg: pd.DataFrame, runs: Sequence[FrontierRun], pa
     colours = style.palette(order)
     counts = sorted(int(n) for n in agg["n_agents"].unique())
     lines = sweeps([known[r] for r in order])
-    fig, axes = plt.subplots(1, len(counts), figsize=(3.8 * len(counts), 3.9), squeeze=False)
+    fig, axes = plt.subplots(1, len(counts), figsize=(3.9 * len(counts), 4.3), squeeze=False)
+    panels = []   # (axes, points, star position): markers drawn once the layout is final
     for ax, n in zip(axes[0], counts):
         rows = {r["run"]: r for _, r in agg[agg["n_agents"] == n].iterrows()}
         for kind, members in lines:
@@ -124,36 +134,47 @@ def draw_large_arena_frontier(agg: pd.DataFrame, runs: Sequence[FrontierRun], pa
             if len(pts) >= 2:
                 xs, ys = zip(*pts)
                 ax.plot(xs, ys, SWEEP_STYLE[kind], color="0.55", lw=1.1, zorder=1, label=SWEEP_NAME[kind])
+        points = []
         for i, run in enumerate(order):
             if run not in rows:
                 continue
             r = rows[run]
             x, y = r["cost_time_avg_mean"], 100 * r["safety_rate_mean"]
-            xerr = np.array([_interval(r, "cost_time_avg")]).T
+            xl, xh = _interval(r, "cost_time_avg")
             yl, yh = _interval(r, "safety_rate", 100.0)
-            yerr = np.array([[min(yl, y)], [min(yh, 100.0 - y)]])      # clipped to [0, 100] %
-            ax.errorbar(x, y, xerr=xerr, yerr=yerr, fmt="none", capsize=2.0, elinewidth=0.9, color=colours[run], zorder=2)
-            ax.plot(x, y, MARKERS[i % len(MARKERS)], ms=7, mfc="white", mew=1.5, color=colours[run],
-                    label=known[run].label, zorder=3 + i)
+            points.append(Point(known[run].label, colours[run], MARKERS[i % len(MARKERS)], x, xl, xh,
+                                y, min(yl, y), min(yh, 100.0 - y)))                # clipped to [0, 100] %
+        star = None
         if n in paper:
             p = paper[n]
-            ax.plot(p["cost"], 100 * p["safety"], "*", ms=14, color="black", zorder=50, label=PAPER_LABEL)
+            star = (p["cost"], 100 * p["safety"])
+            ax.plot(*star, "*", ms=STAR_PT, color="black", zorder=50, label=PAPER_LABEL)
             # the star's numbers in the lower-right corner (high cost, low safety: dominated and
             # empty in this study), so the label covers no marker
             ax.text(0.98, 0.04, f"paper ★: {100 * p['safety']:.4g} %, cost {p['cost']:.3g}", transform=ax.transAxes,
                     ha="right", va="bottom", fontsize=7.5, zorder=51)
+        xs = [v for q in points for v in (q.x - q.x_lo, q.x + q.x_hi)] + ([star[0]] if star else [])
+        ys = [q.y - q.y_lo for q in points] + ([star[1]] if star else [])
+        x0, x1 = min(xs), max(xs)
+        ax.set_xlim(x0 - 0.07 * (x1 - x0), x1 + 0.07 * (x1 - x0))
+        y0 = min(*ys, 95.0)                # at least 5 % of safety shown (all runs at 100 %: no empty range)
+        ax.set_ylim(y0 - 0.06 * (100.0 - y0), 100.0 + 0.09 * (100.0 - y0))      # room for a whole marker at 100 %
         ax.set_title(f"{n} agents")
         ax.set_xlabel("cost ÷ T (time-averaged)")
-        ax.set_ylim(top=100.8)
+        panels.append((ax, points, star))
     axes[0][0].set_ylabel("safety rate (%)")
-    handles = {}
-    for ax in axes.ravel():
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            handles.setdefault(lab, h)
-    last = [*SWEEP_NAME.values(), PAPER_LABEL]                    # runs first, then the sweeps and the paper
-    handles = {**{k: h for k, h in handles.items() if k not in last}, **{k: handles[k] for k in last if k in handles}}
+    present = {q.label: q for _, points, _ in panels for q in points}
+    handles = {k: Line2D([], [], marker=q.marker, ls="none", ms=MARKER_PT, mfc="white", mew=1.5, color=q.colour)
+               for k, q in present.items()}                       # runs first, then the sweeps and the paper
+    handles.update({SWEEP_NAME[kind]: Line2D([], [], ls=SWEEP_STYLE[kind], color="0.55", lw=1.1)
+                    for kind in dict.fromkeys(kind for kind, _ in lines)})
+    if any(star for _, _, star in panels):
+        handles[PAPER_LABEL] = Line2D([], [], marker="*", ls="none", ms=STAR_PT, color="black")
+    handles[MOVED_LABEL] = Line2D([], [], ls="-", lw=0.8, marker=".", ms=4, color="0.3")
     ncol = min(len(handles), 3)
     legend_in = 0.25 * -(-len(handles) // max(ncol, 1)) + 0.2
     fig.tight_layout(rect=(0, legend_in / fig.get_figheight(), 1, 1))
     fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=ncol, frameon=False, bbox_to_anchor=(0.5, 0.0))
+    for ax, points, star in panels:
+        draw_points(ax, points, MARKER_PT, fixed=[star] if star else ())
     return fig

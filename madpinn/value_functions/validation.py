@@ -50,11 +50,13 @@ def vs_rollouts(vs, samples: int, dt: float, seed: int = 0, chunk: int = 4096) -
     }
 
 
-def vs_slices(vs, velocities, points: int = 161):
-    """V_s(x, 0) on the relative-position plane ``[-p_range, p_range]²`` for each relative
-    velocity: returns ``(axis [P], values [K, P, P])`` (rows: y, columns: x)."""
+def vs_slices(vs, velocities, points: int = 161, half_width: float | None = None):
+    """V_s(x, 0) on the relative-position plane ``[-h, h]²`` (``h``: ``half_width`` m, default the
+    training range ``p_range``) for each relative velocity: returns ``(axis [P], values [K, P, P])``
+    (rows: y, columns: x)."""
     system = vs.system
-    axis = torch.linspace(-system.p_range, system.p_range, points, dtype=torch.float64)
+    h = system.p_range if half_width is None else float(half_width)
+    axis = torch.linspace(-h, h, points, dtype=torch.float64)
     yy, xx = torch.meshgrid(axis, axis, indexing="ij")
     out = []
     for vel in velocities:
