@@ -48,8 +48,9 @@ from pathlib import Path
 import torch
 
 from madpinn.value_functions import load_vhat
-from madpinn.value_functions.z_search import bisection_steps, cold_search
+from madpinn.value_functions.z_search import bisection_steps
 from protocol_time import cell_summaries   # benchmarks/protocol_time.py
+from zsearch_reference import reference_cold_search   # benchmarks/zsearch_reference.py
 
 DEFAULT_SKIP = ("large_arena_frontier",)   # validation-seed study, not part of the protocol's tables
 
@@ -94,10 +95,11 @@ class _RecordedValues:
 
 
 def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
-    """Mean value rows per agent of the deployed cold bisection (:func:`cold_search`) on
-    ``obs [B, D]`` whose sign the output bound ``|N − b_out| ≤ ‖w_out‖₁`` certifies without
-    evaluating the network: V̂(z_max), and the halvings of feasible agents, on the path the search
-    takes. Checks every certified sign against the network's value."""
+    """Mean value rows per agent of the deployed cold bisection on ``obs [B, D]`` whose sign the
+    output bound ``|N − b_out| ≤ ‖w_out‖₁`` certifies without evaluating the network: V̂(z_max),
+    and the halvings of feasible agents, on the path the search takes (followed with
+    :func:`reference_cold_search`, which evaluates every row at every halving, the same answers as
+    :func:`cold_search`). Checks every certified sign against the network's value."""
     w, b = vhat.net.out.weight, vhat.net.out.bias
     scale = vhat.horizon * vhat.output_scale            # (T − t)·σ at t = 0
     low, high = scale * (b - w.abs().sum()), scale * (b + w.abs().sum())
@@ -109,9 +111,9 @@ def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
         return above | below
 
     recorded = _RecordedValues(vhat)
-    feasible = cold_search(recorded, obs, grid, with_grad=False).feasible
+    feasible = reference_cold_search(recorded, obs, grid, with_grad=False).feasible
     (z_top, v_top), *halvings = recorded.calls
-    assert len(halvings) == grid.steps, "cold_search no longer evaluates V̂(z_max) and then one row per halving"
+    assert len(halvings) == grid.steps, "reference_cold_search no longer evaluates V̂(z_max) and then every row per halving"
     count = certified(z_top, v_top).double()
     for z, v in halvings:
         count += (certified(z, v) & feasible).double()

@@ -53,6 +53,13 @@ class PINNProblem:
         h = self._half.to(dtype=s.dtype, device=s.device)
         return torch.cat([(s - c) / h, (2.0 * t / self.horizon - 1.0)[:, None]], dim=-1)
 
+    def normalise_coordinate(self, values: torch.Tensor, i: int) -> torch.Tensor:
+        """Column ``i`` of :meth:`normalise` for values ``[B]`` of state coordinate ``i``: the same
+        float operations, so bitwise the same numbers."""
+        c = self._centre.to(dtype=values.dtype, device=values.device)[i : i + 1]
+        h = self._half.to(dtype=values.dtype, device=values.device)[i : i + 1]
+        return ((values[:, None] - c) / h)[:, 0]
+
     def sample_times(self, batch: int, alpha: float, generator: torch.Generator, dtype) -> torch.Tensor:
         """Curriculum times uniform on ``[T − α·T, T]`` ``[B]``."""
         return self.horizon - alpha * self.horizon * torch.rand(batch, generator=generator, dtype=dtype)
