@@ -113,6 +113,7 @@ class ObservationValues:
     def __init__(self, vhat: VHat, x: torch.Tensor, phi: torch.Tensor, g: torch.Tensor, tau: torch.Tensor):
         self.vhat, self._x, self._phi, self._g, self._tau = vhat, x, phi, g, tau
         self._z_col = vhat.problem.state_dim - 1   # z is the last state coordinate
+        self._z_input = vhat.problem.coordinate_normaliser(self._z_col, x)
 
     @classmethod
     def of(cls, vhat: VHat, obs: torch.Tensor, t=0.0) -> "ObservationValues":
@@ -131,7 +132,7 @@ class ObservationValues:
     def __call__(self, z: torch.Tensor) -> torch.Tensor:
         """V̂ ``[B]`` at budgets ``z [B]``."""
         z = z.to(dtype=self._x.dtype, device=self._x.device)
-        self._x[:, self._z_col] = self.vhat.problem.normalise_coordinate(z, self._z_col)
+        self._x[:, self._z_col] = self._z_input(z)
         n = self.vhat.net.forward_reusing_buffers(self._x)
         return torch.maximum(self._phi - z, self._g) + self._tau * n
 

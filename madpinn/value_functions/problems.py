@@ -53,12 +53,12 @@ class PINNProblem:
         h = self._half.to(dtype=s.dtype, device=s.device)
         return torch.cat([(s - c) / h, (2.0 * t / self.horizon - 1.0)[:, None]], dim=-1)
 
-    def normalise_coordinate(self, values: torch.Tensor, i: int) -> torch.Tensor:
-        """Column ``i`` of :meth:`normalise` for values ``[B]`` of state coordinate ``i``: the same
-        float operations, so bitwise the same numbers."""
-        c = self._centre.to(dtype=values.dtype, device=values.device)[i : i + 1]
-        h = self._half.to(dtype=values.dtype, device=values.device)[i : i + 1]
-        return ((values[:, None] - c) / h)[:, 0]
+    def coordinate_normaliser(self, i: int, like: torch.Tensor):
+        """``values [B] ↦`` column ``i`` of :meth:`normalise` for values of state coordinate ``i``
+        (``like``'s dtype and device): the same float operations, so bitwise the same numbers."""
+        c = self._centre.to(dtype=like.dtype, device=like.device)[i : i + 1]
+        h = self._half.to(dtype=like.dtype, device=like.device)[i : i + 1]
+        return lambda values: ((values[:, None] - c) / h)[:, 0]
 
     def sample_times(self, batch: int, alpha: float, generator: torch.Generator, dtype) -> torch.Tensor:
         """Curriculum times uniform on ``[T − α·T, T]`` ``[B]``."""
