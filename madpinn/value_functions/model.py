@@ -129,10 +129,14 @@ class ObservationValues:
         """The observations ``idx [M]`` (long) only."""
         return ObservationValues(self.vhat, self._x[idx], self._phi[idx], self._g[idx], self._tau[idx])
 
-    def __call__(self, z: torch.Tensor) -> torch.Tensor:
-        """V̂ ``[B]`` at budgets ``z [B]``."""
+    def z_input(self, z: torch.Tensor) -> torch.Tensor:
+        """The network's input column of budgets ``z [K]`` (normalised; for :meth:`__call__`)."""
+        return self._z_input(z.to(dtype=self._x.dtype, device=self._x.device))
+
+    def __call__(self, z: torch.Tensor, z_input: torch.Tensor | None = None) -> torch.Tensor:
+        """V̂ ``[B]`` at budgets ``z [B]``; ``z_input``: their :meth:`z_input`, where the caller has it."""
         z = z.to(dtype=self._x.dtype, device=self._x.device)
-        self._x[:, self._z_col] = self._z_input(z)
+        self._x[:, self._z_col] = self._z_input(z) if z_input is None else z_input
         n = self.vhat.net.forward_reusing_buffers(self._x)
         return torch.maximum(self._phi - z, self._g) + self._tau * n
 

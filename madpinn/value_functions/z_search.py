@@ -12,8 +12,10 @@ same index). So the verification certifies the budgets the deployed search retur
 deployed tolerance.
 
 :func:`cold_search`: ``V̂(z_max)``, then ``steps`` halvings of ``[0, z_max]`` (the paper's
-bisection; 1 + steps value rows + 1 gradient row per agent). Where ``V̂(z_max) > 0`` (unsafe):
-``z* = z_max``, ``feasible = False``. Every feasible answer ``i`` is a crossing of the grid,
+bisection; 1 + steps value rows + 1 gradient row per agent, the halvings only where the agent is
+feasible). Where ``V̂(z_max) > 0`` (unsafe): ``z* = z_max``, ``feasible = False``. Its answers,
+budgets and gradients are bitwise those of the search it replaced in issue 48, which ran every
+halving on every agent (``benchmarks/zsearch_reference.py``, ``tests/test_zsearch_exact.py``). Every feasible answer ``i`` is a crossing of the grid,
 ``V̂(z_i) ≤ 0`` and ``V̂(z_{i−1}) > 0`` (``i = 1``: ``z_0 = 0`` is never evaluated). It also
 returns the control gradient ``∂V̂/∂o`` at ``(t = 0, o, z*)``, so a search's cost is counted in
 network rows: ``value_rows`` (V̂ only) and ``grad_rows`` (V̂ and its gradient).
@@ -137,7 +139,10 @@ class _Values:
     def rows(self, idx: torch.Tensor) -> "_Values":
         return _Values(self.vhat, self.obs[idx])
 
-    def __call__(self, z: torch.Tensor) -> torch.Tensor:
+    def z_input(self, z: torch.Tensor) -> torch.Tensor:
+        return z
+
+    def __call__(self, z: torch.Tensor, z_input: torch.Tensor | None = None) -> torch.Tensor:
         return self.vhat.value(self.obs, z, 0.0)
 
 
@@ -156,8 +161,9 @@ def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True) ->
     B = obs.shape[0]
     values = observation_values(vhat, obs)
     z_of = grid.z(torch.arange(grid.cells + 1, device=obs.device), obs.dtype)   # z of every grid index
+    input_of = values.z_input(z_of)                                               # and its network input
     top = torch.full((B,), grid.cells, dtype=torch.long, device=obs.device)
-    feasible = values(z_of[top]) <= 0
+    feasible = values(z_of[top], input_of[top]) <= 0
     rows = padded_rows(feasible)
     halve = values.rows(rows)
     lo = torch.zeros_like(rows)   # bracket (lo, lo + width], V̂(z_lo) > 0 or lo = 0
@@ -165,7 +171,7 @@ def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True) ->
     for _ in range(grid.steps):
         width //= 2
         mid = lo + width
-        lo = torch.where(halve(z_of[mid]) <= 0, lo, mid)
+        lo = torch.where(halve(z_of[mid], input_of[mid]) <= 0, lo, mid)
     idx = top.clone()
     idx[rows] = torch.where(feasible[rows], lo + 1, top[rows])
     value_rows = B + grid.steps * rows.numel()
