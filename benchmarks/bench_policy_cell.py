@@ -7,9 +7,13 @@ docs/reference/performance.md; the policy is the same), episodes shortened to ``
 are 6 s), torch one thread. Variants, each the same scenarios from the same starts:
 
 - ``old``: V_s on every in-domain pair in unpadded chunks, ``torch.topk`` selection (the code
-  before issue 37), the protocol's z search (``config.yaml``: the cold bisection since 2026-11-26);
+  before issue 37), the protocol's z search (``config.yaml``: the cold bisection since 2026-11-26)
+  as it was before issue 48 (:func:`zsearch_reference.reference_cold_search`: every halving on
+  every agent, the terminal term recomputed at each);
 - ``neighbours``: bounded V_s scoring (:func:`pair_scores_bounded`, the ``value`` default now), the
-  protocol's z search — the protocol's cell, same answers as ``old``;
+  protocol's z search as the package runs it now (the halvings of agents infeasible at z_max
+  skipped, the terminal term's z-independent parts once per step) — the protocol's cell, same
+  answers as ``old`` (checked bitwise below);
 - ``warm``: bounded scoring and the warm-started z search (``warm_start: true``, a speed option that
   changes answers where V̂ is not monotone in z);
 - ``newton``: bounded scoring and the Newton-stepped warm search (:func:`newton_search.newton_policy`).
@@ -34,7 +38,7 @@ without evaluating them (:func:`zsearch_floor.certifiable_rows`, every 20th sear
 ``--arena small --agents 12`` runs the same comparison in Table I's arena (the last lines keep
 their names).
 
-    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0
+    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0 [--variants old neighbours]
 """
 
 from __future__ import annotations
@@ -61,6 +65,7 @@ from madpinn.value_functions.z_search import bisection_steps
 import madpinn.policies.madpinn as madpinn_policy
 from newton_search import newton_policy   # benchmarks/newton_search.py
 from zsearch_floor import certifiable_rows, floor_us_per_agent_step, row_costs_us   # benchmarks/zsearch_floor.py
+from zsearch_reference import reference_cold_search   # benchmarks/zsearch_reference.py
 
 PAPER = load_config([REPO_ROOT / "config.yaml"])   # settings of the paper config (no code defaults)
 SPEC = ObservationSettings.from_config(PAPER).base_mapping()
@@ -87,16 +92,17 @@ def old_selector(vs, n: int, chunk: int = 65536):
 
 
 VARIANTS = ("old", "neighbours", "warm", "newton")
-# the policy's cold z searches in the current episode (timed wrapper below): process CPU seconds,
-# calls, and (obs, grid) of every 20th call, for certifiable_rows
-SEARCH = {"cpu": 0.0, "calls": 0, "kept": []}
+# the policy's cold z searches in the current episode (timed wrapper below): the search run
+# (the package's, or the reference for ``old``), process CPU seconds, calls, and (obs, grid) of
+# every 20th call, for certifiable_rows
 _cold_search = madpinn_policy.cold_search
+SEARCH = {"search": _cold_search, "cpu": 0.0, "calls": 0, "kept": []}
 
 
 def _timed_cold_search(vhat, obs, grid, *args, **kwargs):
     t0 = time.process_time()
     try:
-        return _cold_search(vhat, obs, grid, *args, **kwargs)
+        return SEARCH["search"](vhat, obs, grid, *args, **kwargs)
     finally:
         SEARCH["cpu"] += time.process_time() - t0
         SEARCH["calls"] += 1
@@ -115,7 +121,7 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
         settings = BASE_SETTINGS if variant == "neighbours" else replace(BASE_SETTINGS, warm_start=True)
     pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
-    SEARCH.update(cpu=0.0, calls=0, kept=[])
+    SEARCH.update(search=reference_cold_search if variant == "old" else _cold_search, cpu=0.0, calls=0, kept=[])
     cpu = time.process_time()
     with newton_policy() if variant == "newton" else nullcontext():
         result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
@@ -139,6 +145,8 @@ def main() -> None:
     ap.add_argument("--scenarios", type=int, default=2)
     ap.add_argument("--episode-s", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
+    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
+                    help="variants to run (old and neighbours always run: the last lines compare them)")
     args = ap.parse_args()
     if args.seed < 100:
         raise SystemExit(f"use a validation seed (≥ 100), not {args.seed}")
@@ -149,9 +157,10 @@ def main() -> None:
     steps = int(round(args.episode_s / DT))
     print(f"{args.agents} agents, {args.arena} arena, {args.scenarios} scenarios of seed {args.seed}, {steps} steps "
           f"({args.episode_s} s), double integrator, torch 1 thread", flush=True)
+    variants = [v for v in VARIANTS if v in {"old", "neighbours", *args.variants}]
     runs = {}
     with torch.no_grad():
-        for variant in VARIANTS:
+        for variant in variants:
             r = runs[variant] = run(vhat, vs, variant, starts, goals, steps)
             res = r["result"]
             print(f"{variant:10s}: episode wall {r['wall_s']:6.1f} s, policy {r['policy_us']:7.1f} us/agent-step "
@@ -161,7 +170,7 @@ def main() -> None:
                 print(f"    scenario {s}: collided agents {int(res.collided[s].sum())}, mean cost {res.cost[s].mean():.6f}, "
                       f"min separation {res.min_separation[s].min():.6f} m", flush=True)
     base = runs["old"]["result"]
-    for variant in VARIANTS[1:]:
+    for variant in variants[1:]:
         res = runs[variant]["result"]
         same = all(np.array_equal(getattr(res, f), getattr(base, f))
                    for f in ("cost", "collided", "min_separation", "final_distance"))
@@ -181,6 +190,8 @@ def main() -> None:
           f"infeasible share {new['infeasible']:.3f}); the rows it cannot skip: value row {value_us:.3f} us, "
           f"gradient row {grad_us:.3f} us at batch {args.agents * args.scenarios} -> floor {floor:.1f} us/agent-step; "
           f"rest of the episode {rest:.1f} us/agent-step")
+    print(f"cold z search / its floor: neighbours {new['search_us'] / floor:.2f}, old {runs['old']['search_us'] / floor:.2f} "
+          f"(old: {runs['old']['search_us']:.1f} us/agent-step)")
     print(f"madpinn_cell_speedup_at_256: {runs['old']['cpu_us'] / new['cpu_us']:.2f}")
     print(f"madpinn_cell_speedup_ceiling_at_256: {runs['old']['cpu_us'] / (rest + floor):.2f}")
 

@@ -7,7 +7,7 @@ needs three kinds of V̂ network rows:
 
 - one value row at ``z_max``, the feasibility test;
 - ``steps = ⌈log2(1/z_tolerance)⌉`` halvings (10), each a value row. An infeasible agent's answer is
-  ``z_max`` whatever its halvings return, so its halvings could be skipped without changing an answer;
+  ``z_max`` whatever its halvings return, so the search skips its halvings (since issue 48);
 - one value-and-gradient row at ``z*``, for the control ``−u_max·sign(∂V̂/∂v_ego)``.
 
 A search that returns the bisection's answer on every input cannot evaluate fewer rows. Its answer
@@ -23,17 +23,18 @@ So the rows, times what one network row costs on this core, bound from below eve
 that gives identical answers. The cost of a row is measured here: the SIREN forward (value) or
 forward + analytic input gradient (gradient), at each cell's batch (agents × scenarios), one
 thread, process CPU time, best of ``--repeats``. The exact boundary term and the input
-normalisation are left out, because they could be computed once per agent-step; this makes the
-floor lower, so it stays a bound.
+normalisation are left out (the search computes their z-independent parts once per step since
+issue 48); this makes the floor lower, so it stays a bound.
 
 ``--cells DIR`` reads the cells' summaries (:func:`protocol_time.cell_summaries`: ``n*_seed*.json``
 under ``results/eval``, or ``*_summary.json`` in ``output_cache/``): agent-steps, share of
 infeasible agent-steps, and the search
 actually run (cells whose V̂ rows per agent-step are not the cold bisection's, i.e. warm starts, are
-left out). For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
-and its share. The last lines are ``cold_bisection_floor_core_h: X`` (the floor summed over the
-protocol's cells; studies named by ``--skip`` are left out) and ``protocol_cells_core_h: Y`` (the
-measured time of the same protocol's cells, every method).
+left out: :func:`ran_cold_bisection`). For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
+and its share. The last lines are ``cold_bisection_cells_core_h`` (the measured time of those
+MAD-PINN cells and its ratio to their floor), ``cold_bisection_floor_core_h: X`` (the floor summed
+over the protocol's cells; studies named by ``--skip`` are left out), ``protocol_cells_core_h: Y``
+(the measured time of the same protocol's cells, every method) and ``protocol_time_over_floor: Y/X``.
 """
 
 from __future__ import annotations
@@ -48,8 +49,9 @@ from pathlib import Path
 import torch
 
 from madpinn.value_functions import load_vhat
-from madpinn.value_functions.z_search import bisection_steps, cold_search
+from madpinn.value_functions.z_search import bisection_steps
 from protocol_time import cell_summaries   # benchmarks/protocol_time.py
+from zsearch_reference import reference_cold_search   # benchmarks/zsearch_reference.py
 
 DEFAULT_SKIP = ("large_arena_frontier",)   # validation-seed study, not part of the protocol's tables
 
@@ -94,10 +96,11 @@ class _RecordedValues:
 
 
 def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
-    """Mean value rows per agent of the deployed cold bisection (:func:`cold_search`) on
-    ``obs [B, D]`` whose sign the output bound ``|N − b_out| ≤ ‖w_out‖₁`` certifies without
-    evaluating the network: V̂(z_max), and the halvings of feasible agents, on the path the search
-    takes. Checks every certified sign against the network's value."""
+    """Mean value rows per agent of the deployed cold bisection on ``obs [B, D]`` whose sign the
+    output bound ``|N − b_out| ≤ ‖w_out‖₁`` certifies without evaluating the network: V̂(z_max),
+    and the halvings of feasible agents, on the path the search takes (followed with
+    :func:`reference_cold_search`, which evaluates every row at every halving, the same answers as
+    :func:`cold_search`). Checks every certified sign against the network's value."""
     w, b = vhat.net.out.weight, vhat.net.out.bias
     scale = vhat.horizon * vhat.output_scale            # (T − t)·σ at t = 0
     low, high = scale * (b - w.abs().sum()), scale * (b + w.abs().sum())
@@ -109,9 +112,9 @@ def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
         return above | below
 
     recorded = _RecordedValues(vhat)
-    feasible = cold_search(recorded, obs, grid, with_grad=False).feasible
+    feasible = reference_cold_search(recorded, obs, grid, with_grad=False).feasible
     (z_top, v_top), *halvings = recorded.calls
-    assert len(halvings) == grid.steps, "cold_search no longer evaluates V̂(z_max) and then one row per halving"
+    assert len(halvings) == grid.steps, "reference_cold_search no longer evaluates V̂(z_max) and then every row per halving"
     count = certified(z_top, v_top).double()
     for z, v in halvings:
         count += (certified(z, v) & feasible).double()
@@ -121,6 +124,14 @@ def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
 def floor_us_per_agent_step(value_us: float, grad_us: float, steps: int, infeasible: float) -> float:
     """µs per agent-step of the rows no identical-answer search can skip (module docstring)."""
     return value_us * (1.0 + steps * (1.0 - infeasible)) + grad_us
+
+
+def ran_cold_bisection(stats: dict, steps: int) -> bool:
+    """Whether a cell's ``policy_stats`` are the cold bisection's: no warm-start hit and V̂ rows per
+    agent-step between the floor's count ``2 + steps·(1 − infeasible share)`` (the search skips
+    infeasible agents' halvings since issue 48, plus a few padded rows) and ``2 + steps`` (before)."""
+    rows, infeasible = stats["vhat_evals_per_agent_step"], float(stats["infeasible_fraction"])
+    return stats.get("warm_hit_rate", 0.0) == 0.0 and 2 + steps * (1.0 - infeasible) - 1e-9 <= rows <= 2 + steps + 1e-9
 
 
 def main() -> None:
@@ -133,7 +144,6 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(1)
     steps = bisection_steps(args.z_tolerance)
-    cold_rows = 1 + steps + 1
     vhat = load_vhat(args.vhat)
     cells = [c for c in cell_summaries(args.cells) if c["study"] not in args.skip]
     if not cells:
@@ -151,10 +161,9 @@ def main() -> None:
     for c in cells:
         total_h += c["elapsed_s"] / 3600.0
         stats = c.get("policy_stats") or {}
-        rows = stats.get("vhat_evals_per_agent_step")
-        if rows is None:
+        if stats.get("vhat_evals_per_agent_step") is None:
             continue
-        if abs(rows - cold_rows) > 1e-9:
+        if not ran_cold_bisection(stats, steps):
             left_out += 1
             continue
         batch = int(c["n_agents"]) * int(c["n_scenarios"])
@@ -171,8 +180,11 @@ def main() -> None:
         print(f"{key:42s} {n:4d} {h:7.3f} {f:8.3f} {f / h:11.2f}")
     if left_out:
         print(f"({left_out} MAD-PINN cells with another search left out)")
+    cold_h = sum(h for _, h, _ in groups.values())
+    print(f"cold_bisection_cells_core_h: {cold_h:.3f} ({cold_h / max(floor_h, 1e-12):.2f} x their floor)")
     print(f"cold_bisection_floor_core_h: {floor_h:.3f}")
     print(f"protocol_cells_core_h: {total_h:.3f}")
+    print(f"protocol_time_over_floor: {total_h / max(floor_h, 1e-12):.2f}")
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ from policy_models import tiny_models
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 from protocol_time import cell_summaries  # noqa: E402
-from zsearch_floor import certifiable_rows, floor_us_per_agent_step  # noqa: E402
+from zsearch_floor import certifiable_rows, floor_us_per_agent_step, ran_cold_bisection  # noqa: E402
 
 
 def test_floor_counts_the_rows_of_the_deployed_cold_search():
@@ -53,6 +53,16 @@ def test_certifiable_rows_counts_the_rows_an_output_bound_decides():
         flat.net.out.weight.zero_()
     feasible = cold_search(flat, obs, grid, with_grad=False).feasible.double().mean().item()
     assert certifiable_rows(flat, obs, grid) == pytest.approx(1 + grid.steps * feasible, abs=1e-9)
+
+
+def test_cold_bisection_cells_are_told_from_warm_ones_by_their_rows():
+    """Before issue 48 the cold search evaluated 12 rows per agent-step; now it skips infeasible
+    agents' halvings (2 + 10·(1 − share) rows, plus padding); a warm search has hits and fewer rows."""
+    stats = lambda rows, share=0.2, hit=0.0: {"vhat_evals_per_agent_step": rows, "infeasible_fraction": share,  # noqa: E731
+                                              "warm_hit_rate": hit}
+    assert ran_cold_bisection(stats(12.0), 10) and ran_cold_bisection(stats(10.0), 10) and ran_cold_bisection(stats(10.3), 10)
+    assert not ran_cold_bisection(stats(3.9, hit=0.6), 10) and not ran_cold_bisection(stats(9.9), 10)
+    assert not ran_cold_bisection(stats(12.5), 10)
 
 
 def _cell(study="main", run="madpinn", rows=12.0, elapsed=10.0):

@@ -122,9 +122,14 @@ class EpigraphSystem(BoxControlSystem):
     def constraint(self, obs: torch.Tensor) -> torch.Tensor:
         return constraint(obs, self.spec.n_neighbours, self.spec.collision_radius)
 
+    def terminal_parts(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(φ_d(o), g_d(o))`` ``[B]`` each: the z-independent parts of :meth:`terminal_value`."""
+        return terminal_cost(obs, self.spec.n_neighbours), self.constraint(obs)
+
     def terminal_value(self, obs: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """``max(φ_d(o) − z, g_d(o))`` ``[B]``: the exact terminal condition of V̂."""
-        return torch.maximum(terminal_cost(obs, self.spec.n_neighbours) - z, self.constraint(obs))
+        phi, g = self.terminal_parts(obs)
+        return torch.maximum(phi - z, g)
 
     def terminal_value_and_grad(self, obs: torch.Tensor, z: torch.Tensor):
         """Terminal value ``[B]`` and its gradients ``(∂/∂o [B, D], ∂/∂z [B])`` (exact, a.e.)."""

@@ -98,6 +98,48 @@ class VHat(PINNValueFunction):
         v, _, g = self.state_value_and_grads(self._state(obs, z), t)
         return v, g[:, :-1], g[:, -1]
 
+    def at_observations(self, obs: torch.Tensor, t=0.0) -> "ObservationValues":
+        """V̂ of the fixed observations ``obs [B, D]`` at time ``t``, as a function of z (for a z search)."""
+        return ObservationValues.of(self, obs, t)
+
+
+class ObservationValues:
+    """``z ↦ V̂(t, o, z)`` for fixed observations ``o [B, D]``: bitwise :meth:`VHat.value` (the same
+    float operations on every row), with the z-independent parts computed once — the normalised
+    observation and time, ``φ_d(o)`` and ``g_d(o)`` of the terminal term ``max(φ_d − z, g_d)``, and
+    ``(T − t)·σ`` — so a call costs the network rows and a few ``[B]`` operations.
+    :meth:`rows` gives the same function on a subset of the observations."""
+
+    def __init__(self, vhat: VHat, x: torch.Tensor, phi: torch.Tensor, g: torch.Tensor, tau: torch.Tensor):
+        self.vhat, self._x, self._phi, self._g, self._tau = vhat, x, phi, g, tau
+        self._z_col = vhat.problem.state_dim - 1   # z is the last state coordinate
+        self._z_input = vhat.problem.coordinate_normaliser(self._z_col, x)
+
+    @classmethod
+    def of(cls, vhat: VHat, obs: torch.Tensor, t=0.0) -> "ObservationValues":
+        s, tt = vhat._prepare(vhat._state(obs, obs.new_zeros(obs.shape[0])), t)
+        phi, g = vhat.system.terminal_parts(s[:, :-1])
+        # the network input; its z column is written at each call
+        return cls(vhat, vhat.problem.normalise(s, tt), phi, g, (vhat.horizon - tt) * vhat.output_scale)
+
+    def __len__(self) -> int:
+        return self._x.shape[0]
+
+    def rows(self, idx: torch.Tensor) -> "ObservationValues":
+        """The observations ``idx [M]`` (long) only."""
+        return ObservationValues(self.vhat, self._x[idx], self._phi[idx], self._g[idx], self._tau[idx])
+
+    def z_input(self, z: torch.Tensor) -> torch.Tensor:
+        """The network's input column of budgets ``z [K]`` (normalised; for :meth:`__call__`)."""
+        return self._z_input(z.to(dtype=self._x.dtype, device=self._x.device))
+
+    def __call__(self, z: torch.Tensor, z_input: torch.Tensor | None = None) -> torch.Tensor:
+        """V̂ ``[B]`` at budgets ``z [B]``; ``z_input``: their :meth:`z_input`, where the caller has it."""
+        z = z.to(dtype=self._x.dtype, device=self._x.device)
+        self._x[:, self._z_col] = self._z_input(z) if z_input is None else z_input
+        n = self.vhat.net.forward_reusing_buffers(self._x)
+        return torch.maximum(self._phi - z, self._g) + self._tau * n
+
 
 class PairValue(PINNValueFunction):
     """Pairwise safety value V_s(x, t) (SPEC §5), m; ≤ 0 means collision unavoidable.

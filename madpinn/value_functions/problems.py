@@ -53,6 +53,13 @@ class PINNProblem:
         h = self._half.to(dtype=s.dtype, device=s.device)
         return torch.cat([(s - c) / h, (2.0 * t / self.horizon - 1.0)[:, None]], dim=-1)
 
+    def coordinate_normaliser(self, i: int, like: torch.Tensor):
+        """``values [B] ↦`` column ``i`` of :meth:`normalise` for values of state coordinate ``i``
+        (``like``'s dtype and device): the same float operations, so bitwise the same numbers."""
+        c = self._centre.to(dtype=like.dtype, device=like.device)[i : i + 1]
+        h = self._half.to(dtype=like.dtype, device=like.device)[i : i + 1]
+        return lambda values: ((values[:, None] - c) / h)[:, 0]
+
     def sample_times(self, batch: int, alpha: float, generator: torch.Generator, dtype) -> torch.Tensor:
         """Curriculum times uniform on ``[T − α·T, T]`` ``[B]``."""
         return self.horizon - alpha * self.horizon * torch.rand(batch, generator=generator, dtype=dtype)

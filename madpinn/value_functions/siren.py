@@ -56,6 +56,17 @@ class Siren(nn.Module):
             h = torch.sin(w * lin(h))
         return self.out(h)[..., 0]
 
+    def forward_reusing_buffers(self, x: torch.Tensor) -> torch.Tensor:
+        """:meth:`forward` under ``torch.no_grad()`` with the same operations in the same order,
+        each layer's ``[B, hidden]`` activations written in place into a reused workspace buffer
+        (no fresh large allocation per call), so ``N [B]`` is bitwise :meth:`forward`'s."""
+        with torch.no_grad():
+            h = x
+            for i, (lin, w) in enumerate(zip(self.hidden_layers, self.omegas)):
+                a = self._buffer(("forward", i), (x.shape[0], lin.out_features), x)
+                h = torch.addmm(lin.bias, h, lin.weight.t(), out=a).mul_(w).sin_()   # sin(ω·lin(h))
+            return torch.addmm(self.out.bias, h, self.out.weight.t())[:, 0]
+
     # ---- analytic input gradient ----------------------------------------------------------
     def _scaled(self):
         """``(ω_l W_l, ω_l b_l)`` per hidden layer: the frequencies folded into the weights."""

@@ -12,8 +12,10 @@ same index). So the verification certifies the budgets the deployed search retur
 deployed tolerance.
 
 :func:`cold_search`: ``V̂(z_max)``, then ``steps`` halvings of ``[0, z_max]`` (the paper's
-bisection; 1 + steps value rows + 1 gradient row per agent). Where ``V̂(z_max) > 0`` (unsafe):
-``z* = z_max``, ``feasible = False``. Every feasible answer ``i`` is a crossing of the grid,
+bisection; 1 + steps value rows + 1 gradient row per agent, the halvings only where the agent is
+feasible). Where ``V̂(z_max) > 0`` (unsafe): ``z* = z_max``, ``feasible = False``. Its answers,
+budgets and gradients are bitwise those of the search it replaced in issue 48, which ran every
+halving on every agent (``benchmarks/zsearch_reference.py``, ``tests/test_zsearch_exact.py``). Every feasible answer ``i`` is a crossing of the grid,
 ``V̂(z_i) ≤ 0`` and ``V̂(z_{i−1}) > 0`` (``i = 1``: ``z_0 = 0`` is never evaluated). It also
 returns the control gradient ``∂V̂/∂o`` at ``(t = 0, o, z*)``, so a search's cost is counted in
 network rows: ``value_rows`` (V̂ only) and ``grad_rows`` (V̂ and its gradient).
@@ -25,6 +27,8 @@ import math
 from dataclasses import dataclass
 
 import torch
+
+from madpinn.value_functions.model import VHat
 
 
 def bisection_steps(z_tolerance: float) -> int:
@@ -103,26 +107,78 @@ def bisect(vhat, obs, grid: ZGrid, lo, hi):
     return hi, rows
 
 
+ROW_BLOCK = 16
+"""Row granularity of :func:`padded_rows`: a multiple of the BLAS kernels' row blocks (4 measured)."""
+
+
+def padded_rows(keep: torch.Tensor) -> torch.Tensor:
+    """Sorted indices ``[M]`` of the rows ``keep [B]`` (bool), laid out so that each row's network
+    value in a batch of these rows alone is bitwise its value in the batch of all ``B`` rows.
+
+    A matrix product computes a row the same way wherever it sits in the batch, except the batch's
+    last ``M mod r`` rows (``r``: the kernel's row block; the output layer ``[M, 256]·[256, 1]``
+    sums those in another order, measured with MKL, ``r = 4``). So the last ``B mod``
+    :data:`ROW_BLOCK` rows are always kept and stay last, and the first rows not kept are added
+    until ``M ≡ B (mod ROW_BLOCK)``: then every kept row is in the remainder of both batches or of
+    neither, for every ``r`` dividing :data:`ROW_BLOCK`."""
+    B = keep.shape[0]
+    keep = keep.clone()
+    keep[B - B % ROW_BLOCK :] = True
+    free = (~keep).nonzero(as_tuple=True)[0]
+    keep[free[: free.numel() % ROW_BLOCK]] = True
+    return keep.nonzero(as_tuple=True)[0]
+
+
+class _Values:
+    """``z ↦ V̂(0, o, z)`` of fixed observations for any V̂ with a ``value`` method (the generic
+    form of :class:`~madpinn.value_functions.model.ObservationValues`)."""
+
+    def __init__(self, vhat, obs: torch.Tensor):
+        self.vhat, self.obs = vhat, obs
+
+    def rows(self, idx: torch.Tensor) -> "_Values":
+        return _Values(self.vhat, self.obs[idx])
+
+    def z_input(self, z: torch.Tensor) -> torch.Tensor:
+        return z
+
+    def __call__(self, z: torch.Tensor, z_input: torch.Tensor | None = None) -> torch.Tensor:
+        return self.vhat.value(self.obs, z, 0.0)
+
+
+def observation_values(vhat, obs: torch.Tensor):
+    """``z ↦ V̂(0, o, z)`` ``[B]`` for ``obs [B, D]``, with ``.rows(idx)``: :meth:`VHat.at_observations`
+    (the terminal term's z-independent parts once) for a :class:`~madpinn.value_functions.model.VHat`,
+    ``vhat.value`` for any other (a symmetrised V̂)."""
+    return vhat.at_observations(obs, 0.0) if isinstance(vhat, VHat) else _Values(vhat, obs)
+
+
 def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True) -> ZSearchResult:
-    """The paper's bisection on all rows (see module docstring); ``obs [B, D]``.
-    ``with_grad=False``: no gradient row (``grad`` is None; the budgets alone, as the
-    verification and the heatmap need them)."""
+    """The paper's bisection (see module docstring); ``obs [B, D]``. ``V̂(z_max)`` on every row,
+    then the ``steps`` halvings on the feasible rows only (:func:`padded_rows`): an infeasible
+    row's answer is ``z_max`` whatever its halvings give. ``with_grad=False``: no gradient row
+    (``grad`` is None; the budgets alone, as the verification and the heatmap need them)."""
     B = obs.shape[0]
+    values = observation_values(vhat, obs)
+    z_of = grid.z(torch.arange(grid.cells + 1, device=obs.device), obs.dtype)   # z of every grid index
+    input_of = values.z_input(z_of)                                               # and its network input
     top = torch.full((B,), grid.cells, dtype=torch.long, device=obs.device)
-    feasible = grid_value(vhat, obs, grid, top) <= 0
-    lo, hi = torch.zeros_like(top), top.clone()
-    rows = B
+    feasible = values(z_of[top], input_of[top]) <= 0
+    rows = padded_rows(feasible)
+    halve = values.rows(rows)
+    lo = torch.zeros_like(rows)   # bracket (lo, lo + width], V̂(z_lo) > 0 or lo = 0
+    width = grid.cells
     for _ in range(grid.steps):
-        mid = (lo + hi) // 2
-        ok = grid_value(vhat, obs, grid, mid) <= 0
-        rows += B
-        hi = torch.where(ok, mid, hi)
-        lo = torch.where(ok, lo, mid)
-    idx = torch.where(feasible, hi, top)
+        width //= 2
+        mid = lo + width
+        lo = torch.where(halve(z_of[mid], input_of[mid]) <= 0, lo, mid)
+    idx = top.clone()
+    idx[rows] = torch.where(feasible[rows], lo + 1, top[rows])
+    value_rows = B + grid.steps * rows.numel()
     hit = torch.zeros_like(feasible)
     if not with_grad:
-        return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, None, hit, rows, 0)
-    return search_result(vhat, obs, grid, idx, feasible, hit, rows, 0)
+        return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, None, hit, value_rows, 0)
+    return search_result(vhat, obs, grid, idx, feasible, hit, value_rows, 0)
 
 
 def min_feasible_z(vhat, obs: torch.Tensor, z_tolerance: float):
