@@ -61,7 +61,8 @@ def test_training_setting_reruns_that_training_and_its_downstream_only(done):
     # The reproduction report lists the models' checksums and every table: it reruns too.
     assert jobs == {"train_vhat": 1, "evaluate": 3, "validate_vhat": 1, "verify_vhat": 1, "fig_value_heatmap": 1,
                     "table_safety_scaling": 1, "table_neighbour_ablation": 1, "table_update_ablation": 1,
-                    "fig_cost_safety": 1, "fig_trajectories": 1, "reproduction_report": 1, "claims_table": 1, "all": 1}, jobs
+                    "fig_cost_safety": 1, "fig_trajectories": 1, "reproduction_report": 1, "claims_table": 1,
+                    "track_cells": 1, "all": 1}, jobs   # track_cells: the changed cells' MLflow runs
 
 
 def test_deployment_and_validation_settings_rerun_no_training(done):
@@ -87,9 +88,9 @@ def test_unrelated_changes_rerun_nothing(done):
 
 def test_study_setting_reruns_that_study_only(done):
     jobs = _dry(done, {"studies": {"ablation_neighbours": {"scenarios": 2}}})
-    # its cells, the oracle bounds of the new scenario count, its table and the report
+    # its cells, the oracle bounds of the new scenario count, its table, the report and the cells' MLflow runs
     assert jobs == {"evaluate": 1, "oracle": 1, "table_neighbour_ablation": 1, "reproduction_report": 1, "claims_table": 1,
-                    "all": 1}, jobs
+                    "track_cells": 1, "all": 1}, jobs
 
 
 def _edit_and_dry(copy, rel):

@@ -54,7 +54,7 @@ def cell_metrics(parquet: str | Path) -> dict:
     pair over the cell's scenarios) and ``min_separation_mean`` (its mean over scenarios)."""
     import pandas as pd
 
-    from madpinn.evaluation.tables import cell_summary
+    from madpinn.evaluation.cell_files import cell_summary
 
     s = cell_summary(parquet)
     stats = s.get("policy_stats") or {}
@@ -70,7 +70,7 @@ def cell_metrics(parquet: str | Path) -> dict:
 
 def cell_files(parquet: str | Path) -> list[Path]:
     """The cell's three files: Parquet, JSON summary, first scenario's trajectory."""
-    from madpinn.evaluation.cell import cell_paths
+    from madpinn.evaluation.cell_files import cell_paths
 
     return list(cell_paths(parquet))
 
@@ -88,7 +88,7 @@ def provenance_hash(parquet: str | Path) -> str | None:
 
 def _cell_of(parquet: Path) -> dict:
     """(backend, study, run, n_agents, seed) of a cell from its summary."""
-    from madpinn.evaluation.tables import cell_summary
+    from madpinn.evaluation.cell_files import cell_summary
 
     s = cell_summary(parquet)
     missing = [k for k in ("backend", "study", "run", "n_agents", "seed") if k not in s]

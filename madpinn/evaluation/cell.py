@@ -19,6 +19,7 @@ import pandas as pd
 
 from madpinn.config import ConfigError, RunSettings, config_hash
 from madpinn.device import resolve_device, resolve_dtype, seed_everything
+from madpinn.evaluation.cell_files import cell_paths
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
@@ -229,12 +230,6 @@ def _collision_probe(r: float):
         probe.scenario_offset = first
         return probe
     return wrap
-
-
-def cell_paths(out: str | Path) -> tuple[Path, Path, Path]:
-    """``(parquet, json, trajectory npz)`` of a cell whose Parquet file is ``out``."""
-    out = Path(out)
-    return out, out.with_suffix(".json"), out.with_name(out.stem + "_traj.npz")
 
 
 def write_cell(cell: Cell, out: str | Path) -> list[Path]:

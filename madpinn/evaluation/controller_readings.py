@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 
 from madpinn.config import study_sim
-from madpinn.evaluation.tables import cell_summary, label_of, load_results, per_seed, run_order, to_markdown
+from madpinn.evaluation.cell_files import cell_summary
+from madpinn.evaluation.tables import label_of, load_results, per_seed, run_order, to_markdown
 
 METRICS = {"safety": "safety_rate", "safe sc.": "safe_scenarios", "cost ÷T": "cost_time_avg"}
 

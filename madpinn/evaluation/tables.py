@@ -24,7 +24,6 @@ Each table is written as ``.csv`` (numeric mean/std columns, oracle rows with ru
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Iterable
 
@@ -32,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from madpinn.config import method_config
+from madpinn.evaluation.cell_files import cell_summary
 from madpinn.evaluation.contact import contact_distance, seed_contact, with_contact
 from madpinn.evaluation.intervals import seed_figures
 from madpinn.evaluation.metrics import across_seeds, scenario_intervals, seed_summary
@@ -219,12 +219,6 @@ def to_latex(table: pd.DataFrame, caption: str) -> str:
         [r"\begin{table}[t]", r"\centering", r"\resizebox{\columnwidth}{!}{%", rf"\begin{{tabular}}{{{spec}}}",
          r"\toprule", *body, r"\bottomrule", r"\end{tabular}}", rf"\caption{{{esc(caption)}}}", r"\end{table}", ""]
     )
-
-
-def cell_summary(parquet: str | Path) -> dict:
-    """The JSON summary written beside a cell's Parquet file (``{}`` when there is none)."""
-    summary = Path(parquet).with_suffix(".json")
-    return json.loads(summary.read_text()) if summary.is_file() else {}
 
 
 def infeasible_shares(result_paths: Iterable[str | Path]) -> pd.DataFrame:
