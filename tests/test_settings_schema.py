@@ -26,7 +26,7 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import ConfigError, method_config, validate_config
-from madpinn.config.schema import _schema, node_at, object_branch
+from madpinn.config.schema import _schema, node_at, object_branch, resolve
 from madpinn.dynamics.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.evaluation.oracle import OracleSettings
@@ -135,24 +135,8 @@ SCHEMA = _schema()
 
 
 def _resolve(node: dict) -> dict:
-    """A schema node with its local ``$ref`` and ``allOf`` parts merged (their properties and
-    required keys joined, their other keywords under the node's own)."""
-    parts = list(node.get("allOf", []))
-    if "$ref" in node:
-        target = SCHEMA
-        for part in node["$ref"][2:].split("/"):
-            target = target[part]
-        parts.append(target)
-    merged, props, required = {}, {}, set()
-    for part in parts:
-        sub = _resolve(part)
-        merged.update(sub)
-        props.update(sub["properties"])
-        required |= sub["required"]
-    merged.update({k: v for k, v in node.items() if k not in ("$ref", "allOf")})
-    props.update(node.get("properties", {}))
-    required |= set(node.get("required", []))
-    return {**merged, "properties": props, "required": required}
+    """A schema node with its local ``$ref`` and ``allOf`` parts merged (the loader's own walk)."""
+    return resolve(node, SCHEMA)
 
 
 def _node(path: str) -> dict:
