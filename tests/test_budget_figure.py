@@ -1,5 +1,6 @@
 """fig_vhat_budget (issue 46): training samples read from the models, the log-linear trend and the
-budget at which it would reach the paper, and the figure drawn through the workflow's function."""
+budget at which it would reach the paper, a panel per budget study with the paper's values of its
+setting, each V̂'s verification ε, and the figure drawn through the workflow's function."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import pandas as pd
 import pytest
 
 from conftest import REPO
-from madpinn.figures.budget import BudgetRun, budget_table, draw_vhat_budget, model_samples, trend
-from madpinn.figures.frontier import paper_points
+from madpinn.figures.budget import (BudgetRun, budget_panel, budget_table, draw_vhat_budget, model_samples,
+                                    paper_safety, trend, verification_epsilon)
 from madpinn.value_functions.model import read_checkpoint
 
 
@@ -36,21 +37,88 @@ def _agg(safety: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def test_panels_carry_the_papers_values_of_their_setting_only():
+    large = budget_panel("vhat_budget", "large", "uniform", [64, 128, 256])
+    assert large.paper == {64: 100.0, 128: 98.75, 256: 96.25} and large.title == "Table II setting"
+    small = budget_panel("vhat_budget_small", "small", "uniform", [12, 16])
+    assert small.paper == {12: pytest.approx(99.3), 16: pytest.approx(98.3)} and small.title == "Table I setting"
+    # the paper tests no structured conflict: no line to compare with
+    circle = budget_panel("vhat_budget_circle", "small", "circle_swap", [16])
+    assert circle.paper == {} and "circle_swap" in circle.title
+    assert paper_safety("small", None, [3, 64]) == {3: 100.0}   # Table I has no 64
+
+
+def test_verification_epsilon_takes_the_most_conservative_bound():
+    report = {"uniform": {"any": {"epsilon": {"0.001": 0.05, "1e-06": 0.06}}}}
+    assert verification_epsilon(report, "uniform") == 0.06
+
+
 def test_budget_table_and_figure_from_cells():
     runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000), BudgetRun("madpinn", "1x", 4096 * 60000),
-            BudgetRun("madpinn-b3x", "3x", 4096 * 180000)]
-    agg = _agg({("madpinn-b05", 64): 0.77, ("madpinn", 64): 0.80, ("madpinn-b3x", 64): 0.86,
-                ("madpinn-b05", 128): 0.60, ("madpinn", 128): 0.68, ("madpinn-b3x", 128): 0.66})
-    paper = paper_points([64, 128])
-    table = budget_table(agg, runs, paper)
-    at64 = table[table["n_agents"] == 64]
+            BudgetRun("madpinn-b3x", "3x", 4096 * 180000,
+                      verification={d: {"any": {"epsilon": {"1e-06": e}}} for d, e in (("uniform", 0.05), ("conflict", 0.08))})]
+    frames = {"vhat_budget": _agg({("madpinn-b05", 64): 0.77, ("madpinn", 64): 0.80, ("madpinn-b3x", 64): 0.86,
+                                   ("madpinn-b05", 128): 0.60, ("madpinn", 128): 0.68, ("madpinn-b3x", 128): 0.66}),
+              "vhat_budget_circle": _agg({("madpinn-b05", 16): 0.5, ("madpinn", 16): 0.6, ("madpinn-b3x", 16): 0.7})}
+    panels = [budget_panel("vhat_budget", "large", "uniform", [64, 128]),
+              budget_panel("vhat_budget_circle", "small", "circle_swap", [16])]
+    table = budget_table(frames, runs, panels)
+    at64 = table[(table["study"] == "vhat_budget") & (table["n_agents"] == 64)]
     assert list(at64["samples"]) == sorted(r.samples for r in runs) and (at64["paper_safety"] == 100.0).all()
     assert at64["slope_per_decade"].iloc[0] > 0 and at64["samples_to_paper"].iloc[0] > 4096 * 180000
-    at128 = table[table["n_agents"] == 128]
+    at128 = table[(table["study"] == "vhat_budget") & (table["n_agents"] == 128)]
     assert at128["slope_per_decade"].iloc[0] > 0 and math.isfinite(at128["samples_to_paper"].iloc[0])
+    # the structured panel has no paper value, hence no budget to reach it
+    circle = table[table["study"] == "vhat_budget_circle"]
+    assert len(circle) == 3 and circle["paper_safety"].isna().all() and circle["samples_to_paper"].isna().all()
+    # ε only where the V̂'s verification was given
+    assert table.loc[table["run"] == "madpinn-b3x", "eps_conflict"].eq(0.08).all() and table.loc[table["run"] == "madpinn", "eps_uniform"].isna().all()
     # a falling trend has no budget that reaches the paper
-    falling = budget_table(_agg({("madpinn-b05", 64): 0.9, ("madpinn", 64): 0.8, ("madpinn-b3x", 64): 0.7}), runs, paper)
+    falling = budget_table({"vhat_budget": _agg({("madpinn-b05", 64): 0.9, ("madpinn", 64): 0.8, ("madpinn-b3x", 64): 0.7})},
+                           runs, panels[:1])
     assert falling["samples_to_paper"].isna().all()
-    fig = draw_vhat_budget(agg, runs, paper)
+    fig = draw_vhat_budget(frames, runs, panels)
+    assert len(fig.axes) == 2
     ax = fig.axes[0]
     assert ax.get_xscale() == "log" and len(ax.lines) >= 2 * 2   # a data line and a paper line per N
+    assert "no paper value" in fig.axes[1].get_title()
+
+
+
+def test_figure_command_draws_a_panel_per_study_from_real_cells(tmp_path, capsys):
+    """Through the CLI: tiny double-integrator cells of two budget runs in two studies (one structured),
+    the samples read from two shipped V̂s and one verification report."""
+    import torch
+
+    from conftest import SMOKE
+    from madpinn.commands import main
+    from policy_models import tiny_model_dir
+    from workflow_helpers import write_overlay
+
+    overlay = write_overlay(tmp_path / "cells.yaml", {
+        "sim": {"backend": "double_integrator"}, "arenas": {"large": {"half_width": 4.0, "episode_s": 0.4}, "small": {"episode_s": 0.4}},
+        "studies": {"vhat_budget": {"agent_counts": [4], "scenarios": 2, "runs": ["madpinn", "madpinn-b15"]},
+                    "vhat_budget_circle": {"agent_counts": [4], "scenarios": 2, "runs": ["madpinn", "madpinn-b15"]}}})
+    models = tiny_model_dir()
+    torch.set_num_threads(1)
+    paths = []
+    for study in ("vhat_budget", "vhat_budget_circle"):
+        for run in ("madpinn", "madpinn-b15"):
+            out = tmp_path / study / run / "n4_seed100.parquet"
+            assert main(["evaluate", "--config", str(REPO / "config.yaml"), str(SMOKE), str(overlay), "--study", study,
+                         "--run", run, "--n-agents", "4", "--seed", "100", "--out", str(out), "--model", f"vhat={models / 'vhat.pt'}",
+                         "--model", f"vs={models / 'vs.pt'}", "--no-track", "--no-progress", "--threads", "1"]) == 0
+            paths.append(str(out))
+    args = ["figure", "--config", str(REPO / "config.yaml"), str(SMOKE), str(overlay), "--name", "fig_vhat_budget",
+            "--inputs", *paths, "--out-dir", str(tmp_path / "fig"), "--no-track",
+            "--vhat", f"madpinn={REPO / 'models/vhat.pt'}", f"madpinn-b15={REPO / 'models/vhat_speed.pt'}",
+            "--verify", f"madpinn={REPO / 'training/vhat_2r/vhat_scenario.json'}", "--study", "vhat_budget", "vhat_budget_circle"]
+    assert main(args) == 0
+    table = pd.read_csv(tmp_path / "fig" / "fig_vhat_budget.csv")
+    assert set(table["study"]) == {"vhat_budget", "vhat_budget_circle"} and len(table) == 4
+    assert set(table["samples"]) == {4096 * 60000, 4096 * 80000}
+    assert table.loc[table["run"] == "madpinn", "eps_conflict"].gt(0).all() and table.loc[table["run"] == "madpinn-b15", "eps_conflict"].isna().all()
+    assert (tmp_path / "fig" / "fig_vhat_budget.png").stat().st_size > 0
+    # a run without its V̂ is refused, naming the missing option
+    assert main([a for a in args if not a.startswith("madpinn-b15=")]) != 0
+    assert "--vhat madpinn-b15=PATH" in capsys.readouterr().err

@@ -32,9 +32,9 @@ def _figure(args) -> int:
             from madpinn.config import ConfigError
             from madpinn.figures.frontier import FrontierRun, plot_large_arena_frontier
 
-            if not args.study or args.study not in cfg["studies"]:
-                raise ConfigError(f"fig_large_arena_frontier needs --study STUDY of this configuration, got {args.study!r}")
-            runs = [FrontierRun.of_run(cfg, run) for run in cfg["studies"][args.study]["runs"]]
+            if not args.study or len(args.study) != 1 or args.study[0] not in cfg["studies"]:
+                raise ConfigError(f"fig_large_arena_frontier needs one --study STUDY of this configuration, got {args.study!r}")
+            runs = [FrontierRun.of_run(cfg, run) for run in cfg["studies"][args.study[0]]["runs"]]
             files = plot_large_arena_frontier(args.inputs, runs, Path(args.out_dir) / args.name)
         elif args.name == "fig_vhat_budget":
             files = _vhat_budget_figure(cfg, args)
@@ -49,21 +49,30 @@ def _figure(args) -> int:
 
 
 def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
-    """fig_vhat_budget: each run of ``--study`` with the samples of the V̂ it loads (``--vhat RUN=PATH``)."""
+    """fig_vhat_budget: a panel per ``--study``, each run with the samples of the V̂ it loads (``--vhat
+    RUN=PATH``) and, with ``--verify RUN=JSON``, that V̂'s scenario verification."""
+    import json
+
     from madpinn.config import ConfigError, method_config
-    from madpinn.figures.budget import BudgetRun, model_samples, plot_vhat_budget
+    from madpinn.figures.budget import BudgetRun, budget_panel, model_samples, plot_vhat_budget
     from madpinn.value_functions.model import read_checkpoint
 
-    if not args.study or args.study not in cfg["studies"]:
-        raise ConfigError(f"fig_vhat_budget needs --study STUDY of this configuration, got {args.study!r}")
-    models = parse_models(args.vhat or [])
+    studies = args.study or []
+    unknown = [st for st in studies if st not in cfg["studies"]]
+    if not studies or unknown:
+        raise ConfigError(f"fig_vhat_budget needs --study STUDY... of this configuration, got {studies!r}")
+    models, reports = parse_models(args.vhat or []), parse_models(args.verify or [])
     runs = []
-    for run in cfg["studies"][args.study]["runs"]:
+    for run in dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]):
         if run not in models:
             raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
         meta = read_checkpoint(models[run], "vhat")["meta"]
-        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta)))
-    return plot_vhat_budget(args.inputs, runs, Path(args.out_dir) / args.name)
+        report = json.loads(Path(reports[run]).read_text()) if run in reports else None
+        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta),
+                              verification=report))
+    panels = [budget_panel(st, cfg["studies"][st]["arena"], cfg["studies"][st]["pattern"], cfg["studies"][st]["agent_counts"])
+              for st in studies]
+    return plot_vhat_budget(args.inputs, runs, panels, Path(args.out_dir) / args.name)
 
 
 def _oracle(args) -> int:
@@ -223,14 +232,19 @@ def register(sub) -> None:
     add_config_arg(p)
     p.add_argument("--name", required=True, choices=["fig_cost_safety", "fig_trajectories", "fig_large_arena_frontier",
                                                       "fig_vhat_budget"])
-    p.add_argument("--study", default=None, help="fig_large_arena_frontier, fig_vhat_budget: the study whose runs it shows")
+    p.add_argument("--study", nargs="+", default=None,
+                   help="fig_large_arena_frontier: the study whose runs it shows; fig_vhat_budget: one panel per study")
     p.add_argument("--vhat", nargs="*", default=None, metavar="RUN=PATH",
                    help="fig_vhat_budget: the V̂ model each run loads (its training samples)")
+    p.add_argument("--verify", nargs="*", default=None, metavar="RUN=JSON",
+                   help="fig_vhat_budget: the verify-vhat report of the V̂ each run loads (ε columns of the CSV)")
     p.add_argument("--inputs", nargs="+", required=True, help="result .parquet (cost-safety) or _traj.npz files")
     p.add_argument("--oracle", nargs="*", default=None, help="oracle cache files (fig_cost_safety: lower-bound line)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_figure, reads=lambda cfg, name, study: {
-        "experiment": cfg["experiment"], "labels": labels(cfg, study),
+        "experiment": cfg["experiment"], "labels": labels(cfg, *([study] if isinstance(study, str) else study)),
+        **({"panels": {st: [cfg["studies"][st][k] for k in ("arena", "pattern", "agent_counts")] for st in study}}
+           if name == "fig_vhat_budget" else {}),
         **({"trajectories": cfg["figures"]["trajectories"]} if name == "fig_trajectories" else {}),
         **({"governors": governors(cfg, study)} if name == "fig_large_arena_frontier" else {})})

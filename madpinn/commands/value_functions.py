@@ -242,11 +242,11 @@ def _verify_vhat(args) -> int:
     from madpinn.value_functions.verification import ScenarioSettings, verify
 
     cfg = config_of(args)
-    record = JobRecord(job_key="validate/vhat_scenario", rule="verify_vhat")
+    model = single_model(args.model, "vhat")
+    record = JobRecord(job_key=f"validate/{Path(model).stem}_scenario", rule="verify_vhat")   # vhat_<variant>.pt: its own key
     with job(cfg, record, not args.no_track) as run:
         device, dtype = _setup(cfg, args.threads)
         settings = ScenarioSettings.from_config(cfg["value_functions"]["vhat"]["validation"]["scenario"])
-        model = single_model(args.model, "vhat")
         vhat = load_vhat(model, device=device, dtype=dtype)
         tol = deployed_z_tolerance(cfg)
         report = {"model": str(model), "model_iterations": vhat.meta.get("iterations"),

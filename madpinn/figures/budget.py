@@ -1,16 +1,19 @@
 """fig_vhat_budget (issue 46): does the scalability claim fail, or is V̂ under-trained? Safety rate
-against V̂'s training samples (batch × iterations, log axis), one line per agent count, from the
-cells of one study whose runs differ only in the V̂ they load. The paper's Table II safety at each
-N is a dashed line of the same colour; a least-squares trend ``safety = a + b·log10(samples)``
-per N (at least two budgets) is extended to where it would reach the paper's value, and the
-budget it would need is printed (none when the trend does not rise). Error bars: 95 % bootstrap
-intervals over scenarios (one seed), else ± one standard deviation over seeds.
+against V̂'s training samples (batch × iterations, log axis), one panel per study of the budget group
+(Table II's large arena, Table I's small arena, a structured conflict), one line per agent count,
+from cells whose runs differ only in the V̂ they load. The paper's safety for its own method at that
+setting and N (Table II, Table I; none for a structured conflict, which the paper does not test) is
+a dashed line of the same colour; a least-squares trend ``safety = a + b·log10(samples)`` per N (at
+least two budgets) is extended to where it would reach the paper's value, and the budget it would
+need is printed (none when the trend does not rise). Error bars: 95 % bootstrap intervals over
+scenarios (one seed), else ± one standard deviation over seeds. With each V̂'s scenario verification
+(``verify-vhat``), the CSV also carries its ε on uniform and on conflict states.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
@@ -18,11 +21,18 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from madpinn.evaluation.metrics import across_seeds
+from madpinn.evaluation.reproduction import paper_values
+from madpinn.evaluation.tables import load_results, per_seed
 from madpinn.figures import style
-from madpinn.figures.frontier import _interval, frontier_data, paper_points
+from madpinn.figures.frontier import _interval
+from madpinn.scenarios import UNIFORM
 
 PAPER_SAMPLES = 65536 * 100000
 """the paper's V̂ recipe (DeepReach practice: 65 536 states × 100 000 iterations)"""
+PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_scaling"}
+"""the paper's table of its own method in each arena (Table II, Table I of paper_values.yaml)"""
+PAPER_RUN = "madpinn"
 
 
 @dataclass(frozen=True)
@@ -34,6 +44,42 @@ class BudgetRun:
     samples: int
     """training states seen: batch_size × (iterations + batch_offset) of the model (a fine-tune
     continues its initial model's batch stream, so the offset counts those samples)"""
+    verification: Mapping | None = None
+    """the model's ``verify-vhat`` report (ε on uniform and conflict states), when given"""
+
+
+@dataclass(frozen=True)
+class BudgetPanel:
+    """One panel: the cells of one study and the paper's safety for its own method there."""
+
+    study: str
+    title: str
+    paper: Mapping[int, float] = field(default_factory=dict)
+    """N -> the paper's safety (%) at this setting; empty where the paper reports none"""
+
+
+def paper_safety(arena: str, pattern: str | None, counts: Iterable[int]) -> dict[int, float]:
+    """The paper's safety (%) of its own method in ``arena`` at ``counts`` (uniform scenarios only:
+    the paper tests no structured conflict)."""
+    if (pattern or UNIFORM) != UNIFORM or arena not in PAPER_TABLE_OF_ARENA:
+        return {}
+    cells = paper_values()[PAPER_TABLE_OF_ARENA[arena]]["runs"][PAPER_RUN]["n"]
+    return {int(n): 100 * cells[int(n)]["safety"] for n in counts if int(n) in cells}
+
+
+def budget_panel(study: str, arena: str, pattern: str | None, counts: Iterable[int]) -> BudgetPanel:
+    """The panel of one study: titled by its setting, with the paper's values where it has any."""
+    structured = (pattern or UNIFORM) != UNIFORM
+    title = (f"{pattern} conflict, {arena} arena" if structured
+             else {"large": "Table II setting", "small": "Table I setting"}.get(arena, f"{arena} arena"))
+    return BudgetPanel(study=study, title=title, paper=paper_safety(arena, pattern, counts))
+
+
+def verification_epsilon(report: Mapping, distribution: str) -> float:
+    """ε of any violation (safety or budget) on ``distribution``'s states at the report's smallest β
+    (the most conservative bound it gives)."""
+    eps = report[distribution]["any"]["epsilon"]
+    return float(eps[min(eps, key=float)])
 
 
 def model_samples(meta: Mapping) -> int:
@@ -57,71 +103,94 @@ def trend(samples: Sequence[float], safety: Sequence[float], target: float) -> t
     return float(a), float(b), float(10 ** ((target - a) / b))
 
 
-def budget_table(agg: pd.DataFrame, runs: Sequence[BudgetRun], paper: Mapping[int, Mapping]) -> pd.DataFrame:
-    """Per (N, run): samples, safety (%) and, per N, the trend's slope (points per decade) and the
-    samples at which it reaches the paper's safety (NaN: never)."""
+def study_frames(result_paths: Iterable[str | Path]) -> dict[str, pd.DataFrame]:
+    """Per study of the result files: per (run, N) the seed figures' mean and std and, with one seed,
+    the bootstrap intervals (:func:`madpinn.evaluation.metrics.across_seeds` columns)."""
+    df = load_results(result_paths)
+    return {str(st): across_seeds(per_seed(g), ["run", "n_agents"]) for st, g in df.groupby("study", sort=False)}
+
+
+def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> pd.DataFrame:
+    """Per (study, N, run): samples, safety (%) and, per (study, N), the trend's slope (points per
+    decade) and the samples at which it reaches the paper's safety (NaN: never, or no paper value);
+    the V̂'s verification ε where given."""
     by_run = {r.run: r for r in runs}
     rows = []
-    for n, group in agg.groupby("n_agents"):
-        pts = [(by_run[r["run"]].samples, 100 * r["safety_rate_mean"]) for _, r in group.iterrows() if r["run"] in by_run]
-        target = 100 * paper[int(n)]["safety"] if int(n) in paper else math.nan
-        _, slope, needed = trend(*zip(*pts), target) if pts and math.isfinite(target) else (0, math.nan, None)
-        for s, y in sorted(pts):
-            rows.append({"n_agents": int(n), "samples": s, "safety": y, "paper_safety": target,
-                         "slope_per_decade": slope, "samples_to_paper": needed if needed is not None else math.nan})
+    for panel in panels:
+        agg = frames[panel.study]
+        for n, group in agg.groupby("n_agents"):
+            pts = sorted((by_run[r["run"]].samples, 100 * r["safety_rate_mean"], r["run"]) for _, r in group.iterrows())
+            target = panel.paper.get(int(n), math.nan)
+            _, slope, needed = (trend([p[0] for p in pts], [p[1] for p in pts], target) if math.isfinite(target)
+                                else (0.0, math.nan, None))
+            for samples, safety, run in pts:
+                v = by_run[run].verification
+                rows.append({"study": panel.study, "n_agents": int(n), "run": run, "samples": samples, "safety": safety,
+                             "paper_safety": target, "slope_per_decade": slope,
+                             "samples_to_paper": needed if needed is not None else math.nan,
+                             "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
+                             "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan})
     return pd.DataFrame(rows)
 
 
-def plot_vhat_budget(result_paths: Iterable[str | Path], runs: Sequence[BudgetRun], out_prefix: str | Path) -> list[Path]:
-    """Draw the figure from evaluation result files of ``runs``; writes ``<out_prefix>.{pdf,png}``
-    and ``<out_prefix>.csv`` (:func:`budget_table`); returns the three paths."""
-    agg = frontier_data(result_paths)
-    missing = sorted(set(agg["run"]) - {r.run for r in runs})
+def plot_vhat_budget(result_paths: Iterable[str | Path], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel],
+                     out_prefix: str | Path) -> list[Path]:
+    """Draw the figure from evaluation result files of ``panels``' studies and ``runs``; writes
+    ``<out_prefix>.{pdf,png}`` and ``<out_prefix>.csv`` (:func:`budget_table`); returns the three paths."""
+    frames = study_frames(result_paths)
+    absent = [p.study for p in panels if p.study not in frames]
+    if absent:
+        raise ValueError(f"no result files of studies {absent}")
+    missing = sorted({run for p in panels for run in frames[p.study]["run"]} - {r.run for r in runs})
     if missing:
         raise ValueError(f"no V̂ budget given for runs {missing}")
-    paper = paper_points(agg["n_agents"].unique())
-    table = budget_table(agg, runs, paper)
+    table = budget_table(frames, runs, panels)
     out_prefix = Path(out_prefix)
-    files = style.save(draw_vhat_budget(agg, runs, paper), out_prefix)
+    files = style.save(draw_vhat_budget(frames, runs, panels), out_prefix)
     csv = out_prefix.with_suffix(".csv")
     table.to_csv(csv, index=False, float_format="%.6g")
     return [*files, csv]
 
 
-def draw_vhat_budget(agg: pd.DataFrame, runs: Sequence[BudgetRun], paper: Mapping[int, Mapping]) -> plt.Figure:
+def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> plt.Figure:
+    """One axis per panel (shared safety axis), one line per agent count, the paper's values dashed."""
     style.setup()
     by_run = {r.run: r for r in runs}
-    counts = sorted(int(n) for n in agg["n_agents"].unique())
+    counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.2), sharey=True, squeeze=False)
     x_all = [r.samples for r in runs] + [PAPER_SAMPLES]
     xs_line = np.logspace(math.log10(min(x_all)) - 0.1, math.log10(max(x_all)) + 0.1, 50)
     notes = []
-    for n in counts:
-        c = colours[str(n)]
-        rows = sorted(((by_run[r["run"]].samples, r) for _, r in agg[agg["n_agents"] == n].iterrows()), key=lambda p: p[0])
-        xs = [s for s, _ in rows]
-        ys = [100 * r["safety_rate_mean"] for _, r in rows]
-        err = np.array([_interval(r, "safety_rate", 100.0) for _, r in rows]).T
-        ax.errorbar(xs, ys, yerr=err, fmt="o-", color=c, capsize=2.5, ms=6, mfc="white", mew=1.5, label=f"{n} agents")
-        if n in paper:
-            target = 100 * paper[n]["safety"]
-            ax.axhline(target, ls="--", lw=1.0, color=c)
-            a, b, needed = trend(xs, ys, target)
-            if b > 0:
-                ax.plot(xs_line, a + b * np.log10(xs_line), ":", lw=1.0, color=c)
-            notes.append(f"{n}: paper {target:.4g} %; " + (f"trend +{b:.1f} pts/decade, reaches it at {needed:.2g} samples"
-                                                          if needed is not None else "no rising trend"))
-    ax.axvline(PAPER_SAMPLES, color="0.4", lw=0.8)
-    ax.text(PAPER_SAMPLES, 1.0, " paper's recipe", transform=ax.get_xaxis_transform(), fontsize=7.5, va="top", ha="left")
-    for r in runs:
-        ax.annotate(r.label, (r.samples, 0.0), xycoords=("data", "axes fraction"), xytext=(0, 3), textcoords="offset points",
-                    rotation=90, fontsize=7, ha="center", va="bottom", color="0.3")
-    ax.set_xscale("log")
-    ax.set_xlabel("V̂ training samples (batch × iterations)")
-    ax.set_ylabel("safety rate (%)")
-    ax.set_ylim(top=101)
-    ax.legend(loc="center right", fontsize=8, frameon=True)
+    for ax, panel in zip(axes[0], panels):
+        agg = frames[panel.study]
+        for n in sorted(int(n) for n in agg["n_agents"].unique()):
+            c = colours[str(n)]
+            rows = sorted(((by_run[r["run"]].samples, r) for _, r in agg[agg["n_agents"] == n].iterrows()), key=lambda p: p[0])
+            xs = [s for s, _ in rows]
+            ys = [100 * r["safety_rate_mean"] for _, r in rows]
+            err = np.array([_interval(r, "safety_rate", 100.0) for _, r in rows]).T
+            ax.errorbar(xs, ys, yerr=err, fmt="o-", color=c, capsize=2.5, ms=6, mfc="white", mew=1.5, label=f"{n} agents")
+            if n in panel.paper:
+                target = panel.paper[n]
+                ax.axhline(target, ls="--", lw=1.0, color=c)
+                a, b, needed = trend(xs, ys, target)
+                if b > 0:
+                    ax.plot(xs_line, a + b * np.log10(xs_line), ":", lw=1.0, color=c)
+                notes.append(f"{panel.title}, {n}: paper {target:.4g} %; "
+                             + (f"trend +{b:.1f} pts/decade, reaches it at {needed:.2g} samples" if needed is not None
+                                else "no rising trend"))
+        ax.axvline(PAPER_SAMPLES, color="0.4", lw=0.8)
+        ax.text(PAPER_SAMPLES, 1.0, " paper's recipe", transform=ax.get_xaxis_transform(), fontsize=7.5, va="top", ha="left")
+        for r in runs:
+            ax.annotate(r.label, (r.samples, 0.0), xycoords=("data", "axes fraction"), xytext=(0, 3),
+                        textcoords="offset points", rotation=90, fontsize=7, ha="center", va="bottom", color="0.3")
+        ax.set_xscale("log")
+        ax.set_title(panel.title + ("" if panel.paper else " (no paper value)"), fontsize=10)
+        ax.set_xlabel("V̂ training samples (batch × iterations)")
+        ax.legend(loc="center right", fontsize=8, frameon=True)
+    axes[0][0].set_ylabel("safety rate (%)")
+    axes[0][0].set_ylim(top=101)
     fig.text(0.01, -0.02, "\n".join(notes), fontsize=7.5, va="top")
     fig.tight_layout()
     return fig

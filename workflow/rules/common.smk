@@ -410,9 +410,29 @@ def madpinn_models(wildcards):
 
 
 
+BUDGET_STUDIES = [st for st in ("vhat_budget", "vhat_budget_small", "vhat_budget_circle") if st in config["studies"]]
+"""fig_vhat_budget's panels (issue 46): Table II's and Table I's settings and the converging crowd."""
+
+
+def budget_runs():
+    return list(dict.fromkeys(run for st in BUDGET_STUDIES for run in config["studies"][st]["runs"]))
+
+
 def budget_vhat_args(wildcards):
-    """``RUN=PATH`` of the V̂ each run of study vhat_budget loads (fig_vhat_budget: its training samples)."""
-    return [f"{run}={madpinn_models(SimpleNamespace(run=run))['vhat']}" for run in config["studies"]["vhat_budget"]["runs"]]
+    """``RUN=PATH`` of the V̂ each run of the budget studies loads (fig_vhat_budget: its training samples)."""
+    return [f"{run}={madpinn_models(SimpleNamespace(run=run))['vhat']}" for run in budget_runs()]
+
+
+def budget_verify_args(wildcards):
+    """``RUN=PATH`` of the verify-vhat report of the V̂ each run of the budget studies loads."""
+    from madpinn.config import run_vhat, split_vf_model
+
+    reports = {}
+    for run in budget_runs():
+        variant = split_vf_model(run_vhat(config, run))[1]
+        reports[run] = (str(rules.verify_vhat_variant.output.report).format(variant=variant) if variant
+                        else str(rules.verify_vhat.output.report))
+    return [f"{run}={path}" for run, path in reports.items()]
 
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""

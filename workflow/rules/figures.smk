@@ -94,14 +94,16 @@ if "large_arena_frontier" in config["studies"]:
         register_targets(*expand(f"{FIGURES}/fig_large_arena_frontier.{{ext}}", ext=FIG_EXTS))
 
 
-# Issue 46: safety against V̂'s training samples (each budget a V̂ variant; the paper's Table II as lines).
+# Issue 46: safety against V̂'s training samples (each budget a V̂ variant), a panel per budget study
+# (BUDGET_STUDIES, common.smk), the paper's values as lines, each V̂'s verification in the CSV.
 if "vhat_budget" in config["studies"]:
 
     rule fig_vhat_budget:
         input:
             tracking=TRACKING,
-            results=study_results("vhat_budget"),
+            results=[f for st in BUDGET_STUDIES for f in study_results(st)],
             models=lambda wildcards: [a.split("=", 1)[1] for a in budget_vhat_args(wildcards)],
+            verify=lambda wildcards: [a.split("=", 1)[1] for a in budget_verify_args(wildcards)],
         output:
             png=report(kept(f"{FIGURES}/fig_vhat_budget.png"), caption="../report/fig_vhat_budget.rst",
                        category=REPORT_SECTIONS["our_tables"],
@@ -110,10 +112,12 @@ if "vhat_budget" in config["studies"]:
             csv=kept(f"{FIGURES}/fig_vhat_budget.csv"),
         params:
             config=RESOLVED,
-            settings=settings_hash("figure", name="fig_vhat_budget", study="vhat_budget"),
+            settings=settings_hash("figure", name="fig_vhat_budget", study=BUDGET_STUDIES),
             source=source_hash("figure"),
             out_dir=out_dir_of("png"),
             vhat=budget_vhat_args,
+            verify=budget_verify_args,
+            studies=BUDGET_STUDIES,
         resources:
             mem_mb=2000,
             runtime=15,
@@ -122,8 +126,9 @@ if "vhat_budget" in config["studies"]:
         log:
             f"{LOGS}/fig_vhat_budget.log",
         shell:
-            "python -m madpinn figure --config {params.config:q} --name fig_vhat_budget --study vhat_budget"
-            " --inputs {input.results:q} --vhat {params.vhat:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+            "python -m madpinn figure --config {params.config:q} --name fig_vhat_budget --study {params.studies:q}"
+            " --inputs {input.results:q} --vhat {params.vhat:q} --verify {params.verify:q}"
+            " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
     if "vhat_budget" in studies_in_all():   # in_all: false until the 3x V̂ is trained
         register_targets(*expand(f"{FIGURES}/fig_vhat_budget.{{ext}}", ext=[*FIG_EXTS, "csv"]))

@@ -80,3 +80,31 @@ rule verify_vhat:
 
 
 register_targets(f"{RESULTS}/validation/vhat_scenario.json")
+
+
+# The same verification of each V̂ variant a configured run loads (fig_vhat_budget: ε per budget).
+if VHAT_VARIANTS:
+
+    rule verify_vhat_variant:
+        input:
+            tracking=TRACKING,
+            model=str(rules.train_vhat_variant.output.model),
+        output:
+            report=f"{RESULTS}/validation/vhat_{{variant}}_scenario.json",
+        wildcard_constraints:
+            variant="|".join(VHAT_VARIANTS),
+        params:
+            config=RESOLVED,
+            settings=settings_hash("verify-vhat"),
+            source=source_hash("verify-vhat"),
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=60,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/verify_vhat_{{variant}}.log",
+        shell:
+            "python -m madpinn verify-vhat --config {params.config:q} --model vhat={input.model:q} --out {output.report:q}"
+            " --threads {threads} 2>&1 | tee {log:q}"
