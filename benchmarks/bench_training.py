@@ -57,7 +57,7 @@ def setup(batch, device, dtype):
     problem = EpigraphProblem(system)
     settings = TrainSettings(iterations=1000, batch_size=batch, lr=2e-5, lr_final=2e-5, curriculum_fraction=0.5,
                              checkpoint_every=10**9, loss="l1", output_scale=1.0,
-                             network=dict(paper["value_functions"]["vhat"]["network"]), seed=0, init_from=None, obstacle_weight=0.0)
+                             network=dict(paper["value_functions"]["vhat"]["network"]), seed=0, init_from=None, obstacle_weight=0.0, stop_at=None)
     torch.manual_seed(0)
     net = build_network(problem, settings.network).to(device=device, dtype=dtype)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)

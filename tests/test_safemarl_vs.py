@@ -38,7 +38,7 @@ def models(tmp_path_factory):
     problem = PairProblem(pair_system())
     s = TrainSettings(iterations=300, batch_size=512, lr=1e-3, lr_final=1e-4, curriculum_fraction=0.5,
                       checkpoint_every=10**6, network={"hidden": 64, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}, seed=0,
-                      loss="l1", output_scale=1.0, init_from=None, obstacle_weight=0.0)
+                      loss="l1", output_scale=1.0, init_from=None, obstacle_weight=0.0, stop_at=None)
     net, _ = train(problem, s, d / "vs.ckpt.pt", "test", progress=False)
     save_atomic(model_payload(problem, net, 1.0, {}), d / "vs.pt")
     env = GoalReachingEnv(DYN, Arena("small", 1.0, 0.2), observation_settings(), EnvSettings(0.05, 1, 2), seed=0)

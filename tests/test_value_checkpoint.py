@@ -117,7 +117,7 @@ def test_resume_from_a_file_that_is_not_a_resume_checkpoint_refuses_and_keeps_it
     bad.write_bytes(b"not a checkpoint at all")
     problem = EpigraphProblem(epigraph_system(z_max=21.45))
     s = TrainSettings(iterations=2, batch_size=16, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.0, checkpoint_every=1,
-                      output_scale=1.5, network=NET, seed=0, loss="l1", init_from=None, obstacle_weight=0.0)
+                      output_scale=1.5, network=NET, seed=0, loss="l1", init_from=None, obstacle_weight=0.0, stop_at=None)
     for path, words in ((bad, "not a torch checkpoint"), (vs_path, "'vs' value function"), (vh_path, "finished vhat model")):
         before = path.read_bytes()
         with pytest.raises(CheckpointError, match=words) as exc:

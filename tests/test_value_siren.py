@@ -26,7 +26,7 @@ def test_fused_parameter_gradient_equals_autograd_double_backward(problem, loss,
     torch.manual_seed(0)
     st = TrainSettings(iterations=100, batch_size=300, lr=1e-4, lr_final=1e-4, curriculum_fraction=0.5,
                        checkpoint_every=50, loss=loss, output_scale=2.0, network=NET, seed=0,
-                       init_from=None, obstacle_weight=0.0)
+                       init_from=None, obstacle_weight=0.0, stop_at=None)
     net = build_network(problem, NET).double()
     # a first call on another batch: the reused workspace must not leak into the next call
     s0, t0 = training_batch(problem, st, 69, "cpu", torch.float64)

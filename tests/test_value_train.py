@@ -19,7 +19,7 @@ NET = {"hidden": 32, "layers": 2, "first_omega": 30.0, "hidden_omega": 30.0}
 def settings(**kw):
     base = dict(iterations=24, batch_size=128, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.5,
                 checkpoint_every=5, output_scale=1.0, network=NET, seed=3, loss="l1", init_from=None,
-                obstacle_weight=0.0)
+                obstacle_weight=0.0, stop_at=None)
     base.update(kw)
     return TrainSettings(**base)
 
@@ -119,3 +119,27 @@ def test_time_boxed_pieces_give_the_uninterrupted_model(tmp_path):
     assert info_again["completed"] and len(info_again["history"]) == 24
     for p, q in zip(piece.parameters(), again.parameters()):
         assert torch.equal(p, q)
+
+
+def test_stop_at_ends_inside_the_schedule_and_resumes_from_the_longer_runs_checkpoint(tmp_path):
+    """A run with ``stop_at`` is the longer schedule's run up to that iteration (curriculum and learning
+    rate follow ``iterations``), so it ends with the longer run's weights there and resumes from its checkpoint."""
+    torch.set_num_threads(1)
+    problem = PairProblem(pair_system())
+    short, info = train(problem, settings(stop_at=10), tmp_path / "short.ckpt", "h", progress=False)
+    assert info["completed"] and info["iterations"] == 10 and len(info["history"]) == 10
+    longer, info_long = train(problem, settings(), tmp_path / "long.ckpt", "h", progress=False, stop_after=10)
+    assert not info_long["completed"]
+    assert info["history"] == info_long["history"]
+    for p, q in zip(short.parameters(), longer.parameters()):
+        assert torch.equal(p, q)
+    # an early-ending schedule differs from a shorter schedule (its curriculum and rate span 10 iterations)
+    _, info_10 = train(problem, settings(iterations=10), tmp_path / "ten.ckpt", "h", progress=False)
+    assert info_10["history"] != info["history"]
+    # the stop_at run resumes from the longer run's checkpoint at its end: nothing left to train
+    resumed, info_r = train(problem, settings(stop_at=10), tmp_path / "long.ckpt", "h", progress=False)
+    assert info_r["completed"] and info_r["history"] == info_long["history"]
+    for p, q in zip(resumed.parameters(), longer.parameters()):
+        assert torch.equal(p, q)
+    with pytest.raises(ValueError, match="stop_at .25. must lie in 1..iterations .24."):
+        settings(stop_at=25)

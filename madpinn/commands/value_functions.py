@@ -78,7 +78,8 @@ def _train(args) -> int:
     record = JobRecord(job_key=f"train/{name}", rule="train_vhat_variant" if variant else f"train_{kind}",
                        wildcards={"kind": kind, **({"variant": variant} if variant else {})},
                        params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
-                               "config_hash": training_hash(cfg, kind)})
+                               "config_hash": training_hash(cfg, kind),
+                               "schedule_hash": training_hash(cfg, kind, schedule_only=True)})
     with job(cfg, record, not args.no_track) as run:
         return _train_job(cfg, kind, args, run, record)
 
@@ -122,14 +123,15 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     out = Path(args.out)
     ckpt = Path(args.checkpoint) if args.checkpoint else out.parent / "checkpoints" / f"{out.stem}.ckpt.pt"
     chash = record.params["config_hash"]
+    resume_hash = record.params["schedule_hash"]   # = chash unless stop_at ends the run inside its schedule
     total = stage_iterations(settings, vcfg["fine_tune"])
     every = max(1, -(-total // LIVE_POINTS))   # ceil: at most LIVE_POINTS points
     deadline = None if args.time_limit is None else time.monotonic() + args.time_limit
-    net, info = train_stages(problem, settings, vcfg.get("fine_tune"), ckpt, out.with_name(f"{out.stem}_stage1.pt"), chash,
+    net, info = train_stages(problem, settings, vcfg.get("fine_tune"), ckpt, out.with_name(f"{out.stem}_stage1.pt"), resume_hash,
                              device, dtype, progress=not args.no_progress, stop_after=args.stop_after,
                              on_iteration=run.curve("loss", every), deadline=deadline)
     if not info["completed"]:
-        where = (f"{info['iterations']} of {settings.iterations} iterations" if info["stage"] == "train"
+        where = (f"{info['iterations']} of {settings.end_iteration} iterations" if info["stage"] == "train"
                  else f"fine-tuning, {info['iterations']} of {total} iterations in all")
         return _paused(run, kind, where, ckpt, args)
     model = save_trained_model(problem, net, settings, info, vcfg, chash, out, device, dtype)

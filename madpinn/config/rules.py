@@ -130,6 +130,7 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
                 lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
     lines += _gap_errors(cfg)
     lines += _variant_errors(cfg)
+    lines += _stop_at_errors(cfg)
     traj = cfg["figures"]["trajectories"]
     study = cfg["studies"].get(traj["study"])
     if study is None:
@@ -139,4 +140,21 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
             lines.append(f"  - 'figures.trajectories.n_agents': {traj['n_agents']} is not among studies.{traj['study']}.agent_counts")
         if traj["seed"] not in study["seeds"]:
             lines.append(f"  - 'figures.trajectories.seed': {traj['seed']} is not among studies.{traj['study']}.seeds")
+    return lines
+
+
+def _stop_at_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """``value_functions.<kind>.stop_at`` (each variant merged over its base) ends a training inside its
+    schedule: at most ``iterations``."""
+    from madpinn.config.vf_variants import VF_VARIANTS, with_vf_variant
+
+    lines = []
+    for kind in ("vhat", "vs"):
+        section = VF_VARIANTS.get(kind)
+        for variant in [None, *(cfg["value_functions"].get(section) or {} if section else {})]:
+            v = with_vf_variant(cfg, kind, variant)["value_functions"][kind]
+            if v["stop_at"] is not None and v["stop_at"] > v["iterations"]:
+                key = f"value_functions.{section}.{variant}" if variant else f"value_functions.{kind}"
+                lines.append(f"  - '{key}.stop_at': {v['stop_at']} is beyond iterations ({v['iterations']}): it ends the run "
+                             "inside its schedule")
     return lines

@@ -25,12 +25,15 @@ def problem_from_config(cfg: dict, kind: str):
     return PairProblem(PairSystem.from_config(cfg), ConflictSamplingSettings.from_config(vs), NearSamplingSettings.from_config(vs))
 
 
-def training_hash(cfg: dict, kind: str) -> str:
-    """Hash of everything the trained weights depend on (not validation settings)."""
+def training_hash(cfg: dict, kind: str, schedule_only: bool = False) -> str:
+    """Hash of everything the trained weights depend on (not validation settings). ``schedule_only``:
+    without ``stop_at``, i.e. the hash of the run's schedule, which its resume checkpoints carry: a
+    run ending early resumes from a longer run's checkpoint (the states agree up to its end)."""
     from madpinn.config import DEPLOYMENT_ONLY_KEYS, as_written
 
     # as the config files wrote it (keys filled with their default at load change no hash)
-    vcfg = {k: v for k, v in as_written(cfg, f"value_functions.{kind}").items() if k != "validation"}
+    vcfg = {k: v for k, v in as_written(cfg, f"value_functions.{kind}").items()
+            if k != "validation" and not (schedule_only and k == "stop_at")}
     if vcfg.get("velocity_saturation") is False:   # off = the dynamics every earlier model was trained with: same hash
         del vcfg["velocity_saturation"]
     observation = {k: v for k, v in cfg["observation"].items() if k not in DEPLOYMENT_ONLY_KEYS}   # deployment-only keys do not retrain

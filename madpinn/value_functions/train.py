@@ -38,6 +38,7 @@ class TrainingDiverged(RuntimeError):
 @dataclass(frozen=True)
 class TrainSettings:
     iterations: int
+    """length of the schedule (curriculum and learning rate)"""
     batch_size: int
     lr: float
     lr_final: float
@@ -53,6 +54,8 @@ class TrainSettings:
     """Weight of the obstacle penalty ``mean(relu-violation)`` (same norm as the residual) added to
     the residual loss; 0 = the paper's loss. The VI's min passes its gradient to one branch only, so
     without it nothing pulls V_s down to ψ where the other branch is smaller (docs/reference/value_functions.md)."""
+    stop_at: int | None
+    """end the run at this iteration of the schedule (None: at ``iterations``); see :attr:`end_iteration`"""
 
     @classmethod
     def from_config(cls, vcfg: dict, seed: int) -> "TrainSettings":
@@ -62,7 +65,18 @@ class TrainSettings:
             checkpoint_every=int(vcfg["checkpoint_every"]), loss=str(vcfg["loss"]),
             output_scale=float(vcfg["output_scale"]), network=dict(vcfg["network"]), seed=int(seed),
             init_from=vcfg["init_from"], obstacle_weight=float(vcfg["obstacle_weight"]),
+            stop_at=None if vcfg["stop_at"] is None else int(vcfg["stop_at"]),
         )
+
+    def __post_init__(self):
+        if self.stop_at is not None and not 0 < self.stop_at <= self.iterations:
+            raise ValueError(f"stop_at ({self.stop_at}) must lie in 1..iterations ({self.iterations}): it ends the "
+                             "run inside its schedule")
+
+    @property
+    def end_iteration(self) -> int:
+        """The iteration the run ends at: ``stop_at``, else the schedule's ``iterations``."""
+        return self.iterations if self.stop_at is None else self.stop_at
 
 
 def batch_generator(seed: int, iteration: int) -> torch.Generator:
@@ -209,8 +223,9 @@ def train(
                                 "history": torch.tensor(history, dtype=torch.float64), "wall_s": wall}}
         save_atomic(model_payload(problem, net, settings.output_scale, meta), checkpoint)
 
-    end = settings.iterations if stop_after is None else min(settings.iterations, start + stop_after)
-    bar = tqdm(range(start, end), initial=start, total=settings.iterations, desc=f"train {problem.kind}",
+    final = settings.end_iteration
+    end = final if stop_after is None else min(final, start + stop_after)
+    bar = tqdm(range(start, end), initial=start, total=final, desc=f"train {problem.kind}",
                disable=not progress, mininterval=5.0)
     t0 = time.perf_counter()
     for it in bar:
@@ -221,16 +236,16 @@ def train(
             on_iteration(it + 1, history[-1])
         if (it + 1) % 50 == 0:
             bar.set_postfix(loss=f"{sum(history[-50:]) / 50:.4g}", refresh=False)
-        if (it + 1) % settings.checkpoint_every == 0 and it + 1 < settings.iterations:
+        if (it + 1) % settings.checkpoint_every == 0 and it + 1 < final:
             wall_now = wall + time.perf_counter() - t0
             wall, t0 = wall_now, time.perf_counter()
             save(it + 1)
         if it + 1 == end:
             break
     wall += time.perf_counter() - t0
-    if end < settings.iterations or (deadline is not None and end > start):
+    if end < final or (deadline is not None and end > start):
         save(end)   # time-boxed pieces also keep a finished stage, so the next piece skips it
-    return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= settings.iterations,
+    return net, {"history": history, "iterations": end, "wall_s": wall, "completed": end >= final,
                  "batch_offset": offset}
 
 
@@ -250,7 +265,7 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
                               {"config_hash": chash, "iterations": info["iterations"], "batch_offset": info["batch_offset"]}),
                 stage1)
     s2 = replace(settings, iterations=int(ft["iterations"]), lr=float(ft["lr"]), lr_final=float(ft["lr_final"]),
-                 curriculum_fraction=0.0, init_from=str(stage1))
+                 curriculum_fraction=0.0, init_from=str(stage1), stop_at=None)
     net2, info2 = train(problem, s2, ckpt.with_name(ckpt.name.replace(".ckpt", ".fine_tune.ckpt")), chash + "/fine_tune",
                         device=device, dtype=dtype, progress=progress, stop_after=stop_after, on_iteration=on_iteration,
                         deadline=deadline)
@@ -261,7 +276,7 @@ def fine_tune(problem, settings: TrainSettings, net, info: dict, ft: dict, stage
 
 def stage_iterations(settings: TrainSettings, fine_tune_settings: dict | None) -> int:
     """Iterations of every stage together: the training, then ``fine_tune``'s (when configured)."""
-    return settings.iterations + (int(fine_tune_settings["iterations"]) if fine_tune_settings else 0)
+    return settings.end_iteration + (int(fine_tune_settings["iterations"]) if fine_tune_settings else 0)
 
 
 def train_stages(problem: PINNProblem, settings: TrainSettings, fine_tune_settings: dict | None, checkpoint: Path,

@@ -439,7 +439,7 @@ def train_runtime(kind, variant=None):
     from madpinn.config import with_vf_variant
 
     v = with_vf_variant(config, kind, variant)["value_functions"][kind]
-    its = int(v["iterations"]) + (int(v["fine_tune"]["iterations"]) if v["fine_tune"] else 0)
+    its = int(v["stop_at"] or v["iterations"]) + (int(v["fine_tune"]["iterations"]) if v["fine_tune"] else 0)
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
 
