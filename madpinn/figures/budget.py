@@ -152,15 +152,24 @@ def plot_vhat_budget(result_paths: Iterable[str | Path], runs: Sequence[BudgetRu
     return [*files, csv]
 
 
+def budget_tags(runs: Sequence[BudgetRun]) -> dict[str, str]:
+    """Short tag per run: its samples as a multiple of the base run's (the run without a variant, e.g.
+    ``madpinn``; else the smallest budget), e.g. ``"0.5×"``, ``"3×"``."""
+    base = next((r.samples for r in runs if "-" not in r.run), min(r.samples for r in runs))
+    return {r.run: f"{r.samples / base:.3g}×" for r in runs}
+
+
 def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> plt.Figure:
-    """One axis per panel (shared safety axis), one line per agent count, the paper's values dashed."""
+    """One axis per panel (shared axes), one line per agent count, the paper's values dashed; each
+    budget's tag on the top axis, the tags' meaning and each trend's verdict below the panels."""
     style.setup()
     by_run = {r.run: r for r in runs}
+    tags = budget_tags(runs)
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.2), sharey=True, squeeze=False)
-    x_all = [r.samples for r in runs] + [PAPER_SAMPLES]
-    xs_line = np.logspace(math.log10(min(x_all)) - 0.1, math.log10(max(x_all)) + 0.1, 50)
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4), sharex=True, sharey=True, squeeze=False)
+    x_lo, x_hi = min(r.samples for r in runs) / 1.6, PAPER_SAMPLES * 1.6
+    xs_line = np.logspace(math.log10(x_lo), math.log10(x_hi), 50)
     notes = []
     for ax, panel in zip(axes[0], panels):
         agg = frames[panel.study]
@@ -177,20 +186,23 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                 a, b, needed = trend(xs, ys, target)
                 if b > 0:
                     ax.plot(xs_line, a + b * np.log10(xs_line), ":", lw=1.0, color=c)
-                notes.append(f"{panel.title}, {n}: paper {target:.4g} %; "
+                notes.append(f"{panel.title}, {n} agents: paper {target:.4g} %; "
                              + (f"trend +{b:.1f} pts/decade, reaches it at {needed:.2g} samples" if needed is not None
                                 else "no rising trend"))
         ax.axvline(PAPER_SAMPLES, color="0.4", lw=0.8)
-        ax.text(PAPER_SAMPLES, 1.0, " paper's recipe", transform=ax.get_xaxis_transform(), fontsize=7.5, va="top", ha="left")
-        for r in runs:
-            ax.annotate(r.label, (r.samples, 0.0), xycoords=("data", "axes fraction"), xytext=(0, 3),
-                        textcoords="offset points", rotation=90, fontsize=7, ha="center", va="bottom", color="0.3")
+        ax.text(PAPER_SAMPLES, 0.02, "paper's recipe ", transform=ax.get_xaxis_transform(), fontsize=7.5, va="bottom",
+                ha="right", color="0.3")
         ax.set_xscale("log")
-        ax.set_title(panel.title + ("" if panel.paper else " (no paper value)"), fontsize=10)
+        ax.set_xlim(x_lo, x_hi)
+        top = ax.secondary_xaxis("top")
+        top.set_xticks([r.samples for r in runs], [tags[r.run] for r in runs], fontsize=7.5)
+        top.tick_params(axis="x", which="minor", top=False, labeltop=False)
+        ax.set_title(panel.title + ("" if panel.paper else " (no paper value)"), fontsize=10, pad=16)
         ax.set_xlabel("V̂ training samples (batch × iterations)")
-        ax.legend(loc="center right", fontsize=8, frameon=True)
+        ax.legend(loc="best", fontsize=8, frameon=True)
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
-    fig.text(0.01, -0.02, "\n".join(notes), fontsize=7.5, va="top")
+    legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(runs, key=lambda r: r.samples))
+    fig.text(0.01, -0.02, "\n".join([f"Top axis: {legend}", *notes]), fontsize=7.5, va="top")
     fig.tight_layout()
     return fig
