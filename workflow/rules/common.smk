@@ -437,9 +437,11 @@ def budget_verify_args(wildcards):
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
     from madpinn.config import with_vf_variant
+    from madpinn.value_functions.train import TrainSettings, stage_iterations
 
-    v = with_vf_variant(config, kind, variant)["value_functions"][kind]
-    its = int(v["stop_at"] or v["iterations"]) + (int(v["fine_tune"]["iterations"]) if v["fine_tune"] else 0)
+    vf = with_vf_variant(config, kind, variant)["value_functions"]
+    v = vf[kind]
+    its = stage_iterations(TrainSettings.from_config(v, vf["seed"]), v["fine_tune"])   # every stage, to its stop_at
     return 10 + int(3.5 * its * int(v["batch_size"]) / 4.096e6)
 
 
