@@ -392,18 +392,21 @@ def init_arg(kind, variant=None):
 def vhat_variants_used():
     """The V̂ variants (value_functions.vhat_variants) that a configured study's MAD-PINN run loads:
     only their trainings are planned."""
+    return sorted({run_vhat_variant(run) for st in config["studies"].values() for run in st["runs"]
+                   if run.partition("-")[0] == "madpinn"} - {None})
+
+
+def run_vhat_variant(run):
+    """The V̂ variant (value_functions.vhat_variants) a MAD-PINN run loads; None for the base V̂."""
     from madpinn.config import run_vhat, split_vf_model
 
-    return sorted({split_vf_model(run_vhat(config, run))[1] for st in config["studies"].values() for run in st["runs"]
-                   if run.partition("-")[0] == "madpinn"} - {None})
+    return split_vf_model(run_vhat(config, run))[1]
 
 
 def madpinn_models(wildcards):
     """The trained files a MAD-PINN run loads: its V̂ (the base's, or the variant's its settings name)
     and V_s. Plain strings (run_models)."""
-    from madpinn.config import run_vhat, split_vf_model
-
-    variant = split_vf_model(run_vhat(config, wildcards.run))[1]
+    variant = run_vhat_variant(wildcards.run)
     vhat = (str(rules.train_vhat_variant.output.model).format(variant=variant) if variant
             else str(rules.train_vhat.output.model))
     return {"vhat": vhat, "vs": str(rules.train_vs.output.model)}
@@ -425,14 +428,11 @@ def budget_vhat_args(wildcards):
 
 def budget_verify_args(wildcards):
     """``RUN=PATH`` of the verify-vhat report of the V̂ each run of the budget studies loads."""
-    from madpinn.config import run_vhat, split_vf_model
+    def report(variant):
+        return (str(rules.verify_vhat_variant.output.report).format(variant=variant) if variant
+                else str(rules.verify_vhat.output.report))
 
-    reports = {}
-    for run in budget_runs():
-        variant = split_vf_model(run_vhat(config, run))[1]
-        reports[run] = (str(rules.verify_vhat_variant.output.report).format(variant=variant) if variant
-                        else str(rules.verify_vhat.output.report))
-    return [f"{run}={path}" for run, path in reports.items()]
+    return [f"{run}={report(run_vhat_variant(run))}" for run in budget_runs()]
 
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
