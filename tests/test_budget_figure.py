@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from conftest import REPO
-from madpinn.figures.budget import (BudgetRun, budget_panel, budget_table, draw_vhat_budget, model_samples,
-                                    paper_safety, trend, verification_epsilon)
+from madpinn.figures.budget import (ANNEALED, CONSTANT, BudgetRun, budget_panel, budget_table, draw_vhat_budget,
+                                    model_samples, model_schedule, paper_safety, trend, verification_epsilon)
 from madpinn.value_functions.model import read_checkpoint
 
 
@@ -22,6 +22,17 @@ def test_samples_of_the_shipped_models():
     assert model_samples(read_checkpoint(REPO / "models/vhat_speed.pt", "vhat")["meta"]) == 4096 * (20000 + 60000)
     with pytest.raises(ValueError, match="not a train-value model"):
         model_samples({"iterations": 3})
+
+
+def test_schedule_of_the_shipped_budgets():
+    """The shipped recipe anneals its rate; the 2x / 3x budgets keep the paper's constant 2e-5."""
+    def schedule(name):
+        return model_schedule(read_checkpoint(REPO / f"models/{name}.pt", "vhat")["meta"])
+
+    assert [schedule(m) for m in ("vhat", "vhat_b05", "vhat_b15")] == [ANNEALED] * 3
+    assert [schedule(m) for m in ("vhat_b2x", "vhat_b3x")] == [CONSTANT] * 2
+    with pytest.raises(ValueError, match="not a train-value model"):
+        model_schedule({"settings": {"lr": 1e-3}})
 
 
 def test_trend_reaches_the_target_only_when_it_rises():
@@ -54,8 +65,8 @@ def test_verification_epsilon_takes_the_most_conservative_bound():
 
 
 def test_budget_table_and_figure_from_cells():
-    runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000), BudgetRun("madpinn", "1x", 4096 * 60000),
-            BudgetRun("madpinn-b3x", "3x", 4096 * 180000,
+    runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000, ANNEALED), BudgetRun("madpinn", "1x", 4096 * 60000, ANNEALED),
+            BudgetRun("madpinn-b3x", "3x", 4096 * 180000, ANNEALED,
                       verification={d: {"any": {"epsilon": {"1e-06": e}}} for d, e in (("uniform", 0.05), ("conflict", 0.08))})]
     frames = {"vhat_budget": _agg({("madpinn-b05", 64): 0.77, ("madpinn", 64): 0.80, ("madpinn-b3x", 64): 0.86,
                                    ("madpinn-b05", 128): 0.60, ("madpinn", 128): 0.68, ("madpinn-b3x", 128): 0.66}),
@@ -82,6 +93,28 @@ def test_budget_table_and_figure_from_cells():
     ax = fig.axes[0]
     assert ax.get_xscale() == "log" and len(ax.lines) >= 2 * 2   # a data line and a paper line per N
     assert "no paper value" in fig.axes[1].get_title()
+
+
+def test_trends_are_fitted_within_one_schedule():
+    """Two annealed budgets that fall and two constant-rate budgets that rise: one trend per schedule,
+    never one across them (which here would rise through the mixed points)."""
+    runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000, ANNEALED), BudgetRun("madpinn", "1x", 4096 * 60000, ANNEALED),
+            BudgetRun("madpinn-b2x", "2x", 4096 * 120000, CONSTANT), BudgetRun("madpinn-b3x", "3x", 4096 * 180000, CONSTANT)]
+    frames = {"vhat_budget": _agg({("madpinn-b05", 64): 0.70, ("madpinn", 64): 0.65,
+                                   ("madpinn-b2x", 64): 0.72, ("madpinn-b3x", 64): 0.80})}
+    panels = [budget_panel("vhat_budget", "large", "uniform", [64])]
+    table = budget_table(frames, runs, panels)
+    assert list(table["run"]) == ["madpinn-b05", "madpinn", "madpinn-b2x", "madpinn-b3x"]   # by samples
+    annealed, constant = table[table["schedule"] == ANNEALED], table[table["schedule"] == CONSTANT]
+    assert (annealed["slope_per_decade"] < 0).all() and annealed["samples_to_paper"].isna().all()
+    assert (constant["slope_per_decade"] > 0).all() and (constant["samples_to_paper"] > 4096 * 180000).all()
+    # a schedule with one budget has no trend
+    single = budget_table({"vhat_budget": frames["vhat_budget"][frames["vhat_budget"]["run"] != "madpinn-b3x"]}, runs[:3], panels)
+    assert single.loc[single["schedule"] == CONSTANT, "slope_per_decade"].isna().all()
+    fig = draw_vhat_budget(frames, runs, panels)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert labels.count("64 agents") == 1   # one entry per N, the schedules by style
+    assert {ANNEALED, CONSTANT} <= {t.get_text() for t in fig.axes[0].get_legend().get_texts()}
 
 
 
@@ -118,6 +151,11 @@ def test_figure_command_draws_a_panel_per_study_from_real_cells(tmp_path, capsys
     assert set(table["study"]) == {"vhat_budget", "vhat_budget_circle"} and len(table) == 4
     assert set(table["samples"]) == {4096 * 60000, 4096 * 80000}
     assert table.loc[table["run"] == "madpinn", "eps_conflict"].gt(0).all() and table.loc[table["run"] == "madpinn-b15", "eps_conflict"].isna().all()
+    assert set(table["schedule"]) == {ANNEALED}
+    # a malformed --verify item is named as such
+    capsys.readouterr()
+    assert main([*args, "--verify", "madpinn"]) != 0
+    assert "--verify expects NAME=PATH, got 'madpinn'" in capsys.readouterr().err
     assert (tmp_path / "fig" / "fig_vhat_budget.png").stat().st_size > 0
     # a run without its V̂ is refused, naming the missing option
     assert main([a for a in args if not a.startswith("madpinn-b15=")]) != 0

@@ -27,15 +27,16 @@ def add_model_arg(p: argparse.ArgumentParser, names: tuple[str, ...]) -> None:
                    help=f"trained model file(s) read by the job (names: {', '.join(names)}); repeatable")
 
 
-def parse_models(items: list[str]) -> dict[str, Path]:
-    """``["vhat=a.pt", "vs=b.pt"]`` -> ``{"vhat": Path("a.pt"), "vs": Path("b.pt")}``."""
+def parse_models(items: list[str], flag: str = "--model") -> dict[str, Path]:
+    """``["vhat=a.pt", "vs=b.pt"]`` -> ``{"vhat": Path("a.pt"), "vs": Path("b.pt")}``; errors name
+    ``flag``, the option the items came from."""
     models: dict[str, Path] = {}
     for item in items:
         name, sep, path = item.partition("=")
         if not sep or not name or not path:
-            raise ConfigError(f"--model expects NAME=PATH, got '{item}'")
+            raise ConfigError(f"{flag} expects NAME=PATH, got '{item}'")
         if name in models:
-            raise ConfigError(f"--model {name}= given twice")
+            raise ConfigError(f"{flag} {name}= given twice")
         models[name] = Path(path)
     return models
 

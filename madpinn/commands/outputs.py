@@ -54,14 +54,14 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     import json
 
     from madpinn.config import ConfigError, method_config
-    from madpinn.figures.budget import BudgetRun, budget_panel, model_samples, plot_vhat_budget
+    from madpinn.figures.budget import BudgetRun, budget_panel, model_samples, model_schedule, plot_vhat_budget
     from madpinn.value_functions.model import read_checkpoint
 
     studies = args.study or []
     unknown = [st for st in studies if st not in cfg["studies"]]
     if not studies or unknown:
         raise ConfigError(f"fig_vhat_budget needs --study STUDY... of this configuration, got {studies!r}")
-    models, reports = parse_models(args.vhat or []), parse_models(args.verify or [])
+    models, reports = parse_models(args.vhat or [], "--vhat"), parse_models(args.verify or [], "--verify")
     runs = []
     for run in dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]):
         if run not in models:
@@ -69,7 +69,7 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
         meta = read_checkpoint(models[run], "vhat")["meta"]
         report = json.loads(Path(reports[run]).read_text()) if run in reports else None
         runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta),
-                              verification=report))
+                              schedule=model_schedule(meta), verification=report))
     panels = [budget_panel(st, cfg["studies"][st]["arena"], cfg["studies"][st]["pattern"], cfg["studies"][st]["agent_counts"])
               for st in studies]
     return plot_vhat_budget(args.inputs, runs, panels, Path(args.out_dir) / args.name)

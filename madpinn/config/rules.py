@@ -146,15 +146,15 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
 def _stop_at_errors(cfg: Mapping[str, Any]) -> list[str]:
     """``value_functions.<kind>.stop_at`` (each variant merged over its base) ends a training inside its
     schedule: at most ``iterations``."""
-    from madpinn.config.vf_variants import VF_VARIANTS, with_vf_variant
+    from madpinn.config.vf_variants import VF_VARIANTS, stop_at_problem, with_vf_variant
 
     lines = []
     for kind in ("vhat", "vs"):
         section = VF_VARIANTS.get(kind)
         for variant in [None, *(cfg["value_functions"].get(section) or {} if section else {})]:
             v = with_vf_variant(cfg, kind, variant)["value_functions"][kind]
-            if v["stop_at"] is not None and v["stop_at"] > v["iterations"]:
+            problem = stop_at_problem(v["stop_at"], v["iterations"])
+            if problem:
                 key = f"value_functions.{section}.{variant}" if variant else f"value_functions.{kind}"
-                lines.append(f"  - '{key}.stop_at': {v['stop_at']} is beyond iterations ({v['iterations']}): it ends the run "
-                             "inside its schedule")
+                lines.append(f"  - '{key}.stop_at': {problem}")
     return lines

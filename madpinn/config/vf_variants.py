@@ -15,6 +15,14 @@ VF_VARIANTS = {"vhat": "vhat_variants"}
 deep-merged over ``value_functions.<kind>``; trained model ``<kind>_<name>``)"""
 
 
+def stop_at_problem(stop_at: int | None, iterations: int) -> str | None:
+    """What is wrong with ending a training of an ``iterations``-long schedule at ``stop_at`` (None:
+    nothing; ``stop_at`` None runs the whole schedule): it must lie in 1..iterations."""
+    if stop_at is None or 0 < stop_at <= iterations:
+        return None
+    return f"stop_at ({stop_at}) must lie in 1..iterations ({iterations}): it ends the run inside its schedule"
+
+
 def vf_model_name(kind: str, variant: str | None = None) -> str:
     """The model name of value function ``kind`` (``vhat``) or of its variant (``vhat_h04``)."""
     return f"{kind}_{variant}" if variant else kind

@@ -3,9 +3,11 @@ against V̂'s training samples (batch × iterations, log axis), one panel per st
 (Table II's large arena, Table I's small arena, a structured conflict), one line per agent count,
 from cells whose runs differ only in the V̂ they load. The paper's safety for its own method at that
 setting and N (Table II, Table I; none for a structured conflict, which the paper does not test) is
-a dashed line of the same colour; a least-squares trend ``safety = a + b·log10(samples)`` per N (at
-least two budgets) is extended to where it would reach the paper's value, and the budget it would
-need is printed (none when the trend does not rise). Error bars: 95 % bootstrap intervals over
+a dashed line of the same colour. Budgets are grouped by learning-rate schedule, since a curve across
+schedules mixes two changes: our shipped recipe anneals the rate, the paper's keeps it constant, and
+budgets of one schedule differ in samples only. A least-squares trend ``safety = a + b·log10(samples)``
+per N and schedule (at least two budgets of it) is extended to where it would reach the paper's
+value, and the budget it would need is printed (none when the trend does not rise). Error bars: 95 % bootstrap intervals over
 scenarios (one seed), else ± one standard deviation over seeds. With each V̂'s scenario verification
 (``verify-vhat``), the CSV also carries its ε on uniform and on conflict states.
 """
@@ -33,6 +35,10 @@ PAPER_SAMPLES = 65536 * 100000
 PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_scaling"}
 """the paper's table of its own method in each arena (Table II, Table I of paper_values.yaml)"""
 PAPER_RUN = "madpinn"
+ANNEALED, CONSTANT = "annealed lr", "constant lr (paper's)"
+"""the two learning-rate schedules of the budgets: ours (decaying lr → lr_final) and the paper's constant rate"""
+SCHEDULE_STYLE = {ANNEALED: dict(fmt="o-", mfc="white"), CONSTANT: dict(fmt="s-.", mfc=None)}
+"""marker and line per schedule (mfc None: filled in the line's colour)"""
 
 
 @dataclass(frozen=True)
@@ -44,6 +50,8 @@ class BudgetRun:
     samples: int
     """training states seen: batch_size × (iterations + batch_offset) of the model (a fine-tune
     continues its initial model's batch stream, so the offset counts those samples)"""
+    schedule: str
+    """:data:`ANNEALED` or :data:`CONSTANT` (:func:`model_schedule`): trends are fitted within one"""
     verification: Mapping | None = None
     """the model's ``verify-vhat`` report (ε on uniform and conflict states), when given"""
 
@@ -90,6 +98,15 @@ def model_samples(meta: Mapping) -> int:
     return int(settings["batch_size"]) * (int(meta["iterations"]) + int(meta.get("batch_offset", 0)))
 
 
+def model_schedule(meta: Mapping) -> str:
+    """The learning-rate schedule of a V̂ from its model metadata: :data:`CONSTANT` when its (last)
+    stage ran at one rate (``lr == lr_final``), else :data:`ANNEALED`."""
+    settings = meta.get("settings") or {}
+    if "lr" not in settings or "lr_final" not in settings:
+        raise ValueError("the model's metadata has no lr / lr_final: not a train-value model")
+    return CONSTANT if float(settings["lr"]) == float(settings["lr_final"]) else ANNEALED
+
+
 def trend(samples: Sequence[float], safety: Sequence[float], target: float) -> tuple[float, float, float | None]:
     """Least-squares ``safety = a + b·log10(samples)``; returns ``(a, b, samples at target)`` with
     the last None when ``b ≤ 0`` (no rising trend) or fewer than two distinct budgets."""
@@ -110,26 +127,36 @@ def study_frames(result_paths: Iterable[str | Path]) -> dict[str, pd.DataFrame]:
     return {str(st): across_seeds(per_seed(g), ["run", "n_agents"]) for st, g in df.groupby("study", sort=False)}
 
 
+def schedule_points(group: pd.DataFrame, by_run: Mapping[str, BudgetRun]) -> dict[str, list[tuple[int, pd.Series]]]:
+    """The rows of one (study, N), per schedule, sorted by samples: ``{schedule: [(samples, row)]}``."""
+    points: dict[str, list[tuple[int, pd.Series]]] = {}
+    for _, r in group.iterrows():
+        points.setdefault(by_run[r["run"]].schedule, []).append((by_run[r["run"]].samples, r))
+    return {sched: sorted(pts, key=lambda p: p[0]) for sched, pts in points.items()}
+
+
 def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> pd.DataFrame:
-    """Per (study, N, run): samples, safety (%) and, per (study, N), the trend's slope (points per
-    decade) and the samples at which it reaches the paper's safety (NaN: never, or no paper value);
-    the V̂'s verification ε where given."""
+    """Per (study, N, run): samples, schedule, safety (%) and, per (study, N, schedule), the trend's
+    slope (points per decade; NaN with one budget or no paper value) and the samples at which it
+    reaches the paper's safety (NaN: never, or no paper value); the V̂'s verification ε where given."""
     by_run = {r.run: r for r in runs}
     rows = []
     for panel in panels:
-        agg = frames[panel.study]
-        for n, group in agg.groupby("n_agents"):
-            pts = sorted((by_run[r["run"]].samples, 100 * r["safety_rate_mean"], r["run"]) for _, r in group.iterrows())
+        for n, group in frames[panel.study].groupby("n_agents"):
             target = panel.paper.get(int(n), math.nan)
-            _, slope, needed = (trend([p[0] for p in pts], [p[1] for p in pts], target) if math.isfinite(target)
-                                else (0.0, math.nan, None))
-            for samples, safety, run in pts:
-                v = by_run[run].verification
-                rows.append({"study": panel.study, "n_agents": int(n), "run": run, "samples": samples, "safety": safety,
-                             "paper_safety": target, "slope_per_decade": slope,
-                             "samples_to_paper": needed if needed is not None else math.nan,
-                             "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
-                             "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan})
+            rows_n = []
+            for sched, pts in schedule_points(group, by_run).items():
+                xs, ys = [p[0] for p in pts], [100 * r["safety_rate_mean"] for _, r in pts]
+                _, slope, needed = (trend(xs, ys, target) if math.isfinite(target) and len(set(xs)) > 1
+                                    else (0.0, math.nan, None))
+                for (samples, r), safety in zip(pts, ys):
+                    v = by_run[r["run"]].verification
+                    rows_n.append({"study": panel.study, "n_agents": int(n), "run": r["run"], "schedule": sched,
+                                   "samples": samples, "safety": safety, "paper_safety": target, "slope_per_decade": slope,
+                                   "samples_to_paper": needed if needed is not None else math.nan,
+                                   "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
+                                   "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan})
+            rows += sorted(rows_n, key=lambda row: row["samples"])
     return pd.DataFrame(rows)
 
 
@@ -160,8 +187,9 @@ def budget_tags(runs: Sequence[BudgetRun]) -> dict[str, str]:
 
 
 def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> plt.Figure:
-    """One axis per panel (shared axes), one line per agent count, the paper's values dashed; each
-    budget's tag on the top axis, the tags' meaning and each trend's verdict below the panels."""
+    """One axis per panel (shared axes), one line per agent count and schedule (marker and line style:
+    :data:`SCHEDULE_STYLE`), the paper's values dashed; each budget's tag on the top axis, the tags'
+    meaning and each trend's verdict below the panels."""
     style.setup()
     by_run = {r.run: r for r in runs}
     tags = budget_tags(runs)
@@ -175,23 +203,27 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
         agg = frames[panel.study]
         for n in sorted(int(n) for n in agg["n_agents"].unique()):
             c = colours[str(n)]
-            rows = sorted(((by_run[r["run"]].samples, r) for _, r in agg[agg["n_agents"] == n].iterrows()), key=lambda p: p[0])
-            xs = [s for s, _ in rows]
-            ys = [100 * r["safety_rate_mean"] for _, r in rows]
-            err = np.array([_interval(r, "safety_rate", 100.0) for _, r in rows]).T
-            ax.errorbar(xs, ys, yerr=err, fmt="o-", color=c, capsize=2.5, ms=6, mfc="white", mew=1.5, label=f"{n} agents")
-            if n in panel.paper:
-                target = panel.paper[n]
+            target = panel.paper.get(n)
+            if target is not None:
                 ax.axhline(target, ls="--", lw=1.0, color=c)
+            for i, (sched, rows) in enumerate(schedule_points(agg[agg["n_agents"] == n], by_run).items()):
+                xs = [s for s, _ in rows]
+                ys = [100 * r["safety_rate_mean"] for _, r in rows]
+                err = np.array([_interval(r, "safety_rate", 100.0) for _, r in rows]).T
+                fmt, mfc = SCHEDULE_STYLE[sched]["fmt"], SCHEDULE_STYLE[sched]["mfc"] or c
+                ax.errorbar(xs, ys, yerr=err, fmt=fmt, color=c, capsize=2.5, ms=6, mfc=mfc, mew=1.5,
+                            label=f"{n} agents" if i == 0 else None)
+                if target is None or len(set(xs)) < 2:
+                    continue
                 a, b, needed = trend(xs, ys, target)
                 if b > 0:
                     ax.plot(xs_line, a + b * np.log10(xs_line), ":", lw=1.0, color=c)
-                notes.append(f"{panel.title}, {n} agents: paper {target:.4g} %; "
+                notes.append(f"{panel.title}, {n} agents, {sched}, {len(xs)} budgets: paper {target:.4g} %; "
                              + (f"trend +{b:.1f} pts/decade, reaches it at {needed:.2g} samples" if needed is not None
                                 else "no rising trend"))
         ax.axvline(PAPER_SAMPLES, color="0.4", lw=0.8)
-        ax.text(PAPER_SAMPLES, 0.02, "paper's recipe ", transform=ax.get_xaxis_transform(), fontsize=7.5, va="bottom",
-                ha="right", color="0.3")
+        ax.text(PAPER_SAMPLES, 0.55, "paper's recipe ", transform=ax.get_xaxis_transform(), fontsize=7.5, va="center",
+                ha="right", rotation=90, color="0.3")
         ax.set_xscale("log")
         ax.set_xlim(x_lo, x_hi)
         top = ax.secondary_xaxis("top")
@@ -199,7 +231,11 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
         top.tick_params(axis="x", which="minor", top=False, labeltop=False)
         ax.set_title(panel.title + ("" if panel.paper else " (no paper value)"), fontsize=10, pad=16)
         ax.set_xlabel("V̂ training samples (batch × iterations)")
-        ax.legend(loc="best", fontsize=8, frameon=True)
+        schedules = [s for s in SCHEDULE_STYLE if s in {r.schedule for r in runs}]
+        handles = ax.get_legend_handles_labels()[0] + [
+            plt.Line2D([], [], color="0.3", marker=SCHEDULE_STYLE[s]["fmt"][0], ls=SCHEDULE_STYLE[s]["fmt"][1:],
+                       mfc=SCHEDULE_STYLE[s]["mfc"] or "0.3", label=s) for s in schedules]
+        ax.legend(handles=handles, loc="best", fontsize=7.5, frameon=True)
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(runs, key=lambda r: r.samples))

@@ -25,6 +25,7 @@ from typing import Callable
 import torch
 from tqdm.auto import tqdm
 
+from madpinn.config.vf_variants import stop_at_problem
 from madpinn.value_functions.model import (
     CheckpointError, build_network, model_payload, read_checkpoint, save_atomic,
 )
@@ -69,9 +70,9 @@ class TrainSettings:
         )
 
     def __post_init__(self):
-        if self.stop_at is not None and not 0 < self.stop_at <= self.iterations:
-            raise ValueError(f"stop_at ({self.stop_at}) must lie in 1..iterations ({self.iterations}): it ends the "
-                             "run inside its schedule")
+        problem = stop_at_problem(self.stop_at, self.iterations)
+        if problem:
+            raise ValueError(problem)
 
     @property
     def end_iteration(self) -> int:
