@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import yaml
 
-from madpinn.config import ConfigError, method_config, study_backend, study_pattern, write_if_changed
+from madpinn.config import ConfigError, method_config, study_backend, study_pattern, vf_model_name, write_if_changed
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
@@ -428,11 +428,8 @@ def budget_vhat_args(wildcards):
 
 def budget_verify_args(wildcards):
     """``RUN=PATH`` of the verify-vhat report of the V̂ each run of the budget studies loads."""
-    def report(variant):
-        return (str(rules.verify_vhat_variant.output.report).format(variant=variant) if variant
-                else str(rules.verify_vhat.output.report))
-
-    return [f"{run}={report(run_vhat_variant(run))}" for run in budget_runs()]
+    pattern = str(rules.verify_vhat.output.report)
+    return [f"{run}={pattern.format(vhat=vf_model_name('vhat', run_vhat_variant(run)))}" for run in budget_runs()]
 
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""

@@ -56,12 +56,19 @@ rule validate_vs_grid:
 register_targets(f"{RESULTS}/validation/vs_grid.json", *[f"{FIGURES}/fig_vs_grid.{ext}" for ext in ("pdf", "png")])
 
 
+# Scenario verification of the base V̂ and of each V̂ variant a configured run loads (fig_vhat_budget:
+# ε per budget): one rule over the model names vhat / vhat_<variant>.
+VERIFIED_VHATS = [vf_model_name("vhat", v) for v in [None, *VHAT_VARIANTS]]
+
+
 rule verify_vhat:
     input:
         tracking=TRACKING,
-        model=str(rules.train_vhat.output.model),  # str(): see validate_vs_grid
+        model=f"{RESULTS}/models/{{vhat}}.pt",   # rules.train_vhat / train_vhat_variant (or the shipped model)
     output:
-        report=f"{RESULTS}/validation/vhat_scenario.json",
+        report=f"{RESULTS}/validation/{{vhat}}_scenario.json",
+    wildcard_constraints:
+        vhat="|".join(VERIFIED_VHATS),
     params:
         config=RESOLVED,
         settings=settings_hash("verify-vhat"),
@@ -73,38 +80,10 @@ rule verify_vhat:
     conda:
         CONDA_ENV
     log:
-        f"{LOGS}/verify_vhat.log",
+        f"{LOGS}/verify_{{vhat}}.log",
     shell:
         "python -m madpinn verify-vhat --config {params.config:q} --model vhat={input.model:q} --out {output.report:q}"
         " --threads {threads} 2>&1 | tee {log:q}"
 
 
 register_targets(f"{RESULTS}/validation/vhat_scenario.json")
-
-
-# The same verification of each V̂ variant a configured run loads (fig_vhat_budget: ε per budget).
-if VHAT_VARIANTS:
-
-    rule verify_vhat_variant:
-        input:
-            tracking=TRACKING,
-            model=str(rules.train_vhat_variant.output.model),
-        output:
-            report=f"{RESULTS}/validation/vhat_{{variant}}_scenario.json",
-        wildcard_constraints:
-            variant="|".join(VHAT_VARIANTS),
-        params:
-            config=RESOLVED,
-            settings=settings_hash("verify-vhat"),
-            source=source_hash("verify-vhat"),
-        threads: 1
-        resources:
-            mem_mb=2000,
-            runtime=60,
-        conda:
-            CONDA_ENV
-        log:
-            f"{LOGS}/verify_vhat_{{variant}}.log",
-        shell:
-            "python -m madpinn verify-vhat --config {params.config:q} --model vhat={input.model:q} --out {output.report:q}"
-            " --threads {threads} 2>&1 | tee {log:q}"
