@@ -152,6 +152,9 @@ def test_figure_command_draws_a_panel_per_study_from_real_cells(tmp_path, capsys
     assert set(table["samples"]) == {4096 * 60000, 4096 * 80000}
     assert table.loc[table["run"] == "madpinn", "eps_conflict"].gt(0).all() and table.loc[table["run"] == "madpinn-b15", "eps_conflict"].isna().all()
     assert set(table["schedule"]) == {ANNEALED}
+    # every point with its interval and its infeasible share, read from each cell's summary
+    assert (table["safety_lo"] <= table["safety"]).all() and (table["safety"] <= table["safety_hi"]).all()
+    assert table["infeasible"].between(0.0, 1.0).all()
     # a malformed --verify item is named as such
     capsys.readouterr()
     assert main([*args, "--verify", "madpinn"]) != 0

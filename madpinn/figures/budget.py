@@ -9,7 +9,8 @@ budgets of one schedule differ in samples only. A least-squares trend ``safety =
 per N and schedule (at least two budgets of it) is extended to where it would reach the paper's
 value, and the budget it would need is printed (none when the trend does not rise). Error bars: 95 % bootstrap intervals over
 scenarios (one seed), else ± one standard deviation over seeds. With each V̂'s scenario verification
-(``verify-vhat``), the CSV also carries its ε on uniform and on conflict states.
+(``verify-vhat``), the CSV also carries its ε on uniform and on conflict states; each point has its
+interval and its infeasible share (agent-steps with no feasible budget) there too.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from madpinn.evaluation.cell_files import cell_summary
 from madpinn.evaluation.metrics import across_seeds
 from madpinn.evaluation.reproduction import paper_values
 from madpinn.evaluation.tables import load_results, per_seed
@@ -135,10 +137,26 @@ def schedule_points(group: pd.DataFrame, by_run: Mapping[str, BudgetRun]) -> dic
     return {sched: sorted(pts, key=lambda p: p[0]) for sched, pts in points.items()}
 
 
-def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> pd.DataFrame:
-    """Per (study, N, run): samples, schedule, safety (%) and, per (study, N, schedule), the trend's
-    slope (points per decade; NaN with one budget or no paper value) and the samples at which it
-    reaches the paper's safety (NaN: never, or no paper value); the V̂'s verification ε where given."""
+def infeasible_by_cell(result_paths: Iterable[str | Path]) -> dict[tuple[str, str, int], float]:
+    """``(study, run, N) -> `` the share of agent-steps with no feasible budget (the cell summary's
+    ``policy_stats.infeasible_fraction``), mean over the seeds of the given files."""
+    shares: dict[tuple[str, str, int], list[float]] = {}
+    for p in result_paths:
+        d = cell_summary(p)
+        share = (d.get("policy_stats") or {}).get("infeasible_fraction")
+        if share is not None:
+            shares.setdefault((str(d["study"]), str(d["run"]), int(d["n_agents"])), []).append(float(share))
+    return {k: float(np.mean(v)) for k, v in shares.items()}
+
+
+def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel],
+                 infeasible: Mapping[tuple[str, str, int], float] | None = None) -> pd.DataFrame:
+    """Per (study, N, run): samples, schedule, safety (%) with its interval (95 % bootstrap over
+    scenarios with one seed, else ± one std over seeds), the infeasible share (``infeasible``:
+    :func:`infeasible_by_cell`; NaN where not given) and, per (study, N, schedule), the trend's slope
+    (points per decade; NaN with one budget or no paper value) and the samples at which it reaches the
+    paper's safety (NaN: never, or no paper value); the V̂'s verification ε where given."""
+    infeasible = infeasible or {}
     by_run = {r.run: r for r in runs}
     rows = []
     for panel in panels:
@@ -151,8 +169,11 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
                                     else (0.0, math.nan, None))
                 for (samples, r), safety in zip(pts, ys):
                     v = by_run[r["run"]].verification
+                    lo, hi = _interval(r, "safety_rate", 100.0)
                     rows_n.append({"study": panel.study, "n_agents": int(n), "run": r["run"], "schedule": sched,
-                                   "samples": samples, "safety": safety, "paper_safety": target, "slope_per_decade": slope,
+                                   "samples": samples, "safety": safety, "safety_lo": safety - lo, "safety_hi": safety + hi,
+                                   "infeasible": infeasible.get((panel.study, r["run"], int(n)), math.nan),
+                                   "paper_safety": target, "slope_per_decade": slope,
                                    "samples_to_paper": needed if needed is not None else math.nan,
                                    "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
                                    "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan})
@@ -164,6 +185,7 @@ def plot_vhat_budget(result_paths: Iterable[str | Path], runs: Sequence[BudgetRu
                      out_prefix: str | Path) -> list[Path]:
     """Draw the figure from evaluation result files of ``panels``' studies and ``runs``; writes
     ``<out_prefix>.{pdf,png}`` and ``<out_prefix>.csv`` (:func:`budget_table`); returns the three paths."""
+    result_paths = list(result_paths)
     frames = study_frames(result_paths)
     absent = [p.study for p in panels if p.study not in frames]
     if absent:
@@ -171,7 +193,7 @@ def plot_vhat_budget(result_paths: Iterable[str | Path], runs: Sequence[BudgetRu
     missing = sorted({run for p in panels for run in frames[p.study]["run"]} - {r.run for r in runs})
     if missing:
         raise ValueError(f"no V̂ budget given for runs {missing}")
-    table = budget_table(frames, runs, panels)
+    table = budget_table(frames, runs, panels, infeasible_by_cell(result_paths))
     out_prefix = Path(out_prefix)
     files = style.save(draw_vhat_budget(frames, runs, panels), out_prefix)
     csv = out_prefix.with_suffix(".csv")
