@@ -221,19 +221,22 @@ def to_latex(table: pd.DataFrame, caption: str) -> str:
     )
 
 
-def infeasible_shares(result_paths: Iterable[str | Path]) -> pd.DataFrame:
-    """``(run, n_agents, infeasible_mean)``: the share of MAD-PINN agent-steps with no feasible
-    budget (``policy_stats.infeasible_fraction`` of each cell's JSON summary beside its Parquet),
-    mean over seeds; runs without that branch (or cells without a summary) are left out."""
+def cell_infeasible_shares(result_paths: Iterable[str | Path]) -> pd.DataFrame:
+    """``(study, run, n_agents, infeasible)`` per result file: the share of MAD-PINN agent-steps with
+    no feasible budget (``policy_stats.infeasible_fraction`` of the cell's JSON summary beside its
+    Parquet); cells without that branch (or without a summary) are left out."""
     rows = []
     for p in result_paths:
         d = cell_summary(p)
         share = (d.get("policy_stats") or {}).get("infeasible_fraction")
         if share is not None and "run" in d:
-            rows.append({"run": d["run"], "n_agents": int(d["n_agents"]), "infeasible": float(share)})
-    if not rows:
-        return pd.DataFrame(columns=["run", "n_agents", "infeasible_mean"])
-    return pd.DataFrame(rows).groupby(["run", "n_agents"], as_index=False)["infeasible"].mean().rename(
+            rows.append({"study": d.get("study"), "run": d["run"], "n_agents": int(d["n_agents"]), "infeasible": float(share)})
+    return pd.DataFrame(rows, columns=["study", "run", "n_agents", "infeasible"])
+
+
+def infeasible_shares(result_paths: Iterable[str | Path]) -> pd.DataFrame:
+    """``(run, n_agents, infeasible_mean)``: :func:`cell_infeasible_shares` averaged over seeds."""
+    return cell_infeasible_shares(result_paths).groupby(["run", "n_agents"], as_index=False)["infeasible"].mean().rename(
         columns={"infeasible": "infeasible_mean"})
 
 

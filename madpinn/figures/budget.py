@@ -24,10 +24,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from madpinn.evaluation.cell_files import cell_summary
 from madpinn.evaluation.metrics import across_seeds
 from madpinn.evaluation.reproduction import paper_values
-from madpinn.evaluation.tables import load_results, per_seed
+from madpinn.evaluation.tables import cell_infeasible_shares, load_results, per_seed
 from madpinn.figures import style
 from madpinn.figures.frontier import _interval
 from madpinn.scenarios import UNIFORM
@@ -138,15 +137,10 @@ def schedule_points(group: pd.DataFrame, by_run: Mapping[str, BudgetRun]) -> dic
 
 
 def infeasible_by_cell(result_paths: Iterable[str | Path]) -> dict[tuple[str, str, int], float]:
-    """``(study, run, N) -> `` the share of agent-steps with no feasible budget (the cell summary's
-    ``policy_stats.infeasible_fraction``), mean over the seeds of the given files."""
-    shares: dict[tuple[str, str, int], list[float]] = {}
-    for p in result_paths:
-        d = cell_summary(p)
-        share = (d.get("policy_stats") or {}).get("infeasible_fraction")
-        if share is not None:
-            shares.setdefault((str(d["study"]), str(d["run"]), int(d["n_agents"])), []).append(float(share))
-    return {k: float(np.mean(v)) for k, v in shares.items()}
+    """``(study, run, N) -> `` the share of agent-steps with no feasible budget, mean over the seeds of
+    the given files (:func:`madpinn.evaluation.tables.cell_infeasible_shares`)."""
+    shares = cell_infeasible_shares(result_paths).groupby(["study", "run", "n_agents"])["infeasible"].mean()
+    return {(str(st), str(run), int(n)): float(v) for (st, run, n), v in shares.items()}
 
 
 def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel],
