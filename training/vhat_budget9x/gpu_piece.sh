@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# One GPU piece of the 9x V̂ (issue 46) on a lent device machine (`run` tool; its image has torch, numpy,
+# pandas, pyyaml, matplotlib, tqdm: no install). Resumes the committed checkpoint, trains for BUDGET_S
+# seconds on CUDA (config device: auto), keeps the 6x snapshot (iteration 360 000) if the piece passes it,
+# and copies the checkpoint (and the finished model, if any) to $OUT. Usage on the device:
+#   BUDGET_S=420 bash training/vhat_budget9x/gpu_piece.sh
+# Weights trained on CUDA differ from CPU-trained ones in float rounding only; the pieces' devices are
+# recorded in training/vhat_budget9x/pieces.md.
+set -u
+cd "$(dirname "$0")/../.."
+export PYTHONPATH=$PWD PYTHONUNBUFFERED=1
+py=${PYTHON:-python3}
+out=${OUT:?set OUT to a folder for the results}
+ck=${CHECKPOINT:-training/vhat_budget9x/vhat.ckpt.pt}
+snap_at=${SNAP_AT:-360000}   # the 6x snapshot (value_functions.vhat_variants.b6x.stop_at)
+t_end=$(( $(date +%s) + ${BUDGET_S:?seconds of training} ))
+iter() { "$py" -c "import torch,sys; print(int(torch.load(sys.argv[1], map_location='cpu', weights_only=True)['meta']['train_state']['iteration']))" "$1"; }
+train() { "$py" -m madpinn train-value --config config.yaml workflow/configs/vhat_budget_9x.yaml --kind vhat \
+    --out "$out/vhat_b9x.pt" --checkpoint "$ck" --no-track --no-progress --time-limit "$1" "${@:2}"; }
+"$py" -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available(), torch.cuda.get_device_name(0) if torch.cuda.is_available() else '')"
+start=$(iter "$ck"); echo "start iteration $start"; t0=$(date +%s)
+if [ "$start" -lt $snap_at ]; then
+  train $(( t_end - $(date +%s) )) --stop-after $(( snap_at - start ))
+  now=$(iter "$ck")
+  if [ "$now" -eq $snap_at ]; then cp "$ck" "$out/vhat_it$(printf %06d $snap_at).ckpt.pt"; echo "kept the 6x snapshot"; fi
+fi
+left=$(( t_end - $(date +%s) ))
+if [ "$left" -gt 10 ] && [ -f "$ck" ] && [ "$(iter "$ck")" -ge $snap_at ]; then train "$left"; fi
+[ -f "$ck" ] && cp "$ck" "$out/vhat.ckpt.pt" && end=$(iter "$ck") || end=done
+echo "end iteration $end after $(( $(date +%s) - t0 )) s (from $start)"
