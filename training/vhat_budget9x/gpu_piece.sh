@@ -1,6 +1,11 @@
 #!/usr/bin/env bash
 # One GPU piece of the 9x V̂ (issue 46) on a lent device machine (`run` tool; its image has torch, numpy,
-# pandas, pyyaml, matplotlib, tqdm: no install). Resumes the committed checkpoint, trains for BUDGET_S
+# pandas, pyyaml, matplotlib, tqdm, but not jsonschema, which the config loader needs: download its
+# wheels here once, into the git-excluded .whl/, and name `.whl` in the run's carry:
+#   python3 -m pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+#     --platform manylinux_2_17_x86_64 -d .whl jsonschema==4.26.0 jsonschema-specifications==2025.9.1 \
+#     referencing==0.37.0 rpds-py==2026.9.1
+# ). Resumes the committed checkpoint, trains for BUDGET_S
 # seconds on CUDA (config device: auto), keeps the 6x snapshot (iteration 360 000) if the piece passes it,
 # and copies the checkpoint (and the finished model, if any) to $OUT. Usage on the device:
 #   BUDGET_S=420 bash training/vhat_budget9x/gpu_piece.sh
@@ -8,8 +13,9 @@
 # recorded in training/vhat_budget9x/pieces.md.
 set -u
 cd "$(dirname "$0")/../.."
-export PYTHONPATH=$PWD PYTHONUNBUFFERED=1
 py=${PYTHON:-python3}
+if [ -d .whl ]; then "$py" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target /tmp/site .whl/*.whl || exit; fi
+export PYTHONPATH=$PWD:/tmp/site PYTHONUNBUFFERED=1
 out=${OUT:?set OUT to a folder for the results}
 ck=${CHECKPOINT:-training/vhat_budget9x/vhat.ckpt.pt}
 snap_at=${SNAP_AT:-360000}   # the 6x snapshot (value_functions.vhat_variants.b6x.stop_at)
