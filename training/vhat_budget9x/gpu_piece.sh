@@ -20,9 +20,10 @@ out=${OUT:?set OUT to a folder for the results}
 ck=${CHECKPOINT:-training/vhat_budget9x/vhat.ckpt.pt}
 snap_at=${SNAP_AT:-360000}   # the 6x snapshot (value_functions.vhat_variants.b6x.stop_at)
 t_end=$(( $(date +%s) + ${BUDGET_S:?seconds of training} ))
-iter() { "$py" -c "import torch,sys; print(int(torch.load(sys.argv[1], map_location='cpu', weights_only=True)['meta']['train_state']['iteration']))" "$1"; }
+iter() { "$py" -c "import sys; from madpinn.value_functions.model import read_checkpoint; print(int(read_checkpoint(sys.argv[1], 'vhat')['meta']['train_state']['iteration']))" "$1"; }
 train() { "$py" -m madpinn train-value --config config.yaml workflow/configs/vhat_budget_9x.yaml --kind vhat \
-    --out "$out/vhat_b9x.pt" --checkpoint "$ck" --no-track --no-progress --time-limit "$1" "${@:2}"; }
+    --out "$out/vhat_b9x.pt" --checkpoint "$ck" --no-track --no-progress --time-limit "$1" "${@:2}"
+  local rc=$?; [ $rc -eq 0 ] || [ $rc -eq 75 ] || exit $rc; }   # 75: paused at the time limit, checkpoint kept
 "$py" -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available(), torch.cuda.get_device_name(0) if torch.cuda.is_available() else '')"
 start=$(iter "$ck"); echo "start iteration $start"; t0=$(date +%s)
 if [ "$start" -lt $snap_at ]; then
