@@ -130,5 +130,5 @@ if "vhat_budget" in config["studies"]:
             " --inputs {input.results:q} --vhat {params.vhat:q} --verify {params.verify:q}"
             " --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
 
-    if "vhat_budget" in studies_in_all():   # in_all: false until the 3x V̂ is trained
+    if "vhat_budget" in studies_in_all():   # in_all: false (config.yaml studies.vhat_budget): built by its own target only
         register_targets(*expand(f"{FIGURES}/fig_vhat_budget.{{ext}}", ext=[*FIG_EXTS, "csv"]))
