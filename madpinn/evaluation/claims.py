@@ -490,7 +490,7 @@ def to_markdown(claims: dict) -> str:
 
 
 def readme_lines(claims: dict) -> list[str]:
-    """The README's quotation of the verdicts (``tests/test_claims.py`` checks README against it)."""
+    """The README's quotation of the verdicts (``tests/test_readme_blocks.py`` checks README against it)."""
     return [f"- {c['claim']} ({c['source'].split(',')[0]}): **{c['verdict']}**" for c in claims["claims"]]
 
 

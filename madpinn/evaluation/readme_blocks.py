@@ -1,0 +1,122 @@
+"""The README's generated blocks: numbers and verdicts quoted from the committed report, never typed.
+
+README.md holds blocks ``<!-- NAME:start ... -->`` … ``<!-- NAME:end -->``. Each is rendered from a
+generated file under ``paper_figures/`` by a function here:
+
+- ``headline``: the protocol's headline numbers (Tables I–IV, ours beside the paper's, paired
+  differences with their 95 % intervals), from ``reproduction.json``;
+- ``claims``: the verdicts of the claims table, from ``claims.json``.
+
+``tests/test_readme_blocks.py`` fails when a block differs from its rendering;
+``python scripts/update_readme.py`` rewrites the blocks in place (the workflow never edits README).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Callable
+
+from madpinn.evaluation.claims import readme_lines as claims_lines
+
+
+def _pct(x) -> str:
+    return "–" if x is None else f"{100 * x:.1f}"
+
+
+def _paper_pct(x) -> str:
+    return "–" if x is None else f"{100 * x:g}"
+
+
+def _diff(d: dict | None, scale: float, digits: int) -> str:
+    """A paired difference with its 95 % interval, e.g. ``+3.2 [+2.1, +4.4]``; – where there is none."""
+    if not d:
+        return "–"
+    return f"{scale * d['diff']:+.{digits}f} [{scale * d['lo']:+.{digits}f}, {scale * d['hi']:+.{digits}f}]"
+
+
+def _cost(x) -> str:
+    return "–" if x is None else f"{x:.3f}"
+
+
+def _paper_cost(x) -> str:
+    return "–" if x is None else f"{x:g}"
+
+
+def _per_n(row: dict, cell: Callable[[dict], str]) -> str:
+    return " / ".join(cell(row[n]) for n in sorted(row, key=int))
+
+
+def _seeds(row: dict) -> str:
+    seeds = sorted({c.get("n_seeds") for c in row.values() if c.get("n_seeds")})
+    return "/".join(map(str, seeds)) or "–"
+
+
+def _row(what: str, row: dict, prefix: str = "") -> str:
+    label = prefix + next(iter(row.values())).get("label", "")
+    vs = lambda key, scale, digits: _per_n(row, lambda c: _diff((c.get("vs_ours") or {}).get(key), scale, digits))
+    return " | ".join([
+        "", f"{what} ({_seeds(row)})", label, " / ".join(sorted(row, key=int)),
+        _per_n(row, lambda c: f"{_pct(c.get('safety'))} ({_paper_pct(c.get('paper_safety'))})"),
+        vs("safety", 100, 1),
+        _per_n(row, lambda c: f"{_cost(c.get('cost_time_avg'))} ({_paper_cost(c.get('paper_cost'))})"),
+        vs("cost_time_avg", 1, 3), ""]).strip()
+
+
+# (report table, run, which paper table, label prefix) of each headline row, in README order.
+HEADLINE = (
+    ("table_safety_scaling", "madpinn", "Table I", ""),
+    ("table_safety_scaling", "safemarl", "Table I", ""),
+    ("table_safety_scaling", "madpinn-lookahead", "Table I", ""),
+    ("table_ours_scaling", "madpinn", "Table II", ""),
+    ("table_ours_scaling", "madpinn-carrot05vmaxh", "Table II", ""),
+    ("table_neighbour_ablation", "madpinn-value", "Table III", ""),
+    ("table_neighbour_ablation", "madpinn-nearest", "Table III", ""),
+    ("table_neighbour_ablation", "madpinn-random", "Table III", ""),
+    ("table_update_ablation", "madpinn-k1", "Table IV", "k = "),
+    ("table_update_ablation", "madpinn-kinf", "Table IV", "k = "),
+)
+
+
+def headline_lines(report: dict) -> list[str]:
+    """The README's headline numbers from ``reproduction.json`` (a run the report lacks is left out)."""
+    rows = [_row(what, report[table][run], prefix) for table, run, what, prefix in HEADLINE if run in report.get(table, {})]
+    prov = report.get("provenance", {})
+    return [f"Run: config hash `{prov.get('config_hash')}`, code commit `{str(prov.get('commit'))[:12]}`, "
+            f"backend {prov.get('backend')}.", "",
+            "| Table (seeds) | Run | Agents | Safety %, ours (paper) | Run − Ours, safety pts [95 %] "
+            "| Cost ÷T, ours (paper) | Run − Ours, cost ÷T [95 %] |", "|---|---|---|---|---|---|---|", *rows]
+
+
+# block name -> (file under paper_figures/, renderer of its parsed JSON)
+BLOCKS: dict[str, tuple[str, Callable[[dict], list[str]]]] = {
+    "headline": ("reproduction.json", headline_lines),
+    "claims": ("claims.json", claims_lines),
+}
+
+
+def _pattern(name: str) -> re.Pattern:
+    return re.compile(rf"(<!-- {name}:start[^>]*-->\n)(.*?)(\n?<!-- {name}:end -->)", re.S)
+
+
+def rendered(name: str, figures_dir: str | Path) -> list[str]:
+    source, render = BLOCKS[name]
+    return render(json.loads((Path(figures_dir) / source).read_text()))
+
+
+def block(text: str, name: str) -> list[str] | None:
+    """The lines of block ``name`` in ``text`` (None: no such block)."""
+    m = _pattern(name).search(text)
+    return None if m is None else [line for line in m.group(2).splitlines()]
+
+
+def render_readme(text: str, figures_dir: str | Path) -> str:
+    """``text`` with every block replaced by its rendering from ``figures_dir``; a missing block is an error."""
+    for name in BLOCKS:
+        pattern = _pattern(name)
+        if not pattern.search(text):
+            raise ValueError(f"README lacks the block <!-- {name}:start --> … <!-- {name}:end -->")
+        body = "\n".join(rendered(name, figures_dir))
+        text = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(3).lstrip("\n"), text, count=1)
+    return text

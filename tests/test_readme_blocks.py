@@ -1,0 +1,56 @@
+"""README's generated blocks (headline numbers, claims verdicts) equal their rendering from the
+committed report, and the rendering follows the report (madpinn/evaluation/readme_blocks.py)."""
+
+from __future__ import annotations
+
+import copy
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from madpinn.evaluation.readme_blocks import BLOCKS, block, headline_lines, render_readme, rendered
+
+REPO = Path(__file__).resolve().parents[1]
+FIGURES = REPO / "paper_figures"
+
+
+@pytest.mark.parametrize("name", sorted(BLOCKS))
+def test_readme_blocks_are_generated(name):
+    lines = block((REPO / "README.md").read_text(), name)
+    assert lines is not None, f"README.md lacks the {name} block"
+    assert lines == rendered(name, FIGURES), (
+        f"README's {name} block is stale: run python scripts/update_readme.py")
+
+
+def test_a_changed_cell_changes_the_headline_and_the_rewrite_is_idempotent(tmp_path):
+    report = json.loads((FIGURES / "reproduction.json").read_text())
+    changed = copy.deepcopy(report)
+    cell = changed["table_ours_scaling"]["madpinn"]["64"]
+    cell["safety"] = 0.123456
+    before, after = headline_lines(report), headline_lines(changed)
+    diff = [line for line in after if line not in before]
+    assert len(diff) == 1 and "12.3 (100)" in diff[0] and "Table II" in diff[0]
+
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    shutil.copy(FIGURES / "claims.json", figures / "claims.json")
+    (figures / "reproduction.json").write_text(json.dumps(changed))
+    readme = tmp_path / "README.md"
+    readme.write_text((REPO / "README.md").read_text())
+    script = [sys.executable, str(REPO / "scripts" / "update_readme.py"), "--readme", str(readme), "--figures", str(figures)]
+    check = subprocess.run([*script, "--check"], capture_output=True, text=True)
+    assert check.returncode == 1 and readme.read_text() == (REPO / "README.md").read_text()   # --check writes nothing
+    assert subprocess.run(script, capture_output=True, text=True).returncode == 0
+    text = readme.read_text()
+    assert "12.3 (100)" in text and render_readme(text, figures) == text
+    outside = lambda t: t.split("<!-- headline:start")[0] + t.split("<!-- headline:end -->")[1]
+    assert outside(text) == outside((REPO / "README.md").read_text())   # nothing outside the blocks moves
+
+
+def test_a_readme_without_a_block_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="lacks the block <!-- headline:start"):
+        render_readme("# no blocks here\n", FIGURES)
