@@ -54,7 +54,7 @@ def _seeds(row: dict) -> str:
 
 
 def _row(what: str, row: dict, prefix: str = "") -> str:
-    label = prefix + next(iter(row.values())).get("label", "")
+    label = prefix + next(iter(row.values()))["label"]
     vs = lambda key, scale, digits: _per_n(row, lambda c: _diff((c.get("vs_ours") or {}).get(key), scale, digits))
     return " | ".join([
         "", f"{what} ({_seeds(row)})", label, " / ".join(sorted(row, key=int)),
