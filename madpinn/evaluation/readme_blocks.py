@@ -108,7 +108,7 @@ def rendered(name: str, figures_dir: str | Path) -> list[str]:
 def block(text: str, name: str) -> list[str] | None:
     """The lines of block ``name`` in ``text`` (None: no such block)."""
     m = _pattern(name).search(text)
-    return None if m is None else [line for line in m.group(2).splitlines()]
+    return None if m is None else m.group(2).splitlines()
 
 
 def render_readme(text: str, figures_dir: str | Path) -> str:
