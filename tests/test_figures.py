@@ -220,3 +220,12 @@ def test_vs_slices_colour_scale_is_centred_at_zero_and_the_circle_is_named():
     assert any("collision disk" in t.get_text() for t in fig.legends[0].get_texts())
     assert [ax.get_title() for ax in fig.axes[:2]] == [r"$v_{rel}$ = (0, 0) m/s", r"$v_{rel}$ = (-2, 0) m/s"]
     plt.close(fig)
+
+
+def test_palette_gives_every_run_of_a_crowded_figure_its_own_colour():
+    from madpinn.figures.style import palette
+    runs = [f"run{i}" for i in range(16)]          # Table I's figure draws 12 runs
+    colours = palette(runs)
+    assert len({tuple(round(c, 3) for c in colours[r]) for r in runs}) == len(runs)
+    with pytest.raises(ValueError, match="distinct colours"):
+        palette(runs + ["one_more"])

@@ -83,8 +83,9 @@ def headline_lines(report: dict) -> list[str]:
     """The README's headline numbers from ``reproduction.json`` (a run the report lacks is left out)."""
     rows = [_row(what, report[table][run], prefix) for table, run, what, prefix in HEADLINE if run in report.get(table, {})]
     prov = report.get("provenance", {})
-    return [f"Run: config hash `{prov.get('config_hash')}`, code commit `{str(prov.get('commit'))[:12]}`, "
-            f"backend {prov.get('backend')}.", "",
+    cells = prov.get("cells", {})   # the report holds no commit (identical inputs, identical bytes): git log has it
+    return [f"Run: config hash `{prov.get('config_hash')}`, backend {prov.get('backend')}, {cells.get('count')} cells "
+            f"({cells.get('time_h')} core-hours of cell time).", "",
             "| Table (seeds) | Run | Agents | Safety %, ours (paper) | Run − Ours, safety pts [95 %] "
             "| Cost ÷T, ours (paper) | Run − Ours, cost ÷T [95 %] |", "|---|---|---|---|---|---|---|", *rows]
 

@@ -15,8 +15,15 @@ def setup() -> None:
     sns.set_theme(style="whitegrid", context="paper", font_scale=1.1)
 
 
+# after tab10's ten: dark colours none of tab10's resembles (tab10 itself cycles: run 11 would be run 1's blue)
+EXTRA_COLOURS = ("#000000", "#8c6d1f", "#1a1a7a", "#7a1a4a", "#2f5f2f", "#5a5a5a")
+
+
 def palette(runs: list[str]) -> dict[str, tuple]:
-    colours = sns.color_palette("tab10", n_colors=max(10, len(runs)))
+    """One colour per run, all distinct for up to 16 runs (tab10, then :data:`EXTRA_COLOURS`)."""
+    colours = [*sns.color_palette("tab10", 10), *sns.color_palette(EXTRA_COLOURS)]
+    if len(runs) > len(colours):
+        raise ValueError(f"{len(runs)} runs in one figure: at most {len(colours)} distinct colours")
     return {run: colours[i] for i, run in enumerate(runs)}
 
 
