@@ -5,8 +5,10 @@ experiment's runs table, a training run's page, its metric curves) and the Snake
         --report report.zip --out screenshots/
 
 Starts ``mlflow server`` on a free local port for the SQLite store (stopped at the end; only the
-process it started), finds the experiment and a training run (``madpinn.rule`` starting with
-``train``; without one, e.g. from the shipped models, any run), and writes ``mlflow_experiment.png``, ``mlflow_models.png`` (logged models), ``mlflow_run.png``,
+process it started), finds the experiment and the trained run with a loss curve and the most iterations (a training job,
+or on the shipped path a shipped model's install run: :func:`training_run`), and writes
+``mlflow_experiment.png`` (the experiment's paper view: cells with the paper's metric columns),
+``mlflow_models.png`` (logged models), ``mlflow_run.png``,
 ``mlflow_run_metrics.png`` and, with ``--report``, ``report.png`` (the report's landing page with
 its sections), ``report_1.png`` (the reproduction page), ``report_2.png`` (Table I) and
 ``report_3.png`` (the paper's figures, listed) into ``--out``. Needs a ``chromium`` (or ``--chromium PATH``) on the machine
@@ -83,6 +85,17 @@ def shoot(chromium: str, url: str, out: Path, size=(1500, 950), wait_ms: int = 1
     return out
 
 
+def training_run(c, exp_id: str):
+    """The run with a ``loss`` curve and the most iterations: a training job's (rule ``train*``) or, on the shipped
+    path where nothing trains, a shipped model's install run with its committed training log; None
+    if no run logged a ``loss``."""
+    runs = [r for rule in ("LIKE 'train%'", "= 'install_shipped_model'")
+            for r in c.search_runs([exp_id], filter_string=f"tags.`madpinn.rule` {rule}", max_results=200)
+            if "loss" in r.data.metrics]
+    return max(runs, key=lambda r: (r.data.tags.get("madpinn.rule", "").startswith("train"),
+                                    r.data.metrics.get("iterations", 0)), default=None)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--store", required=True, help="the workflow's SQLite MLflow store (e.g. mlflow/mlflow.db)")
@@ -100,14 +113,14 @@ def main(argv=None) -> int:
 
     from mlflow.tracking import MlflowClient
 
+    from madpinn.tracking.mlflow_store import view_url
+
     c = MlflowClient(f"sqlite:///{store.resolve()}")
     exp = c.get_experiment_by_name(args.experiment)
     if exp is None:
         raise SystemExit(f"screenshots: no experiment '{args.experiment}' in {store}")
-    runs = c.search_runs([exp.experiment_id], filter_string="tags.`madpinn.rule` LIKE 'train%'", max_results=50)
-    if runs:   # a training run (its loss curve); train_vs / train_vhat before the MARL trainings
-        run = sorted(runs, key=lambda r: r.data.tags.get("madpinn.rule", ""))[-1]
-    else:      # from the shipped models nothing trains: an evaluation cell
+    run = training_run(c, exp.experiment_id)
+    if run is None:   # no training curve anywhere: any run
         runs = c.search_runs([exp.experiment_id], max_results=1)
         if not runs:
             raise SystemExit(f"screenshots: experiment '{args.experiment}' has no run")
@@ -119,7 +132,7 @@ def main(argv=None) -> int:
         # MLflow 3.17's UI opens in its GenAI mode (a per-browser toggle, top left); the URL picks
         # the model-training mode, as README's link does
         base, mode = f"{uri}/#/experiments/{exp.experiment_id}", "?workflowType=machine_learning"
-        shoot(args.chromium, f"{base}/runs{mode}", out / "mlflow_experiment.png")
+        shoot(args.chromium, view_url(uri, exp.experiment_id), out / "mlflow_experiment.png", size=(1900, 950))
         shoot(args.chromium, f"{base}/models{mode}", out / "mlflow_models.png")
         shoot(args.chromium, f"{base}/runs/{run.info.run_id}{mode}", out / "mlflow_run.png", size=(1500, 1500))
         shoot(args.chromium, f"{base}/runs/{run.info.run_id}/model-metrics{mode}", out / "mlflow_run_metrics.png",

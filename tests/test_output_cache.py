@@ -68,6 +68,10 @@ def test_cell_is_restored_from_the_cache_in_another_directory_and_recomputed_whe
     figures = {"safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg", "min_separation"}
     assert figures <= set(restored.data.metrics) and restored.data.metrics == computed.data.metrics
     assert 0 < restored.data.metrics["min_separation"] == pd.read_parquet(second / CELL)["min_separation"].min()
+    from madpinn.tracking.mlflow_store import PAPER_METRICS, PAPER_PARAMS
+    # the paper's view shows columns the cells have (infeasible_share: MAD-PINN cells only)
+    assert set(PAPER_METRICS) - {"infeasible_share"} <= set(restored.data.metrics)
+    assert set(PAPER_PARAMS) <= set(restored.data.params)
     files = {a.path for a in client.list_artifacts(restored.info.run_id)}
     assert files == {"n64_seed0.parquet", "n64_seed0.json", "n64_seed0_traj.npz"}
     assert _track_cells(second)["logged"] == 0 and _cell_run(second)[0].info.run_id == restored.info.run_id   # once

@@ -212,13 +212,20 @@ def test_check_store_is_read_only(paper_cfg, tmp_path, monkeypatch):
 def test_experiment_is_tagged_as_model_training(paper_cfg, tmp_path, monkeypatch):
     """The experiment says it is model training (mlflow.experimentKind=custom_model_development,
     not GenAI); an older experiment without the tag gets it at the next start."""
-    from madpinn.tracking.mlflow_store import EXPERIMENT_KIND, EXPERIMENT_KIND_TAG
+    from madpinn.tracking.mlflow_store import (EXPERIMENT_KIND, EXPERIMENT_KIND_TAG, PAPER_METRICS, PAPER_VIEW_KEY,
+                                               PAPER_VIEW_TAG, view_url)
 
     monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
     settings = TrackingSettings.from_config(_cfg(paper_cfg, tmp_path))
     info = init_store(settings)
     c = MlflowClient(settings.uri)
     assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND
+    # the paper's shared view: the cells, the paper's metric columns, opened by its URL
+    view = json.loads(c.get_experiment(info["experiment_id"]).tags[PAPER_VIEW_TAG])
+    assert view["searchFilter"] == "tags.`madpinn.rule` = 'evaluate'"
+    assert [f"metrics.`{m}`" for m in PAPER_METRICS] == [col for col in view["selectedColumns"] if col.startswith("metrics.")]
+    assert view_url("http://h:5000/", "7") == ("http://h:5000/#/experiments/7/runs?viewStateShareKey="
+                                               f"{PAPER_VIEW_KEY}&workflowType=machine_learning")
     c.delete_experiment_tag(info["experiment_id"], EXPERIMENT_KIND_TAG)
     init_store(settings)
     assert c.get_experiment(info["experiment_id"]).tags[EXPERIMENT_KIND_TAG] == EXPERIMENT_KIND

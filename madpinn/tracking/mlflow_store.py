@@ -12,6 +12,7 @@ permanent removal of replaced runs.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 from pathlib import Path
@@ -100,25 +101,47 @@ def _artifact_location(settings: TrackingSettings) -> str | None:
 EXPERIMENT_KIND_TAG, EXPERIMENT_KIND = "mlflow.experimentKind", "custom_model_development"
 
 
-# The experiment's description (shown above its runs): which runs and columns are the paper's. The UI
-# keeps the chosen columns per browser; no store setting selects them (docs/reference/tracking.md).
+# The paper's view of the runs table: the cells and the paper's columns. MLflow 3.17's UI keeps the
+# chosen columns per browser, but opens a *shared view* stored as an experiment tag
+# `mlflow.sharedViewState.<key>` (JSON of the runs page's state) when the URL names its key,
+# `?viewStateShareKey=<key>` (view_url). Column ids are the UI's `<type>.`<name>``.
+PAPER_VIEW_KEY = "paper"
+PAPER_VIEW_TAG = f"mlflow.sharedViewState.{PAPER_VIEW_KEY}"
+PAPER_METRICS = ("safety_rate", "safe_scenarios", "cost_time_avg", "cost", "cost_all_time_avg", "min_separation",
+                 "infeasible_share")   # Tables I–II safety, safe scenarios, the paper's cost, ..., MAD-PINN's z_max share
+PAPER_PARAMS = ("study", "run", "n_agents", "seed")
+CELL_FILTER = "tags.`madpinn.rule` = 'evaluate'"
+PAPER_VIEW = json.dumps({
+    "searchFilter": CELL_FILTER,
+    "orderByKey": "attributes.start_time", "orderByAsc": False,
+    "selectedColumns": [*(f"metrics.`{m}`" for m in PAPER_METRICS), *(f"params.`{p}`" for p in PAPER_PARAMS),
+                        "tags.`madpinn.restored`"],
+}, sort_keys=True)
+
+
+def view_url(ui: str, exp_id: str) -> str:
+    """The runs page of experiment ``exp_id`` on the MLflow UI at ``ui`` in the paper's view (model-training mode)."""
+    return f"{ui.rstrip('/')}/#/experiments/{exp_id}/runs?viewStateShareKey={PAPER_VIEW_KEY}&workflowType=machine_learning"
+
+
+# The experiment's description (shown above its runs): which runs and columns are the paper's.
 NOTE_TAG = "mlflow.note.content"
 EXPERIMENT_NOTE = (
     "madpinn: one run per workflow job (docs/reference/tracking.md). **The paper's cells**: search "
-    "`tags.madpinn.rule = 'evaluate'`, one run per (study, run, N, seed), computed here or restored from "
-    "output_cache/ (tag `madpinn.restored`, provenance hash `madpinn.provenance_hash`). **The paper's columns** "
-    "(Columns menu): metrics `safety_rate` (Tables I–II safety), `safe_scenarios`, `cost_time_avg` (the "
-    "paper's cost), `cost`, `cost_all_time_avg`, `min_separation` (m), `infeasible_share` (MAD-PINN); params "
-    "`study`, `run`, `n_agents`, `seed`. **Training curves**: runs `train/*` and `install/*` (shipped models, "
-    "curves from the committed training logs). **Networks**: the Models tab and the Model Registry, one "
-    "registered model `<experiment>.<name>` per network. Results are files first: tables and figures are built "
-    "from results/, not from this store.")
+    f"`{CELL_FILTER}`, one run per (study, run, N, seed), computed here or "
+    "restored from output_cache/ (tag `madpinn.restored`, provenance hash `madpinn.provenance_hash`). **The "
+    f"paper's view** (this page's URL + `?viewStateShareKey={PAPER_VIEW_KEY}`, or Views): metrics "
+    f"{', '.join(f'`{m}`' for m in PAPER_METRICS)}; params {', '.join(f'`{p}`' for p in PAPER_PARAMS)}. "
+    "**Training curves**: runs `train/*` and `install/*` (shipped models, curves from the committed training "
+    "logs). **Networks**: the Models tab and the Model Registry, one registered model `<experiment>.<name>` per "
+    "network. Results are files first: tables and figures are built from results/, not from this store.")
 
 
 def experiment_id(c, settings: TrackingSettings) -> str:
     """The configuration's experiment (restored when deleted, created when missing), tagged as
-    model training for MLflow 3's UI, with :data:`EXPERIMENT_NOTE` as its description."""
-    tags = {EXPERIMENT_KIND_TAG: EXPERIMENT_KIND, NOTE_TAG: EXPERIMENT_NOTE}
+    model training for MLflow 3's UI, with :data:`EXPERIMENT_NOTE` as its description and the paper's
+    shared view (:data:`PAPER_VIEW`)."""
+    tags = {EXPERIMENT_KIND_TAG: EXPERIMENT_KIND, NOTE_TAG: EXPERIMENT_NOTE, PAPER_VIEW_TAG: PAPER_VIEW}
     exp = c.get_experiment_by_name(settings.experiment)
     if exp is not None:
         if exp.lifecycle_stage == "deleted":
