@@ -218,3 +218,11 @@ def test_report_holds_every_table_and_figure_in_the_papers_order(smoke_run, smok
     assert conflict <= set(sections[order[3]])
     assert {"fig_cost_safety.png", "fig_trajectories.png", "fig_value_heatmap.png"} == set(sections[order[2]])
     assert {"fig_vs_grid.png", "fig_vs_slices.png"} <= set(sections[order[4]])
+    # no section has a toggle label (the report's rule: a label after the first with two values, each on
+    # half the section's items, becomes a toggle; with labels that differ per item the page fails to render)
+    for section, files in sections.items():
+        labelled = [labels[f] or {} for f in files]
+        for key in list(labelled[0])[1:]:
+            values = [lab.get(key) for lab in labelled if lab.get(key) is not None]
+            assert not (len(set(values)) == 2 and all(2 * values.count(v) == len(files) for v in set(values))), \
+                f"report section {section}: label {key!r} would be a toggle"
