@@ -457,13 +457,15 @@ def build_claims(report: Mapping, claims=CLAIMS) -> dict:
 
 
 def _headline(c: dict) -> str:
-    """The decisive figure of a claim: its first failed essential check, else its first failed check, else its first."""
+    """The decisive figure of a claim: its first failed essential check, else its first failed check,
+    else its first; prefixed with whether that check passed (the check reads as a question)."""
     checks = c["checks"]
     if not checks:
         return "–"
     failed = [ch for ch in checks if ch["passed"] is False]
     pick = next((ch for ch in failed if ch["essential"]), failed[0] if failed else checks[0])
-    return f"{pick['check']}: {pick['ours']}"
+    mark = {True: "passed", False: "failed", None: "not tested"}[pick["passed"]]
+    return f"{mark}: {pick['check']}: {pick['ours']}"
 
 
 def to_markdown(claims: dict) -> str:

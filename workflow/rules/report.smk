@@ -5,9 +5,9 @@ REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json", 
 
 
 # `snakemake -j2 reproduction_report`: every table with our mean ± std beside the paper's values.
-# REPORT_LABELS: the report's section "Paper vs ours" holds two items, each with one label. A second
-# label with a different value per item would become a toggle of Snakemake's report (a label with two
-# values, each on half the items) and the section page would fail to render
+# REPORT_LABELS: a report section of two items ("Paper vs ours", "Value-function checks") gives each
+# one label. A second label with a different value per item would become a toggle of Snakemake's report
+# (a label with two values, each on half the section's items) and the section page would fail to render
 # (tests/test_workflow.py::test_report_holds_every_table_and_figure_in_the_papers_order).
 rule reproduction_report:
     input:

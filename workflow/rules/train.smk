@@ -106,7 +106,7 @@ rule validate_vs:
     output:
         report=f"{RESULTS}/validation/vs_rollouts.json",
         png=report(kept(f"{FIGURES}/fig_vs_slices.png"), caption="../report/fig_vs_slices.rst",
-                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_slices", "Shows": "V_s slices"}),
+                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_slices: V_s slices"}),   # REPORT_LABELS (report.smk)
         pdf=kept(f"{FIGURES}/fig_vs_slices.pdf"),
     params:
         config=RESOLVED,

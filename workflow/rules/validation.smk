@@ -33,7 +33,7 @@ rule validate_vs_grid:
     output:
         report=f"{RESULTS}/validation/vs_grid.json",
         png=report(kept(f"{FIGURES}/fig_vs_grid.png"), caption="../report/fig_vs_grid.rst",
-                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_grid", "Shows": "V_s vs grid"}),
+                   category=REPORT_SECTIONS["value_functions"], labels={"Item": "fig_vs_grid: V_s vs the grid solution"}),   # REPORT_LABELS (report.smk)
         pdf=kept(f"{FIGURES}/fig_vs_grid.pdf"),
     params:
         config=RESOLVED,
