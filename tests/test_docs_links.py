@@ -125,9 +125,11 @@ def test_every_mentioned_docs_path_exists():
 
 def test_docs_layout():
     """docs/ = README.md (the index) + reference/ (what the code does now) + findings/ (dated
-    experiments, ``YYYY-MM-DD-topic.md``); no generated tables."""
+    experiments, ``YYYY-MM-DD-topic.md``) + screenshots/ (PNGs of the UI and report,
+    scripts/screenshots.py); no generated tables."""
     top = sorted(p.name for p in DOCS.iterdir())
-    assert top == ["README.md", "findings", "reference"], top
+    assert top == ["README.md", "findings", "reference", "screenshots"], top
+    assert all(p.suffix == ".png" for p in (DOCS / "screenshots").iterdir())
     assert all(p.suffix == ".md" for p in (DOCS / "reference").rglob("*") if p.is_file())
     bad = [p.name for p in (DOCS / "findings").iterdir() if not re.fullmatch(r"\d{4}-\d{2}-\d{2}-[a-z0-9-]+\.md", p.name)]
     assert bad == []
