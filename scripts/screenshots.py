@@ -10,7 +10,7 @@ or on the shipped path a shipped model's install run: :func:`training_run`), and
 ``mlflow_experiment.png`` (the experiment's paper view: cells with the paper's metric columns),
 ``mlflow_models.png`` (logged models), ``mlflow_run.png``,
 ``mlflow_run_metrics.png`` and, with ``--report``, ``report.png`` (the report's landing page with
-its sections), ``report_1.png`` (the reproduction page), ``report_2.png`` (Table I) and
+its sections), ``report_1.png`` (the claims page, first in "Paper vs ours"), ``report_2.png`` (Table I) and
 ``report_3.png`` (the paper's figures, listed) into ``--out``. Needs a ``chromium`` (or ``--chromium PATH``) on the machine
 (Debian: ``apt-get install chromium``); prints each file written.
 """
