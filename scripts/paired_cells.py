@@ -5,7 +5,8 @@
 For each pair (A, B), prints one Markdown row: N, the scenario seed, safety and safe scenarios of A / B, the
 time-averaged cost of A / B over collision-free agents (the paper's cost) and over all agents, the
 paired per-scenario difference A − B (mean ± standard error over scenarios) of the safety rate
-(points) and of both costs, and the policy
+(points) and of both costs, the share of scenarios where A's all-agent cost is higher by more than
+0.01, the mean final distance to goal of A / B (m), and the policy
 time per agent-step of A / B (from each cell's JSON beside its Parquet, when present). It checks
 that the pair's cells hold the same scenarios, agent count and seed, and refuses otherwise.
 """
@@ -18,6 +19,9 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+
+
+COST_STEP = 0.01   # a scenario counts as costlier for A when its all-agent cost ÷T exceeds B's by more
 
 
 def _cell(path: Path) -> tuple[pd.DataFrame, dict]:
@@ -46,6 +50,8 @@ def row(path_a: Path, path_b: Path) -> str:
             f"| {a.cost_all_time_avg.mean():.3f} / {b.cost_all_time_avg.mean():.3f} "
             f"| {_diff(a.safety_rate, b.safety_rate, 100.0)} | {_diff(a.cost_safe_time_avg, b.cost_safe_time_avg)} "
             f"| {_diff(a.cost_all_time_avg, b.cost_all_time_avg)} "
+            f"| {100 * (a.cost_all_time_avg.to_numpy() - b.cost_all_time_avg.to_numpy() > COST_STEP).mean():.0f} % "
+            f"| {a.final_distance_mean.mean():.3f} / {b.final_distance_mean.mean():.3f} "
             f"| {policy} | {len(a)} |")
 
 
@@ -53,8 +59,9 @@ def main(argv: list[str]) -> None:
     if not argv or len(argv) % 2:
         raise SystemExit(__doc__)
     print("| N | seed | safety A / B (safe scenarios) | cost ÷T A / B | cost ÷T, all agents, A / B | safety A − B (points) "
-          "| cost ÷T A − B | all agents A − B | policy µs per agent-step A / B | scenarios |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "| cost ÷T A − B | all agents A − B | A costlier (scenarios) | final distance A / B (m) "
+          "| policy µs per agent-step A / B | scenarios |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for i in range(0, len(argv), 2):
         print(row(Path(argv[i]), Path(argv[i + 1])))
 

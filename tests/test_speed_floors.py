@@ -83,16 +83,17 @@ def test_cell_summaries_take_both_layouts_and_stop_on_an_unreadable_one(tmp_path
         cell_summaries(tmp_path)
 
 
-def _frame(scenarios, safety, cost, seed=100):
+def _frame(scenarios, safety, cost, seed=100, final=0.1):
     n = len(scenarios)
     return pd.DataFrame({"scenario": scenarios, "n_agents": [8] * n, "seed": [seed] * n, "safety_rate": safety,
-                         "safe": [s == 1.0 for s in safety], "cost_safe_time_avg": cost, "cost_all_time_avg": cost})
+                         "safe": [s == 1.0 for s in safety], "cost_safe_time_avg": cost, "cost_all_time_avg": cost,
+                         "final_distance_mean": [final] * n})
 
 
 def test_paired_cells_differences_and_refusal(tmp_path):
     a, b, c = tmp_path / "a.parquet", tmp_path / "b.parquet", tmp_path / "c.parquet"
-    _frame([0, 1, 2], [1.0, 0.75, 0.5], [1.0, 2.0, 3.0]).to_parquet(a)
-    _frame([0, 1, 2], [1.0, 0.5, 0.5], [0.5, 1.5, 2.5]).to_parquet(b)
+    _frame([0, 1, 2], [1.0, 0.75, 0.5], [1.0, 2.0, 3.0], final=0.25).to_parquet(a)
+    _frame([0, 1, 2], [1.0, 0.5, 0.5], [0.5, 1.5, 2.5], final=0.05).to_parquet(b)
     _frame([0, 1, 3], [1.0, 0.5, 0.5], [0.5, 1.5, 2.5]).to_parquet(c)
     script = str(REPO / "scripts" / "paired_cells.py")
     out = subprocess.run([sys.executable, script, str(a), str(b)], capture_output=True, text=True, check=True).stdout
@@ -100,6 +101,7 @@ def test_paired_cells_differences_and_refusal(tmp_path):
     d = np.array([0.0, 25.0, 0.0])
     assert f"{d.mean():+.3f} ± {d.std(ddof=1) / np.sqrt(3):.3f}" in row   # safety difference, points
     assert "+0.500 ± 0.000" in row                                          # cost difference
+    assert "| 100 % | 0.250 / 0.050 |" in row                                # A costlier everywhere; final distances
     bad = subprocess.run([sys.executable, script, str(a), str(c)], capture_output=True, text=True)
     assert bad.returncode != 0 and "not the same scenarios" in bad.stderr
 
