@@ -254,8 +254,6 @@ def git_commit() -> str:
 def write_marker(settings: TrackingSettings, marker: str | Path) -> dict:
     """Create the store and experiment (when tracking is enabled) and write the workflow's store
     marker ``marker`` atomically: ``{enabled, uri, experiment, experiment_id}``; return it."""
-    import json
-
     from madpinn.atomic import atomic_write
 
     info = {"enabled": settings.enabled}
@@ -265,21 +263,24 @@ def write_marker(settings: TrackingSettings, marker: str | Path) -> dict:
     return info
 
 
+def read_marker(marker: str | Path) -> dict:
+    """The store marker ``marker`` (:func:`write_marker`) as written; ``{}`` when missing or not JSON."""
+    marker = Path(marker)
+    try:
+        return json.loads(marker.read_text()) if marker.is_file() else {}
+    except ValueError:
+        return {}
+
+
 def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
     """At a real workflow start: when the store marker ``marker`` (:func:`write_marker`) is missing,
     or names another tracking URI or experiment, create the store and experiment now and write the
     marker (jobs take it as an ancient input, so nothing reruns: finished results stay finished
     when the store or its marker was deleted or moved); return the new marker content, or None
     when nothing changed. (tracking_init then only runs with tracking disabled.)"""
-    import json
-
-    marker = Path(marker)
     if not settings.enabled:
         return None
-    try:
-        old = json.loads(marker.read_text()) if marker.is_file() else {}
-    except ValueError:
-        old = {}
+    old = read_marker(marker)
     if old.get("uri") == settings.uri and old.get("experiment") == settings.experiment:
         return None
     return write_marker(settings, marker)

@@ -1,6 +1,5 @@
 # Shared paths, target lists and helpers. Later rule files register what their methods need.
 import fcntl
-import json
 import os
 from types import SimpleNamespace
 
@@ -340,15 +339,13 @@ def start_tracking(settings, marker):
 def print_where_outputs(settings):
     """Three lines: the tables, the report, and the command that opens the MLflow UI on this store
     (with the URL of the experiment's paper view when the store marker names the experiment)."""
-    from madpinn.tracking.mlflow_store import view_url
+    from madpinn.tracking.mlflow_store import read_marker, view_url
 
     mlflow_bin = os.path.relpath(os.path.join(os.path.dirname(sys.executable), "mlflow"))
-    try:
-        exp_id = json.loads(Path(TRACKING_STORE).read_text()).get("experiment_id")
-    except (OSError, ValueError):
-        exp_id = None
-    page = view_url("http://127.0.0.1:5000", exp_id) if exp_id else "http://127.0.0.1:5000"
-    ui = (f"open {view_url(settings.uri, exp_id) if exp_id else settings.uri}" if settings.is_remote else
+    exp_id = read_marker(TRACKING_STORE).get("experiment_id")
+    base = settings.uri if settings.is_remote else "http://127.0.0.1:5000"
+    page = view_url(base, exp_id) if exp_id else base
+    ui = (f"open {page}" if settings.is_remote else
           f"{mlflow_bin if not mlflow_bin.startswith('..') else 'mlflow'} ui --backend-store-uri {settings.uri}"
           f"  (then {page}, experiment {settings.experiment})")
     print(f"madpinn: tables  {FIGURES}/table_*.{{md,csv,tex,html}} (all beside the paper: {FIGURES}/reproduction.md)\n"
