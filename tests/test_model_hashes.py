@@ -71,3 +71,24 @@ def test_shipped_checkpoints_with_a_wall_time_still_load(name):
         from madpinn.marl.checkpoint import load_checkpoint
 
         assert load_checkpoint(path)["meta"]["iterations"] > 0
+
+
+def test_a_training_seed_of_its_own_gives_other_weights_and_its_own_hash(tmp_path):
+    """A V_s training with ``vs.seed: 5`` (issue 60's training-variance variants set it) starts from
+    other weights and batches than one on ``value_functions.seed``; the seed is part of its training hash."""
+    from madpinn.config import load_config
+    from madpinn.value_functions.build import training_hash, training_seed
+
+    tiny = tmp_path / "tiny.yaml"
+    tiny.write_text("value_functions:\n  vs:\n    iterations: 3\n    checkpoint_every: 3\n    fine_tune: null\n")
+    seeded = tmp_path / "seeded.yaml"
+    seeded.write_text("value_functions:\n  vs: {seed: 5}\n")
+    outs = {}
+    for name, extra in (("base", []), ("seeded", [str(seeded)])):
+        outs[name] = tmp_path / name / "vs.pt"
+        assert main(["train-value", "--config", *CONFIGS, str(tiny), *extra, "--kind", "vs", "--out", str(outs[name]),
+                     "--no-track", "--no-progress"]) == 0
+    assert _sha(outs["base"]) != _sha(outs["seeded"])
+    base, other = (load_config([*CONFIGS, str(tiny), *extra]) for extra in ([], [str(seeded)]))
+    assert (training_seed(base, "vs"), training_seed(other, "vs")) == (base["value_functions"]["seed"], 5)
+    assert training_hash(base, "vs") != training_hash(other, "vs")

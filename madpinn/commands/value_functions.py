@@ -41,10 +41,10 @@ def _seconds(text: str) -> float:
     return value
 
 
-def _setup(cfg: dict, threads: int | None):
+def _setup(cfg: dict, threads: int | None, seed: int):
     from madpinn.device import resolve_device, resolve_dtype, seed_everything
 
-    seed_everything(int(cfg["value_functions"]["seed"]), threads or int(cfg["value_functions"]["threads"]))
+    seed_everything(seed, threads or int(cfg["value_functions"]["threads"]))
     return resolve_device(cfg["device"]), resolve_dtype(cfg["dtype"])
 
 
@@ -67,7 +67,7 @@ def figure_of(model, cfg: dict, kind: str, stem: Path) -> list[Path]:
 
 
 def _train(args) -> int:
-    from madpinn.value_functions.build import training_hash
+    from madpinn.value_functions.build import training_hash, training_seed
 
     from madpinn.config import vf_model_name, with_vf_variant
 
@@ -77,7 +77,7 @@ def _train(args) -> int:
     vcfg = _training_settings(cfg, kind)
     record = JobRecord(job_key=f"train/{name}", rule="train_vhat_variant" if variant else f"train_{kind}",
                        wildcards={"kind": kind, **({"variant": variant} if variant else {})},
-                       params={"settings": {**vcfg, "seed": cfg["value_functions"]["seed"]},
+                       params={"settings": {**vcfg, "seed": training_seed(cfg, kind)},
                                "config_hash": training_hash(cfg, kind),
                                "schedule_hash": training_hash(cfg, kind, schedule_only=True)})
     with job(cfg, record, not args.no_track) as run:
@@ -110,13 +110,14 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
 
     from madpinn.tracking.mlflow_store import git_commit
     from madpinn.value_functions import figures
-    from madpinn.value_functions.build import problem_from_config
+    from madpinn.value_functions.build import problem_from_config, training_seed
     from madpinn.value_functions.train import TrainSettings, save_trained_model, stage_iterations, train_stages
 
-    device, dtype = _setup(cfg, args.threads)
+    seed = training_seed(cfg, kind)
+    device, dtype = _setup(cfg, args.threads, seed)
     problem = problem_from_config(cfg, kind)
     vcfg = _training_settings(cfg, kind)
-    settings = TrainSettings.from_config(vcfg, cfg["value_functions"]["seed"])
+    settings = TrainSettings.from_config(vcfg, seed)
     models = parse_models(args.model)
     if "init" in models:   # the workflow resolves value_functions.<kind>.init_from and passes it in
         settings = replace(settings, init_from=str(models["init"]))
@@ -160,7 +161,7 @@ def _validate_vs(args) -> int:
     cfg = config_of(args)
     record = JobRecord(job_key="validate/vs", rule="validate_vs")
     with job(cfg, record, not args.no_track) as run:
-        device, dtype = _setup(cfg, args.threads)
+        device, dtype = _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
         vs = load_vs(single_model(args.model, "vs"), device=device, dtype=dtype)
         val = cfg["value_functions"]["vs"]["validation"]
         stats = vs_rollouts(vs, int(val["rollout_samples"]), float(val["rollout_dt"]), seed=int(cfg["value_functions"]["seed"]))
@@ -180,7 +181,7 @@ def _validate_vhat(args) -> int:
     cfg = config_of(args)
     record = JobRecord(job_key="validate/vhat", rule="validate_vhat")
     with job(cfg, record, not args.no_track) as run:
-        device, dtype = _setup(cfg, args.threads)
+        device, dtype = _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
         vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
         samples = int(cfg["value_functions"]["vhat"]["validation"]["samples"])
         stats = residual_stats(vhat.problem, vhat, samples, seed=int(cfg["value_functions"]["seed"]) + 1)
@@ -196,7 +197,7 @@ def _heatmap(args) -> int:
     cfg = config_of(args)
     record = JobRecord(job_key="figure/fig_value_heatmap", rule="fig_value_heatmap")
     with job(cfg, record, not args.no_track) as run:
-        device, dtype = _setup(cfg, args.threads)
+        device, dtype = _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
         vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
         record.artifacts = figure_of(vhat, cfg, "vhat", Path(args.out_stem))
         return finish(run, record, echo=list(record.artifacts))
@@ -228,7 +229,7 @@ def _validate_vs_grid(args) -> int:
     cfg = config_of(args)
     record = JobRecord(job_key="validate/vs_grid", rule="validate_vs_grid")
     with job(cfg, record, not args.no_track) as run:
-        _setup(cfg, args.threads)
+        _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
         vs = load_vs(single_model(args.model, "vs"), dtype=torch.float64)
         solution, header = load_solution(args.grid)
         report = compare_vs(vs, solution, header)
@@ -247,7 +248,7 @@ def _verify_vhat(args) -> int:
     model = single_model(args.model, "vhat")
     record = JobRecord(job_key=f"validate/{Path(model).stem}_scenario", rule="verify_vhat")   # vhat_<variant>.pt: its own key
     with job(cfg, record, not args.no_track) as run:
-        device, dtype = _setup(cfg, args.threads)
+        device, dtype = _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
         settings = ScenarioSettings.from_config(cfg["value_functions"]["vhat"]["validation"]["scenario"])
         vhat = load_vhat(model, device=device, dtype=dtype)
         tol = deployed_z_tolerance(cfg)

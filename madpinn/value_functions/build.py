@@ -25,6 +25,12 @@ def problem_from_config(cfg: dict, kind: str):
     return PairProblem(PairSystem.from_config(cfg), ConflictSamplingSettings.from_config(vs), NearSamplingSettings.from_config(vs))
 
 
+def training_seed(cfg: dict, kind: str) -> int:
+    """The seed of value function ``kind``'s training (initial weights and every batch): its own
+    ``value_functions.<kind>.seed`` where set (a variant's training seed), else ``value_functions.seed``."""
+    return int(cfg["value_functions"][kind].get("seed", cfg["value_functions"]["seed"]))
+
+
 def training_hash(cfg: dict, kind: str, schedule_only: bool = False) -> str:
     """Hash of everything the trained weights depend on (not validation settings). ``schedule_only``:
     without ``stop_at``, i.e. the hash of the run's schedule, which its resume checkpoints carry: a
