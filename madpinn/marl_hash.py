@@ -8,7 +8,7 @@ are those of ``results/models/<name>.pt``: ``safemarl_nominal``, ``defmarl_<vari
 
 from __future__ import annotations
 
-from madpinn.config import as_written, method_config, subtree_hash
+from madpinn.config import method_config, subtree_hash
 
 DEFMARL_PREFIX = "defmarl_"
 
@@ -20,16 +20,15 @@ def is_marl_model(name: str) -> bool:
 def marl_training_hash(cfg: dict, name: str) -> str:
     """Hash of the settings the weights of model ``name`` depend on (agents, observation, arena,
     dtype and the method's training settings; for DEF-MARL also its validation settings, which
-    choose the deployed checkpoint). Keys the loader filled with their default
-    are left out (:func:`~madpinn.config.as_written`): filling them changes no hash."""
+    choose the deployed checkpoint), as loaded, schema defaults filled in."""
     if name == "safemarl_nominal":
         m = cfg["methods"]["safemarl"]
         return subtree_hash(cfg, ("agents", "observation", "dtype"),
-                              {"nominal": as_written(cfg, "methods.safemarl.nominal"),
+                              {"nominal": m["nominal"],
                                "arena": cfg["arenas"][m["nominal"]["arena"]]})
     if name.startswith(DEFMARL_PREFIX):
         _, m = method_config(cfg, f"defmarl-{name[len(DEFMARL_PREFIX):]}")
-        extra = {"training": as_written(cfg, "methods.defmarl.training", m["training"]), "epigraph": m["epigraph"]}
+        extra = {"training": m["training"], "epigraph": m["epigraph"]}
         if m["validation"] is not None:   # the deployed model is the best validation checkpoint
             extra["validation"] = m["validation"]
         return subtree_hash(cfg, ("agents", "observation", "arenas", "dtype"), extra)

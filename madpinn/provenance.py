@@ -1,33 +1,34 @@
 """What a job depends on: the package code it runs and the part of the config it reads.
 
 The workflow's rules carry both in their params (``source``, ``settings``), so that editing a
-module a job imports, or changing a setting it reads, reruns that job (and what depends on it) and
+line a job runs, or changing a setting it reads, reruns that job (and what depends on it) and
 nothing else.
 
-**Code** (:func:`source_hash`): the static import closure of the job's entry, read on
-the source (``ast``; nothing is imported): every ``import`` of a module, function-level (lazy) ones
-included and ``if TYPE_CHECKING:`` blocks left out, and every package module named by a string
-constant (imported by name: ``importlib.import_module``, a package's PEP 562 ``_HOMES``). A
-superset of what runs, never less.
+**Code** (:func:`source_hash`): the definitions the job's entry reaches, read on the source
+(``ast``; nothing is imported). From an entry ``"module:function"`` (a command's handler) it follows
+what that function and the module's code run at import use: the module's own definitions by name,
+every ``import`` (function-level (lazy) ones included, ``if TYPE_CHECKING:`` blocks left out) and
+every package module named by a string constant (``importlib.import_module``, a package's PEP 562
+``_HOMES``). ``from m import name`` reaches ``name`` and what it uses in turn; ``import m`` (or a
+module named by a string) reaches all of ``m``. The hash covers, per module reached, its code run
+at import and the definitions reached, byte for byte, with the package data it names: a superset
+of what runs, never less, and an edit to a definition no job reaches reruns nothing.
 
-Two refinements keep unrelated edits from rerunning hours of jobs:
+Plugin registries (a module-level dict ``_MODULES``: name -> module, one imported per job, e.g.
+the policy of a run's method, or the command modules the parser loads) are not followed; a job names
+the plugin it loads as an entry (:func:`plugin_module`).
 
-- An entry ``"module:function"`` (a command's handler) counts only the module-level imports of
-  ``module`` and those of ``function`` and of the module's functions and classes it names, so the
-  four commands of one command module hash their own code paths.
-- Plugin registries (a module-level dict ``_MODULES``: name -> module, one imported per job, e.g.
-  the policy of a run's method) are not followed; a job names the plugin it loads as an entry
-  (:func:`plugin_module`).
-
-:data:`GLUE` (the command layer, config parsing, tracking, checksums, atomic writes) changes no
-result: it is neither hashed nor followed beyond an entry.
+:data:`GLUE` (tracking, checksums, atomic writes, hints, error reports and this module) writes no result: it is
+neither hashed nor followed beyond an entry. The command layer and the config loading are hashed
+like the rest (a job's seeds, the values it writes and the defaults it fills live there).
 
 **Config** (:func:`madpinn.commands.job_settings`, :func:`madpinn.commands.settings_hash`):
 per command, the one package function that says what its jobs read, declared beside the command's
 parser (``reads``, :mod:`madpinn.commands.reads`): a trained model's own training hash
 (:func:`madpinn.value_functions.build.training_hash`, :func:`madpinn.marl_hash.marl_training_hash`:
 never validation or deployment-only settings), an evaluation cell's
-:func:`madpinn.config.job_config`, and for the checks and outputs the config subtrees they read.
+:func:`madpinn.config.job_config`, and for the checks and outputs the config subtrees they read;
+always as loaded, with every schema default filled in (a changed default reruns what reads it).
 """
 
 from __future__ import annotations
@@ -40,9 +41,11 @@ from typing import Iterable, Mapping
 
 
 PACKAGE = Path(__file__).resolve().parent
-GLUE = ("madpinn.commands", "madpinn.config", "madpinn.tracking", "madpinn.hints", "madpinn.checksum",
-        "madpinn.atomic", "madpinn.provenance")
-"""modules (and their sub-modules) that change no result"""
+GLUE = ("madpinn.tracking", "madpinn.hints", "madpinn.checksum", "madpinn.atomic", "madpinn.provenance",
+        "madpinn.commands.errors")
+"""modules (and their sub-modules) that write no result: MLflow logging, file checksums, atomic
+writes, error hints and the one-line error report (it names every expected exception class of the
+package, which would tie every job to every module), this module"""
 REGISTRY = "_MODULES"
 """name of a plugin registry: a module-level dict ``{name: module}``, one module imported per job"""
 _DEFS = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
@@ -146,20 +149,27 @@ def _scan(nodes: Iterable[ast.AST], module: str) -> tuple[set[str], set[str], se
 def imports(entry: str) -> set[str]:
     """What ``entry`` imports (see :func:`_scan`): ``module`` (all of it), ``module:name`` (the
     module-level code and the definition ``name``), ``module:`` (the module-level code only)."""
+    return set(_reach_entry(entry)[0])
+
+
+def _reach_entry(entry: str) -> tuple[frozenset[str], frozenset[str] | None]:
+    """What ``entry`` imports and which of its module's definitions it runs (None: all of them)."""
     module, colon, name = entry.partition(":")
     path = module_path(module)
     if path is None:
         raise ValueError(f"'{module}' is not a module of the madpinn package")
-    return _imports(*_stat(path), module, None if not colon else (name,) if name else ())
+    return _reach(*_stat(path), module, None if not colon else (name,) if name else ())
 
 
 @lru_cache(maxsize=None)
-def _imports(path: Path, mtime_ns: int, size: int, module: str, names: tuple[str, ...] | None) -> frozenset[str]:
-    """The imports of the code that runs when ``names`` of the module are used (None: all of it):
-    the code run at import and, transitively, the definitions it and ``names`` name."""
+def _reach(path: Path, mtime_ns: int, size: int, module: str,
+           names: tuple[str, ...] | None) -> tuple[frozenset[str], frozenset[str] | None]:
+    """The imports of the code that runs when ``names`` of the module are used (None: all of it),
+    and the definitions that code reaches: the code run at import and, transitively, the
+    definitions it and ``names`` name."""
     parts, whole, _ = _layout(path, mtime_ns, size, module)
     if names is None:
-        return frozenset(whole)
+        return frozenset(whole), None
     out, used = set(parts[None][0]), parts[None][1]
     seen, todo = set(), [*used, *names]
     while todo:
@@ -168,21 +178,36 @@ def _imports(path: Path, mtime_ns: int, size: int, module: str, names: tuple[str
             seen.add(name)
             out |= parts[name][0]
             todo += parts[name][1]
-    return frozenset(out)
+    return frozenset(out), frozenset(seen)
+
+
+def reached(entries: Iterable[str]) -> dict[str, frozenset[str] | None]:
+    """Module -> the top-level definitions of it that the entries (``module`` or
+    ``module:function``) reach (None: the whole module), the entries' own modules and their
+    packages included; glue reached on the way is not followed further (nor listed)."""
+    entries = list(entries)
+    out: dict[str, frozenset[str] | None] = {}
+    seen, todo = set(), list(entries)
+    while todo:
+        e = todo.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        module = e.partition(":")[0]
+        if e not in entries and is_glue(module):
+            out.setdefault(module, frozenset())
+            continue
+        deps, defs = _reach_entry(e)
+        todo += deps
+        known = out.get(module, frozenset())
+        out[module] = None if defs is None or known is None else known | defs
+    return out
 
 
 def closure(entries: Iterable[str]) -> set[str]:
     """Modules that the entries (``module`` or ``module:function``) reach, the entries' own
     modules and their packages included; glue reached on the way is not followed further."""
-    entries = list(entries)
-    seen, todo = set(), list(entries)
-    while todo:
-        e = todo.pop()
-        if e not in seen:
-            seen.add(e)
-            if e in entries or not is_glue(e.partition(":")[0]):
-                todo += imports(e)
-    return {e.partition(":")[0] for e in seen}
+    return set(reached(entries))
 
 
 def data_files(module: str) -> list[Path]:
@@ -193,17 +218,39 @@ def data_files(module: str) -> list[Path]:
 
 
 def source_files(entries: Iterable[str]) -> list[Path]:
-    """Every file a job with these entries runs or reads: the closure less glue, with its data."""
+    """Every file a job with these entries runs or reads (in part): the closure less glue, with
+    its data."""
     modules = sorted(m for m in closure(entries) if not is_glue(m))
     files = {module_path(m) for m in modules} | {f for m in modules for f in data_files(m)}
     return sorted(files)
 
 
+def reached_source(module: str, defs: frozenset[str] | None) -> bytes:
+    """The bytes of ``module`` that a job reaching ``defs`` of it runs: the whole file (``defs``
+    None), else the file less the lines of every top-level definition not in ``defs`` (decorators
+    included)."""
+    path = module_path(module)
+    data = path.read_bytes()
+    if defs is None:
+        return data
+    lines = data.splitlines(keepends=True)
+    for node in reversed(_parse(*_stat(path)).body):
+        if isinstance(node, _DEFS) and node.name not in defs:
+            first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
+            del lines[first - 1:node.end_lineno]
+    return b"".join(lines)
+
+
 def source_hash(*entries: str) -> str:
-    """sha256 (12 hex) over the package-relative path and bytes of :func:`source_files`."""
+    """sha256 (12 hex) over the package-relative path and reached bytes (:func:`reached_source`)
+    of every module the entries reach (glue left out), and the package data those modules name."""
     h = hashlib.sha256()
-    for f in source_files(entries):
-        h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
+    reach = reached(entries)
+    for module in sorted(m for m in reach if not is_glue(m)):
+        path = module_path(module)
+        h.update(b"%s\0%s\0" % (str(path.relative_to(PACKAGE)).encode(), reached_source(module, reach[module])))
+        for f in data_files(module):
+            h.update(b"%s\0%s\0" % (str(f.relative_to(PACKAGE)).encode(), f.read_bytes()))
     return h.hexdigest()[:12]
 
 

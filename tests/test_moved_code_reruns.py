@@ -114,3 +114,14 @@ def _smoke_cfg(copy: Path) -> dict:
     from madpinn.config import load_config
 
     return load_config([copy / "config.yaml", copy / "smoke.yaml"])
+
+
+# --- issue 63: the command layer is hashed, definition by definition --------------------------------------------------
+# A line of the command layer, which no job hashed before issue 63, yet changes a result: editing
+# it plans exactly the job that runs it. (The other such lines are checked without a dry run, on
+# the commands' source hashes: tests/test_workflow_sources.py.)
+
+def test_editing_a_validation_seed_in_the_command_layer_reruns_that_check_only(touched):
+    jobs = _edit_and_plan(touched, "commands/value_functions.py",
+                          'seed=int(cfg["value_functions"]["seed"]) + 1)', 'seed=int(cfg["value_functions"]["seed"]) + 2)')
+    _assert_plans_exactly(jobs, {("validate_vhat", "")})

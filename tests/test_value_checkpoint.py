@@ -123,3 +123,19 @@ def test_resume_from_a_file_that_is_not_a_resume_checkpoint_refuses_and_keeps_it
         with pytest.raises(CheckpointError, match=words) as exc:
             train(problem, s, path, "h", progress=False, stop_after=1)
         assert "left untouched" in str(exc.value) and path.read_bytes() == before
+
+
+def test_resume_checkpoint_of_another_configuration_is_refused_and_kept(tmp_path):
+    """A resume checkpoint written under another training hash (another configuration, or hours of
+    another run) used to be ignored and overwritten from iteration 0; now it is refused, untouched."""
+    from madpinn.value_functions.train import TrainSettings, train
+
+    problem = EpigraphProblem(epigraph_system(z_max=21.45))
+    s = TrainSettings(iterations=4, batch_size=16, lr=1e-4, lr_final=1e-5, curriculum_fraction=0.0, checkpoint_every=1,
+                      output_scale=1.5, network=NET, seed=0, loss="l1", init_from=None, obstacle_weight=0.0, stop_at=None)
+    ckpt = tmp_path / "run.ckpt.pt"
+    train(problem, s, ckpt, "first", progress=False, stop_after=2)
+    before = ckpt.read_bytes()
+    with pytest.raises(CheckpointError, match="another training configuration") as exc:
+        train(problem, s, ckpt, "second", progress=False, stop_after=1)
+    assert "left untouched" in str(exc.value) and "\n" not in str(exc.value) and ckpt.read_bytes() == before

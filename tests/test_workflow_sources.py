@@ -18,7 +18,7 @@ import pytest
 
 from conftest import REPO
 from madpinn.commands import COMMAND_MODULES, handler_entry
-from madpinn.provenance import PACKAGE, closure, imports, plugin_module, registry, source_files, source_hash
+from madpinn.provenance import PACKAGE, closure, imports, plugin_module, reached, registry, source_files, source_hash
 
 RULES = REPO / "workflow" / "rules"
 
@@ -94,6 +94,14 @@ def test_a_name_imported_from_a_module_follows_that_definition_only():
     assert any(f.startswith("simulation/") for f in _files("train-defmarl"))
 
 
+def _reached_defs(command: str, *methods: str) -> dict[str, frozenset[str] | None]:
+    """Package-relative file -> the definitions of it a rule running ``command`` hashes (None: all)."""
+    entries = [handler_entry(command)] + [plugin_module("madpinn.policies.base", m) for m in methods]
+    from madpinn.provenance import module_path
+
+    return {str(module_path(m).relative_to(PACKAGE)): defs for m, defs in reached(entries).items()}
+
+
 def test_evaluation_cells_do_not_rerun_for_tables_report_oracle_or_training_edits():
     """Cells hash the value-function modules they run (loading and evaluating a trained network), not
     its training, grid reference or verification: those reach a cell through the model file."""
@@ -102,7 +110,7 @@ def test_evaluation_cells_do_not_rerun_for_tables_report_oracle_or_training_edit
         for module in ("evaluation/tables.py", "evaluation/reproduction.py", "evaluation/oracle.py",
                        "evaluation/paper_values.yaml", "figures/style.py", "value_functions/train.py",
                        "value_functions/grid_reference.py", "value_functions/verification.py",
-                       "value_functions/shipping.py"):
+                       "value_functions/shipping.py", "commands/value_functions.py", "commands/outputs.py"):
             assert module not in files, (method, module)
 
 
@@ -117,10 +125,18 @@ def test_editing_one_method_does_not_rerun_another_methods_cells():
         assert not others & files, (method, sorted(others & files))
 
 
-def test_glue_is_not_hashed():
+def test_glue_is_not_hashed_and_the_command_layer_is():
+    """Tracking (MLflow logging) writes no result and is not hashed; the command layer and the config
+    loading are, down to the definitions a job reaches (issue 63: seeds, written values and filled
+    defaults live there): ``evaluate`` hashes its handler, not ``train-value``'s."""
     for command in ("evaluate", "train-value", "table"):
-        assert not any(f.startswith(("commands/", "tracking/")) or f in ("config.py", "provenance.py")
-                       for f in _files(command)), command
+        files = _files(command)
+        assert not any(f.startswith("tracking/") or f == "provenance.py" for f in files), command
+        assert any(f.startswith("commands/") for f in files) and "config/loading.py" in files, command
+    evaluate = _reached_defs("evaluate")
+    assert "commands/value_functions.py" not in evaluate
+    train = _reached_defs("train-value")["commands/value_functions.py"]
+    assert "_train" in train and "_validate_vhat" not in train
 
 
 def test_the_source_hash_follows_the_files():
@@ -176,7 +192,7 @@ def test_the_closure_covers_what_a_real_job_imports(tmp_path):
     hashed = closure([handler_entry("evaluate"), plugin_module("madpinn.policies.base", "nominal")])
     # the command line imports every command module to build its parser: their module-level imports
     # (e.g. value_functions.build for the choices of train-value) define names, run no job code
-    parser = closure([f"{m}:" for m in COMMAND_MODULES])
+    parser = closure([f"{m}:" for m in COMMAND_MODULES])   # (a plugin registry: each job hashes its own)
     assert {"madpinn.evaluation.cell", "madpinn.policies.nominal", "madpinn.simulation.simulator"} <= loaded, loaded
     assert not loaded - hashed - parser, sorted(loaded - hashed - parser)
 
@@ -185,3 +201,63 @@ def _env():
     from conftest import subprocess_env
 
     return subprocess_env({"MADPINN_TRACKING_SOURCE": "manual"})
+
+
+# --- issue 63: lines of the command layer and the config loading that change a result -------------------------------
+# Each edit, in a copy of the package, must change the source hash of exactly the commands that run
+# it (a rule's `source` param is its command's hash: test_every_rule_hashes_the_command_it_runs; the
+# dry run then plans those jobs: tests/test_moved_code_reruns.py shows it end to end for one line).
+
+_HASHES = ("import json, sys; from madpinn.commands import _handlers, handler_entry; "
+           "from madpinn.provenance import source_hash; "
+           "print(json.dumps({c: source_hash(handler_entry(c)) for c in _handlers()}))")
+
+
+@pytest.fixture(scope="module")
+def package_copy(tmp_path_factory):
+    import shutil
+
+    root = tmp_path_factory.mktemp("package")
+    shutil.copytree(PACKAGE, root / "madpinn", ignore=shutil.ignore_patterns("__pycache__"))
+    return root, _command_hashes(root)
+
+
+def _command_hashes(root) -> dict[str, str]:
+    import json
+
+    proc = subprocess.run([sys.executable, "-c", _HASHES], capture_output=True, text=True, cwd=root, timeout=300,
+                          env=_env() | {"PYTHONPATH": str(root)})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout)
+
+
+@pytest.mark.parametrize("rel, old, new, commands", [
+    ("commands/value_functions.py", 'seed=int(cfg["value_functions"]["seed"]) + 1)', 'seed=int(cfg["value_functions"]["seed"]) + 2)',
+     {"validate-vhat"}),                                       # a validation seed
+    ("commands/value_functions.py", 'stats["target_false_safe_rate"] = 0.01', 'stats["target_false_safe_rate"] = 0.02',
+     {"validate-vs"}),                                          # a value written into a result JSON
+    ("commands/outputs.py", 'args.scenarios, cfg["sim"]["start_separation"],', 'args.scenarios, 0.5 * cfg["sim"]["start_separation"],',
+     {"oracle"}),                                               # the oracle's start separation
+    ("commands/outputs.py", 'files = _vhat_budget_figure(cfg, args)', 'files = _vhat_budget_figure(cfg, args)[:1]',
+     {"figure"}),                                               # fig_vhat_budget's inputs
+    ("commands/defmarl.py", "    from madpinn.marl_hash import marl_training_hash\n",
+     "    from madpinn.marl_hash import marl_training_hash\n    variant = variant.strip()\n", {"train-defmarl"}),   # DEF-MARL's resume hash
+    ("value_functions/build.py", 'return int(cfg["value_functions"]["seed"] if own is None else own)',
+     'return int(cfg["value_functions"]["seed"] + 1 if own is None else own)', {"train-value"}),   # a training seed
+    ("config/schema.py", "def fill_defaults(", "def fill_defaults(  # edited\n", None),   # defaults filled: every job
+])
+def test_each_result_line_of_the_command_layer_reruns_the_jobs_that_run_it(package_copy, rel, old, new, commands):
+    root, before = package_copy
+    path = root / "madpinn" / rel
+    text = path.read_text()
+    assert text.count(old) == 1, (rel, old)
+    path.write_text(text.replace(old, new))
+    try:
+        after = _command_hashes(root)
+    finally:
+        path.write_text(text)
+    changed = {c for c in before if before[c] != after[c]}
+    if commands is None:   # read by every job that loads a config
+        assert {"evaluate", "train-value", "oracle", "table", "train-defmarl"} <= changed, sorted(changed)
+    else:
+        assert changed == commands, sorted(changed)

@@ -1,7 +1,7 @@
 """Command layer: ``python -m madpinn <command>`` (also ``madpinn <command>``).
 
 The only part of the package that knows the command line and the raw config dict's journey
-to jobs. Each module in :data:`COMMAND_MODULES` is one job family and exposes
+to jobs. Each module in :data:`_MODULES` is one job family and exposes
 ``register(subparsers)``, adding sub-commands with ``func=handler(args) -> int``. Every job
 validates its config first, calls the library with paths and settings, writes its result
 files, and ends with :func:`madpinn.commands.finish.finish` (files first, then MLflow).
@@ -18,18 +18,20 @@ from typing import Mapping
 
 from madpinn.commands.errors import debug_requested, run_reporting
 
-COMMAND_MODULES = [
-    "madpinn.commands.setup",  # validate-config, tracking-init
-    "madpinn.commands.evaluate",  # evaluate
-    "madpinn.commands.cell_runs",  # track-cells
-    "madpinn.commands.outputs",  # table, figure, oracle, reproduction
-    "madpinn.commands.value_functions",  # train-value, validate-vs, validate-vhat, fig-value-heatmap, solve-vs-grid,
-    #                                     validate-vs-grid, verify-vhat, ship-models, install-shipped
-    "madpinn.commands.mujoco",  # render-clip
-    "madpinn.commands.safemarl",  # train-safemarl-nominal
-    "madpinn.commands.defmarl",  # train-defmarl
-    "madpinn.commands.gap",  # gap-decomposition
-]
+_MODULES = {   # job family -> its module (a plugin registry: a job's hash follows its own handler only)
+    "setup": "madpinn.commands.setup",  # validate-config, tracking-init
+    "evaluate": "madpinn.commands.evaluate",  # evaluate
+    "cell_runs": "madpinn.commands.cell_runs",  # track-cells
+    "outputs": "madpinn.commands.outputs",  # table, figure, oracle, reproduction
+    "value_functions": "madpinn.commands.value_functions",  # train-value, validate-vs, validate-vhat, fig-value-heatmap,
+    #                       solve-vs-grid, validate-vs-grid, verify-vhat, ship-models, install-shipped
+    "mujoco": "madpinn.commands.mujoco",  # render-clip
+    "safemarl": "madpinn.commands.safemarl",  # train-safemarl-nominal
+    "defmarl": "madpinn.commands.defmarl",  # train-defmarl
+    "gap": "madpinn.commands.gap",  # gap-decomposition
+}
+COMMAND_MODULES = tuple(_MODULES.values())
+"""the command modules, each exposing ``register(subparsers)``"""
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -26,7 +26,7 @@ from madpinn.config.merge import deep_merge
 from madpinn.config.paths import OUTPUT_PATH_KEYS, REPO_ROOT, unwritable_reason, write_if_changed
 from madpinn.config.runs import (DEPLOYMENT_ONLY_KEYS, FAN_OUT_KEYS, TRAINING_ONLY_KEYS, RunSettings, job_config,
                                  method_config, run_agents, run_observation, run_vhat, study_backend, study_pattern, study_sim)
-from madpinn.config.schema import FILLED, SCHEMA_PATH, as_written, backend_names, fill_defaults
+from madpinn.config.schema import FILLED, SCHEMA_PATH, backend_names, fill_defaults
 from madpinn.config.validation import validate_config
 from madpinn.config.vf_variants import VF_VARIANTS, split_vf_model, vf_model_name, with_vf_variant
 
@@ -36,5 +36,5 @@ __all__ = [
     "subtree_hash", "load_config", "load_yaml", "deep_merge", "OUTPUT_PATH_KEYS", "REPO_ROOT", "unwritable_reason",
     "write_if_changed", "DEPLOYMENT_ONLY_KEYS", "FAN_OUT_KEYS", "TRAINING_ONLY_KEYS", "RunSettings", "job_config", "method_config",
     "run_agents", "run_observation", "run_vhat", "study_backend", "study_pattern", "study_sim", "SCHEMA_PATH",
-    "FILLED", "as_written", "backend_names", "fill_defaults", "validate_config", "VF_VARIANTS", "split_vf_model", "vf_model_name", "with_vf_variant",
+    "FILLED", "backend_names", "fill_defaults", "validate_config", "VF_VARIANTS", "split_vf_model", "vf_model_name", "with_vf_variant",
 ]

@@ -106,21 +106,19 @@ class RunSettings:
     def resolve(cls, cfg: Mapping[str, Any], study: str, run: str) -> "RunSettings":
         """The run's settings from the validated ``cfg``; :class:`ConfigError` for an unknown study,
         method or variant."""
-        from madpinn.config.schema import as_written
-
         if study not in cfg["studies"]:
             raise ConfigError(f"unknown study '{study}' (configured: {sorted(cfg['studies'])})")
         method, mcfg = method_config(cfg, run)
         st = cfg["studies"][study]
         sim, observation = study_sim(cfg, study), _merged(cfg["observation"], mcfg.get("observation"))
         hashed = {
-            "study": {k: v for k, v in as_written(cfg, f"studies.{study}").items() if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
+            "study": {k: v for k, v in st.items() if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
             "arena": cfg["arenas"][st["arena"]],
             "agents": cfg["agents"],
             "sim": sim,
             "observation": observation,
             "method": method,
-            "method_config": {k: v for k, v in as_written(cfg, f"methods.{method}", mcfg).items() if k not in TRAINING_ONLY_KEYS},
+            "method_config": {k: v for k, v in mcfg.items() if k not in TRAINING_ONLY_KEYS},
         }
         return cls(study=study, run=run, method=method, method_config=mcfg, study_config=st, arena=cfg["arenas"][st["arena"]],
                    sim=sim, observation=observation, agents=_merged(cfg["agents"], mcfg.get("agents")), job_config=hashed)
@@ -140,6 +138,6 @@ def job_config(cfg: Mapping[str, Any], study: str, run: str) -> dict:
     """The part of the config an evaluation job depends on (hashed to trigger re-runs). The study's
     fan-out (``runs``, ``agent_counts``, ``seeds``) and what only the workflow reads (``in_all``)
     are left out: adding a run or a seed to a study does not change the cells already computed.
-    Keys the loader filled with their default are left out too (:func:`~madpinn.config.schema.as_written`):
-    filling them at load changes no cell's hash. :attr:`RunSettings.job_config`."""
+    Every key as loaded, schema defaults filled in: a changed default reruns the cells that read it.
+    :attr:`RunSettings.job_config`."""
     return RunSettings.resolve(cfg, study, run).job_config

@@ -81,8 +81,8 @@ def object_branch(node: Mapping[str, Any], root: Mapping[str, Any]) -> dict | No
 
 FILLED = "_defaults_filled"
 """top-level config entry the loader writes: the dotted keys it filled with their default (no
-config key; the schema check skips it). Hashes of settings leave these keys out
-(:func:`as_written`), so filling defaults at load changes no job's hash, and a resolved config
+config key; the schema check skips it): a record of which values came from the schema. Hashes of
+settings read the filled values (a changed default reruns what reads it), so a resolved config
 written out and loaded again (the workflow's ``config.resolved.yaml``) hashes as the original."""
 
 
@@ -119,45 +119,6 @@ def _fill(instance: Any, node: Mapping[str, Any], root: Mapping[str, Any], path:
         for key, value in instance.items():
             if key not in props and key != FILLED:
                 _fill(value, extra, root, f"{path}.{key}" if path else key, filled)
-
-
-def as_written(cfg: Mapping[str, Any], path: str, value: Any = None) -> Any:
-    """The config at dotted key ``path`` (or ``value``, e.g. a run's settings merged over it) as
-    the config files wrote it: without the keys the loader filled with their default
-    (``cfg[FILLED]``) that still hold it. What a hash of settings reads."""
-    if value is None:
-        from madpinn.config.hashing import lookup_key
-
-        value = lookup_key(cfg, path)
-    filled = set(cfg.get(FILLED, ()))
-    return _unfill(value, path, filled, _schema()) if filled else value
-
-
-def _unfill(value: Any, path: str, filled: set[str], root: Mapping[str, Any]) -> Any:
-    if not isinstance(value, Mapping):
-        return value
-    out = {}
-    for key, item in value.items():
-        here = f"{path}.{key}"
-        if here in filled and item == node_at(here, root).get("default"):
-            continue
-        out[key] = _unfill(item, here, filled, root) if any(f.startswith(here + ".") for f in filled) else item
-    return out
-
-
-def without_filled(cfg: Mapping[str, Any], path: str, overlay: Mapping[str, Any]) -> list[str]:
-    """``cfg[FILLED]`` less the keys ``overlay`` (merged over the section at ``path``) writes: a
-    variant's explicit value is written, even where it equals the default."""
-    written = set()
-
-    def walk(node, here):
-        for key, item in node.items():
-            written.add(f"{here}.{key}")
-            if isinstance(item, Mapping):
-                walk(item, f"{here}.{key}")
-
-    walk(overlay, path)
-    return [p for p in cfg.get(FILLED, ()) if p not in written]
 
 
 def node_at(path: str, schema: Mapping[str, Any] | None = None) -> dict:

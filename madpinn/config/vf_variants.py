@@ -7,7 +7,6 @@ from typing import Any, Mapping
 
 from madpinn.config.errors import ConfigError
 from madpinn.config.merge import deep_merge
-from madpinn.config.schema import FILLED, without_filled
 
 
 VF_VARIANTS = {"vhat": "vhat_variants"}
@@ -40,8 +39,7 @@ def split_vf_model(name: str) -> tuple[str, str | None] | None:
 def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> dict:
     """``cfg`` with ``value_functions.<kind>`` replaced by variant ``variant`` deep-merged over it
     (``variant`` None: ``cfg`` itself). What a variant's training, its training hash and its checks
-    read: every other key is the base configuration's. A key the variant writes is written, even
-    where the loader filled the base's with the same default (:func:`~madpinn.config.as_written`)."""
+    read: every other key is the base configuration's."""
     if not variant:
         return cfg
     section = VF_VARIANTS.get(kind)
@@ -50,4 +48,4 @@ def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> d
         raise ConfigError(f"unknown {kind} variant '{variant}' (value_functions.{section or kind + '_variants'}: "
                           f"{sorted(variants) or 'none'})")
     vf = {**cfg["value_functions"], kind: deep_merge(cfg["value_functions"][kind], variants[variant])}
-    return {**cfg, "value_functions": vf, FILLED: without_filled(cfg, f"value_functions.{kind}", variants[variant])}
+    return {**cfg, "value_functions": vf}

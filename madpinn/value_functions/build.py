@@ -28,20 +28,19 @@ def problem_from_config(cfg: dict, kind: str):
 def training_seed(cfg: dict, kind: str) -> int:
     """The seed of value function ``kind``'s training (initial weights and every batch): its own
     ``value_functions.<kind>.seed`` where set (a variant's training seed), else ``value_functions.seed``."""
-    return int(cfg["value_functions"][kind].get("seed", cfg["value_functions"]["seed"]))
+    own = cfg["value_functions"][kind]["seed"]
+    return int(cfg["value_functions"]["seed"] if own is None else own)
 
 
 def training_hash(cfg: dict, kind: str, schedule_only: bool = False) -> str:
     """Hash of everything the trained weights depend on (not validation settings). ``schedule_only``:
     without ``stop_at``, i.e. the hash of the run's schedule, which its resume checkpoints carry: a
     run ending early resumes from a longer run's checkpoint (the states agree up to its end)."""
-    from madpinn.config import DEPLOYMENT_ONLY_KEYS, as_written
+    from madpinn.config import DEPLOYMENT_ONLY_KEYS
 
-    # as the config files wrote it (keys filled with their default at load change no hash)
-    vcfg = {k: v for k, v in as_written(cfg, f"value_functions.{kind}").items()
+    # as loaded, schema defaults filled in: a changed default retrains
+    vcfg = {k: v for k, v in cfg["value_functions"][kind].items()
             if k != "validation" and not (schedule_only and k == "stop_at")}
-    if vcfg.get("velocity_saturation") is False:   # off = the dynamics every earlier model was trained with: same hash
-        del vcfg["velocity_saturation"]
     observation = {k: v for k, v in cfg["observation"].items() if k not in DEPLOYMENT_ONLY_KEYS}   # deployment-only keys do not retrain
     return config_hash({"kind": kind, "agents": cfg["agents"], "observation": observation, "vf": vcfg,
                         "seed": cfg["value_functions"]["seed"], "dtype": cfg["dtype"]})

@@ -204,16 +204,16 @@ def train(
         if not train_state:
             raise CheckpointError(f"resume checkpoint {checkpoint} is a finished {problem.kind} model, not a resume "
                                   f"checkpoint (it has no training state){keep}")
-        if train_state["config_hash"] == config_hash:
-            net.load_state_dict(data["state_dict"])
-            opt.load_state_dict(train_state["optimizer"])
-            start = int(train_state["iteration"])
-            history = train_state["history"].tolist()
-            wall = float(train_state["wall_s"])
-            offset = int(train_state.get("batch_offset", 0))
-            print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
-        else:
-            print(f"{problem.kind}: ignoring {checkpoint} (different configuration)")
+        if train_state["config_hash"] != config_hash:   # hours of another run: refused, never overwritten
+            raise CheckpointError(f"resume checkpoint {checkpoint} belongs to another training configuration "
+                                  f"(hash {train_state['config_hash']}, this run's is {config_hash}){keep}")
+        net.load_state_dict(data["state_dict"])
+        opt.load_state_dict(train_state["optimizer"])
+        start = int(train_state["iteration"])
+        history = train_state["history"].tolist()
+        wall = float(train_state["wall_s"])
+        offset = int(train_state.get("batch_offset", 0))
+        print(f"{problem.kind}: resuming from {checkpoint} at iteration {start}")
     if settings.init_from and start == 0:
         offset = load_initial_weights(problem, settings, net)
         print(f"{problem.kind}: fine-tuning from {settings.init_from} (batches from index {offset})")
