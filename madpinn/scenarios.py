@@ -1,6 +1,8 @@
 """Scenario generation (SPEC §2): starts and goals uniform in a square arena, pairwise
-separation ≥ 2r among starts and among goals, zero initial velocity; or a structured conflict
-pattern (:mod:`madpinn.conflicts`: head-on pairs and lines, circle swap, crossing flows).
+separation ≥ 2r among starts and among goals, zero initial velocity; or goals near the starts
+(``goals_within_<R>m``: each goal uniform in the disc of radius R around its own start, issue 60);
+or a structured conflict pattern (:mod:`madpinn.conflicts`: head-on pairs and lines, circle
+swap, crossing flows).
 
 A scenario is a pure function of ``(arena name, pattern, N, seed, index)``: every method sees
 identical initial conditions.
@@ -9,6 +11,7 @@ identical initial conditions.
 from __future__ import annotations
 
 import math
+import re
 import zlib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -96,17 +99,48 @@ def scenario_rng(arena: str, n_agents: int, seed: int, index: int) -> np.random.
 
 
 UNIFORM = "uniform"
-"""the SPEC §2 scenarios; any other pattern is one of :data:`madpinn.conflicts.PATTERNS`"""
+"""the SPEC §2 scenarios; any other pattern is a local goal law (:func:`local_goal_radius`) or one
+of :data:`madpinn.conflicts.PATTERNS`"""
+LOCAL_GOALS = re.compile(r"goals_within_([1-9][0-9]*)m")
+"""pattern of a local goal law: ``goals_within_<R>m``, R in whole metres"""
+
+
+def local_goal_radius(pattern: str) -> float | None:
+    """R (m) of a local goal law ``goals_within_<R>m``; None for any other pattern."""
+    match = LOCAL_GOALS.fullmatch(pattern)
+    return float(match.group(1)) if match else None
+
+
+def _sample_local_goals(rng: np.random.Generator, starts: np.ndarray, radius: float, half_width: float,
+                        min_sep: float) -> np.ndarray:
+    """Goal k uniform in the disc of ``radius`` around ``starts[k]`` intersected with the arena, at
+    least ``min_sep`` from goals 0..k-1: a draw outside the arena or too close is **resampled**
+    (never clipped, which would pile goals on the walls)."""
+    goals = np.empty_like(starts)
+    for k, start in enumerate(starts):
+        for tries in range(1, _MAX_TRIES_PER_POINT + 1):
+            rho, theta = radius * math.sqrt(rng.uniform()), rng.uniform(0.0, 2.0 * math.pi)
+            c = start + rho * np.array([math.cos(theta), math.sin(theta)])
+            if np.all(np.abs(c) <= half_width) and (k == 0 or np.min(np.sum((goals[:k] - c) ** 2, axis=1)) >= min_sep**2):
+                goals[k] = c
+                break
+        else:
+            raise ScenarioInfeasibleError(
+                f"no goal within {radius} m of agent {k + 1}/{len(starts)}'s start after {_MAX_TRIES_PER_POINT} "
+                f"tries (arena half-width {half_width} m, separation {min_sep} m)")
+    return goals
 
 
 def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, min_separation: float,
                       pattern: str = UNIFORM):
     """Return ``(starts [N,2], goals [N,2])`` float64 numpy arrays (m); starts (and goals) are at
-    least ``min_separation`` (m) apart (the evaluation passes ``sim.start_separation``)."""
+    least ``min_separation`` (m) apart (the evaluation passes ``sim.start_separation``). A local goal
+    law keeps the uniform scenario's starts (the same stream) and draws its goals from its own."""
     if n_agents < 1:
         raise ScenarioInfeasibleError(f"need at least one agent, got {n_agents}")
     min_sep = float(min_separation)
-    if pattern != UNIFORM:   # its own random stream (the uniform scenarios' streams are unchanged)
+    radius = local_goal_radius(pattern)
+    if pattern != UNIFORM and radius is None:   # its own random stream (the uniform scenarios' streams are unchanged)
         from madpinn.conflicts import conflict_scenario
 
         rng = scenario_rng(f"{arena.name}/{pattern}", n_agents, seed, index)
@@ -114,6 +148,9 @@ def generate_scenario(arena: Arena, n_agents: int, seed: int, index: int, min_se
     _check_feasible(n_agents, arena.half_width, min_sep)
     rng = scenario_rng(arena.name, n_agents, seed, index)
     starts = _sample_separated(rng, n_agents, arena.half_width, min_sep)
+    if radius is not None:
+        rng = scenario_rng(f"{arena.name}/{pattern}", n_agents, seed, index)
+        return starts, _sample_local_goals(rng, starts, radius, arena.half_width, min_sep)
     goals = _sample_separated(rng, n_agents, arena.half_width, min_sep)
     return starts, goals
 

@@ -23,6 +23,7 @@ import argparse
 import numpy as np
 
 from madpinn.config import REPO_ROOT, load_config
+from madpinn.encounters import straight_line_encounters as encounters
 from madpinn.scenarios import Arena, ScenarioInfeasibleError, _sample_separated, generate_scenario, scenario_rng
 
 LAYOUTS = ("ours", "sep0.5", "swap", "short")
@@ -42,24 +43,6 @@ def layout(name: str, arena: Arena, n: int, seed: int, index: int, r: float) -> 
     if name == "short":
         return starts, np.clip(starts + rng.uniform(-2.0, 2.0, size=(n, 2)), -hw, hw)
     raise ValueError(f"unknown layout '{name}' (have {LAYOUTS})")
-
-
-def encounters(starts: np.ndarray, goals: np.ndarray, speed: float, radius: float, horizon: float) -> np.ndarray:
-    """Per agent, the number of others whose straight-line, constant-``speed`` trip (stopping at the
-    goal) comes within ``radius`` of its own during ``[0, horizon]`` (s), sampled every 10 ms."""
-    t = np.arange(0.0, horizon + 1e-9, 0.01)
-    d = goals - starts
-    length = np.linalg.norm(d, axis=1, keepdims=True)
-    unit = np.divide(d, length, out=np.zeros_like(d), where=length > 0)
-    travelled = np.minimum(speed * t[:, None], length[:, 0][None, :])           # [T, N]
-    pos = starts[None] + travelled[..., None] * unit[None]                     # [T, N, 2]
-    close = np.zeros((len(starts), len(starts)), dtype=bool)
-    for k in range(0, len(t), 25):
-        chunk = pos[k:k + 25]
-        gap = np.linalg.norm(chunk[:, :, None] - chunk[:, None], axis=-1).min(0)
-        close |= gap <= radius
-    np.fill_diagonal(close, False)
-    return close.sum(1)
 
 
 def main() -> None:

@@ -106,3 +106,52 @@ def test_uniform_scenarios_do_not_depend_on_the_conflict_patterns():
 def test_too_dense_pattern_fails_with_a_clear_message():
     with pytest.raises(ScenarioInfeasibleError, match="head_on_lines.*apart"):
         generate_scenario(LARGE, 128, seed=0, index=0, min_separation=0.2, pattern="head_on_lines")
+
+
+# --- issue 60: a local goal law and the layout's straight-line encounters ------------------------------------------
+
+def test_local_goals_keep_the_uniform_starts_and_lie_within_r_inside_the_arena():
+    from madpinn.scenarios import Arena, generate_scenario, local_goal_radius
+
+    arena = Arena("large", 4.0, 6.0)
+    assert local_goal_radius("goals_within_2m") == 2.0 and local_goal_radius("uniform") is None
+    assert local_goal_radius("goals_within_0m") is None and local_goal_radius("head_on_pairs") is None
+    for radius in (1, 2, 4):
+        for index in range(3):
+            starts, goals = generate_scenario(arena, 128, 100, index, 0.2, f"goals_within_{radius}m")
+            uniform_starts, uniform_goals = generate_scenario(arena, 128, 100, index, 0.2)
+            assert np.array_equal(starts, uniform_starts) and not np.array_equal(goals, uniform_goals)
+            assert np.all(np.linalg.norm(goals - starts, axis=1) <= radius + 1e-12)
+            assert np.all(np.abs(goals) <= arena.half_width)
+            gap = np.linalg.norm(goals[:, None] - goals[None], axis=-1) + np.eye(len(goals)) * 1e9
+            assert gap.min() >= 0.2
+            again = generate_scenario(arena, 128, 100, index, 0.2, f"goals_within_{radius}m")
+            assert np.array_equal(again[1], goals)
+
+
+def test_local_goal_laws_are_accepted_by_the_schema_and_bad_ones_refused():
+    import copy
+
+    from conftest import REPO
+    from madpinn.config import ConfigError, load_config, validate_config
+
+    cfg = load_config([REPO / "config.yaml"])
+    ok = copy.deepcopy(cfg)
+    ok["studies"]["scaling"]["pattern"] = "goals_within_2m"
+    validate_config(ok)
+    for bad in ("goals_within_0m", "goals_within_2.5m", "goals_near"):
+        broken = copy.deepcopy(cfg)
+        broken["studies"]["scaling"]["pattern"] = bad
+        with pytest.raises(ConfigError):
+            validate_config(broken)
+
+
+def test_straight_line_encounters_count_crossing_paths_only():
+    from madpinn.encounters import straight_line_encounters
+
+    # 0 and 1 swap head-on along y = 0; 2 flies parallel 1 m away; 3 stays at its goal on 0/1's line, past 1's end
+    starts = np.array([[-1.0, 0.0], [1.0, 0.0], [-1.0, 1.0], [3.0, 0.0]])
+    goals = np.array([[1.0, 0.0], [-1.0, 0.0], [1.0, 1.0], [3.0, 0.0]])
+    count = straight_line_encounters(starts, goals, speed=1.0, radius=0.2, horizon=3.0)
+    assert count.tolist() == [1, 1, 0, 0]
+    assert straight_line_encounters(starts, goals, speed=1.0, radius=1.01, horizon=3.0).tolist() == [2, 2, 2, 0]

@@ -23,6 +23,7 @@ from madpinn.evaluation.cell_files import cell_paths
 from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
+from madpinn.encounters import straight_line_encounters
 from madpinn.scenarios import Arena, generate_scenarios
 from madpinn.settings import AgentSettings
 from madpinn.simulation.settings import SimSettings
@@ -148,6 +149,9 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
         count = min(batch, total - first)
         starts, goals = generate_scenarios(cs.arena, n_agents, seed, count, cs.sim.start_separation, device, dtype, first_index=first,
                                            pattern=cs.pattern)
+        encounters = np.stack([straight_line_encounters(s_, g_, cs.limits.v_max, 2 * cs.limits.collision_radius,
+                                                        cs.episode_steps * cs.sim.dt)
+                               for s_, g_ in zip(starts.cpu().double().numpy(), goals.cpu().double().numpy())])
         policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
         if wrap is not None:
             policy = wrap(policy, first)
@@ -157,6 +161,7 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
             record_every=cs.sim.record_every if record and first == 0 else 0,
             progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
         )
+        stats["encounters"] = encounters   # [S, N]: the layout's straight-line encounters per agent
         yield first, policy, result, stats
 
 
@@ -192,7 +197,9 @@ def run_cell(
         if hasattr(policy, "summarise_stats"):   # policies with summable counters (dict) report them
             for k, v in policy.stats.items():
                 policy_stats[k] = policy_stats.get(k, 0) + v
-        frames.append(scenario_metrics(result, first_index=first))
+        frame = scenario_metrics(result, first_index=first)
+        frame["encounters_per_agent"] = stats["encounters"].mean(axis=1)   # at v_max, within 2r, over the episode
+        frames.append(frame)
         if first == 0:
             traj = result
     df = pd.concat(frames, ignore_index=True)

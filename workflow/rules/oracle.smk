@@ -5,7 +5,7 @@
 
 wildcard_constraints:
     arena=r"[a-z_]+",
-    pattern=r"[a-z_]+",
+    pattern=r"[a-z0-9_]+",
     scenarios=r"\d+",
 
 
