@@ -32,7 +32,9 @@ from typing import Mapping
 
 import numpy as np
 import pandas as pd
+import torch
 
+from madpinn.dynamics.double_integrator import hold_step
 from madpinn.scenarios import UNIFORM, Arena, generate_scenario
 
 BATCH = 64   # agents per programme (padded with zero offsets, whose cost is exactly 0)
@@ -193,8 +195,8 @@ def receding_horizon_cost(offsets: np.ndarray, episode_s: float, horizon_s: floa
     cost = np.zeros(len(x))
     for _ in range(steps):
         u = _solve("upper", x, s, v)[1]
-        path = x + tau * v + tau**2 / 2 * u                         # [substeps+1, A, 2]
-        d = np.linalg.norm(path, axis=-1)
+        path, vel = (a.numpy() for a in hold_step(*(torch.from_numpy(a) for a in (x[None], v[None], u[None], tau))))
+        d = np.linalg.norm(path, axis=-1)                           # path [substeps+1, A, d]
         cost += (dt / substeps) * (d[:-1] + d[1:]).sum(axis=0) / 2
-        x, v = path[-1], np.clip(v + dt * u, -v_max, v_max)
+        x, v = path[-1], np.clip(vel[-1], -v_max, v_max)            # tau[-1] = dt
     return cost + np.linalg.norm(x, axis=-1)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics.double_integrator import hold_step
 from madpinn.observation import split_observation
 from madpinn.value_functions.sampling import ConflictSamplingSettings, place_conflicts
 from madpinn.value_functions.z_search import min_feasible_z
@@ -121,10 +122,10 @@ def rollout(vhat, obs: torch.Tensor, z: torch.Tensor, dt: float, substeps: int) 
         u = system.optimal_control(dv_dobs)                                 # [B, n+1, 2]
         l0 = system.running_cost(o)
         s = fr[:, None, None, None] * h                                      # [S, 1, 1, 1]
-        traj = pos[None] + vel[None] * s + 0.5 * u[None] * s * s             # [S, B, A, 2]
+        traj, vels = hold_step(pos[None], vel[None], u[None], s)             # [S, B, A, d] each
         d = torch.linalg.vector_norm(traj[..., iu, :] - traj[..., ju, :], dim=-1).amin(-1).amin(0)
         min_d = torch.minimum(min_d, d)
-        pos, vel = traj[-1], vel + u * h
+        pos, vel = traj[-1], vels[-1]                                        # s[-1] = h
         l1 = system.running_cost(_observation(pos, vel, goal))
         z = z - 0.5 * (l0 + l1) * h                                          # trapezoid of ż = −l_d
     final_cost = system.running_cost(_observation(pos, vel, goal))
