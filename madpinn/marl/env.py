@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.marl.features import LocalObs, local_observation
 from madpinn.observation import ObservationSettings, pairwise_distances
 from madpinn.scenarios import Arena, generate_scenarios
@@ -85,7 +85,7 @@ class GoalReachingEnv:
 
     def __init__(
         self,
-        dynamics: DoubleIntegrator,
+        dynamics: AgentModel,
         arena: Arena,
         obs_spec: ObservationSettings,
         cfg: EnvSettings,

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours, split_observation
 from madpinn.policies.base import PolicyContext, register_policy
 
@@ -117,7 +117,7 @@ class MPPIPlanner:
     Holds the plan ``U`` ``[B, H, 2]`` (m/s²), its knot index, and the per-agent λ ``[B]``.
     """
 
-    def __init__(self, params: MPPISettings, dynamics: DoubleIntegrator, collision_radius: float,
+    def __init__(self, params: MPPISettings, dynamics: AgentModel, collision_radius: float,
                  generator: torch.Generator):
         self.p = params
         self.dynamics = dynamics
@@ -199,7 +199,7 @@ class MPPIPlanner:
 class MPPIPolicy:
     """Policy protocol around :class:`MPPIPlanner`: observation, neighbours, one batched plan."""
 
-    def __init__(self, planner: MPPIPlanner, spec: ObservationSettings, dynamics: DoubleIntegrator):
+    def __init__(self, planner: MPPIPlanner, spec: ObservationSettings, dynamics: AgentModel):
         self.planner = planner
         self.spec = spec
         self.dynamics = dynamics

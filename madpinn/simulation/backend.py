@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.observation import pairwise_distances
 from madpinn.settings import AgentSettings
 
@@ -38,7 +38,7 @@ class DoubleIntegratorBackend:
     planar analogue of a drone knocked out by a contact. None: agents pass through each other.
     """
 
-    def __init__(self, dynamics: DoubleIntegrator, dt: float, freeze_radius: float | None = None):
+    def __init__(self, dynamics: AgentModel, dt: float, freeze_radius: float | None = None):
         self.dynamics = dynamics
         self.dt = float(dt)
         self.freeze_radius = None if freeze_radius is None else float(freeze_radius)

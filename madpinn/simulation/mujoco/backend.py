@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.simulation.mujoco.forces import apply_rotor_thrusts
 from madpinn.simulation.mujoco.model import compile_world, scenario_offsets
 from madpinn.simulation.mujoco.readings import make_controller
@@ -39,7 +39,7 @@ class PhysicsDivergedError(RuntimeError):
 class MujocoBackend:
     """Batched Crazyflie simulation; ``dt`` (s) is the step of :meth:`step`."""
 
-    def __init__(self, dynamics: DoubleIntegrator, dt: float, settings: MujocoSettings,
+    def __init__(self, dynamics: AgentModel, dt: float, settings: MujocoSettings,
                  device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32, contacts: bool = False):
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"sim.dt must be positive, got {dt}")

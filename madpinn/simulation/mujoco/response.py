@@ -12,7 +12,7 @@ import math
 import numpy as np
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.simulation.mujoco.backend import MujocoBackend
 from madpinn.simulation.mujoco.model import GRAVITY
 
@@ -63,7 +63,7 @@ def sign_change_bound_ms(backend: MujocoBackend, direction, u: float = 4.0) -> f
     return 1e3 * math.sqrt(2.0 * tilt / alpha)
 
 
-def velocity_hold(backend: MujocoBackend, dynamics: DoubleIntegrator, target: float = 1.0, seconds: float = 2.0,
+def velocity_hold(backend: MujocoBackend, dynamics: AgentModel, target: float = 1.0, seconds: float = 2.0,
                   n: int = 4, seed: int = 0) -> dict:
     """Closed-loop bang-bang velocity hold ``u = −u_max·sign(v − target)`` per axis at every
     ``dt``, for the drone (``mujoco``: the policy sees the measured velocity), the drone with the
@@ -93,7 +93,7 @@ def velocity_hold(backend: MujocoBackend, dynamics: DoubleIntegrator, target: fl
     return out
 
 
-def bang_bang_tracking(backend: MujocoBackend, dynamics: DoubleIntegrator, mean_dwell_s: float, n: int = 16,
+def bang_bang_tracking(backend: MujocoBackend, dynamics: AgentModel, mean_dwell_s: float, n: int = 16,
                        seconds: float = 3.0, seed: int = 0) -> dict:
     """Open-loop random bang-bang (±u_max per axis, flipping with probability dt / mean_dwell_s
     per step) from rest: planar RMS / max error (m) to the exact double integrator, largest
