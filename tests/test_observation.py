@@ -199,7 +199,7 @@ def test_bad_carrot_margin_and_mode_fail_early():
 def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_hash(paper_cfg):
     import copy
 
-    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.value_functions.epigraph import EpigraphSystem
     from madpinn.value_functions.build import training_hash
 
     cfg = copy.deepcopy(paper_cfg)
