@@ -29,10 +29,8 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AGENT
 
-AGENT = DoubleIntegrator
-"""the agent model whose layout the observation follows"""
 _D = AGENT.position_dim
 EGO_VELOCITY, EGO_GOAL = slice(0, _D), slice(_D, 2 * _D)
 """where the ego's velocity and goal offset sit in the observation"""

@@ -15,11 +15,10 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics.double_integrator import DoubleIntegrator, hold_step
+from madpinn.dynamics import AGENT
+from madpinn.dynamics.double_integrator import hold_step
 from madpinn.dynamics.system import BoxControlSystem
 
-AGENT = DoubleIntegrator
-"""the agent model whose relative state this is (its layout: positions, then velocities)"""
 STATE_DIM = AGENT.state_dim
 
 

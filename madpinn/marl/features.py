@@ -15,8 +15,8 @@ from dataclasses import dataclass, replace
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.observation import (
-    AGENT,
     EGO_DIM,
     NEIGHBOUR_DIM,
     NEIGHBOUR_GOAL,

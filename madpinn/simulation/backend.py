@@ -76,10 +76,11 @@ class DoubleIntegratorBackend:
         """Stop the agents that are now within ``freeze_radius`` of another (at their current position)."""
         if self.freeze_radius is None or self.state.shape[1] < 2:
             return
-        hit = pairwise_distances(self.state[..., 0:2]).amin(dim=-1) <= self.freeze_radius
+        hit = pairwise_distances(self.dynamics.position(self.state)).amin(dim=-1) <= self.freeze_radius
         new = hit & ~self.frozen
         if new.any():
-            self.state = torch.cat([self.state[..., 0:2], torch.where(new[..., None], 0.0, self.state[..., 2:4])], dim=-1)
+            p, v = self.dynamics.position(self.state), self.dynamics.velocity(self.state)
+            self.state = self.dynamics.join(p, torch.where(new[..., None], 0.0, v))
             self.frozen |= new
 
 

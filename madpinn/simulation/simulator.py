@@ -7,6 +7,7 @@ import time
 import torch
 from tqdm.auto import tqdm
 
+from madpinn.dynamics import AGENT
 from madpinn.simulation.backend import SimBackend
 from madpinn.simulation.recorder import EpisodeRecorder, EpisodeResult
 
@@ -36,7 +37,7 @@ def run_episode(
     state = backend.reset(starts, torch.zeros_like(starts))
     policy.reset(state, goals)
     rec = EpisodeRecorder(goals, dt, collision_radius, record_every)
-    rec.update(state[..., 0:2])
+    rec.update(AGENT.position(state))
     policy_time = 0.0
     t0 = time.perf_counter()
     with torch.no_grad():
@@ -47,9 +48,9 @@ def run_episode(
                 policy_time += time.perf_counter() - tp
                 backend.command(accel, policy_period * dt)
             state = backend.step()
-            rec.update(state[..., 0:2])
+            rec.update(AGENT.position(state))
     wall = time.perf_counter() - t0
-    result = rec.finish(state[..., 0:2])
+    result = rec.finish(AGENT.position(state))
     S, N, _ = starts.shape
     stats = {
         "wall_s": wall,

@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.dynamics.system import BoxControlSystem
 from madpinn.observation import (
-    AGENT,
     EGO_DIM,
     EGO_VELOCITY,
     NEIGHBOUR_DIM,

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.observation import (
-    AGENT,
     EGO_DIM,
     EGO_VELOCITY,
     NEIGHBOUR_DIM,

@@ -26,7 +26,8 @@ import itertools
 
 import torch
 
-from madpinn.observation import AGENT, EGO_DIM, NEIGHBOUR_DIM
+from madpinn.dynamics import AGENT
+from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
 
 GROUPS = ("none", "point", "d4", "full")
 
