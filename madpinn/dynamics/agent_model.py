@@ -28,6 +28,16 @@ Bound = float | Sequence[float]
 """A bound for every agent (scalar) or one per agent (sequence of N values)."""
 
 
+def pair_threshold(radius: Bound, like: torch.Tensor) -> float | torch.Tensor:
+    """Collision threshold of agent pairs from the agents' collision radii (m): a scalar unchanged,
+    per-agent radii ``r [N]`` as ``(r_i + r_j)/2`` ``[N, N]`` (equal radii give r), broadcasting
+    over distances ``like`` ``[..., N, N]``."""
+    if isinstance(radius, (int, float)):
+        return float(radius)
+    r = torch.as_tensor(radius, dtype=like.dtype, device=like.device)
+    return 0.5 * (r[:, None] + r[None, :])
+
+
 class AgentModel(BoxControlSystem):
     """One agent's dynamics, vectorised over any leading batch shape (scenarios, agents).
 

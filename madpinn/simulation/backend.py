@@ -48,7 +48,7 @@ class DoubleIntegratorBackend:
         """``[S, N]`` bool: agents stopped by a collision (all False without ``freeze_radius``)"""
 
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
-        self.state = torch.cat([positions, velocities], dim=-1)
+        self.state = self.dynamics.join(positions, velocities)
         self._accel = torch.zeros_like(positions)
         self.frozen = torch.zeros(positions.shape[:-1], dtype=torch.bool, device=positions.device)
         self._freeze_new()
@@ -57,8 +57,9 @@ class DoubleIntegratorBackend:
     def command(self, accel: torch.Tensor, duration: float) -> None:
         if self.state is None:
             raise RuntimeError("reset() before command()")
-        if accel.shape != self.state.shape[:-1] + (2,):
-            raise ValueError(f"accel must be {tuple(self.state.shape[:-1]) + (2,)}, got {tuple(accel.shape)}")
+        shape = self.state.shape[:-1] + (self.dynamics.control_dim,)
+        if accel.shape != shape:
+            raise ValueError(f"accel must be {tuple(shape)}, got {tuple(accel.shape)}")
         if not torch.isfinite(accel).all():
             raise ValueError("non-finite acceleration command")
         self._accel = self.dynamics.clip_control(accel)
