@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.dynamics.double_integrator import hold_step
 from madpinn.scenarios import UNIFORM, Arena, generate_scenario
 
@@ -108,8 +109,8 @@ def _programme(kind: str, steps: int, h: float, u_max: float, v_max: float, batc
 def _solve(kind: str, offsets: np.ndarray, s: OracleSettings, velocities: np.ndarray | None = None):
     """Programme ``kind`` for ``offsets`` ``[A, 2]`` = start − goal (m) and initial ``velocities``
     ``[A, 2]`` (m/s, default rest). Returns each agent's optimum ``[A]`` and first control ``[A, 2]``."""
-    offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
-    vel = np.zeros_like(offsets) if velocities is None else np.asarray(velocities, dtype=float).reshape(-1, 2)
+    offsets = np.asarray(offsets, dtype=float).reshape(-1, AGENT.position_dim)
+    vel = np.zeros_like(offsets) if velocities is None else np.asarray(velocities, dtype=float).reshape(-1, AGENT.position_dim)
     if not (np.isfinite(offsets).all() and np.isfinite(vel).all()) or vel.shape != offsets.shape:
         raise ValueError("oracle offsets and velocities must be finite arrays of the same shape [A, 2]")
     if (np.abs(vel) > s.v_max + 1e-9).any():
@@ -159,11 +160,11 @@ def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, min_sepa
         raise ValueError(f"oracle horizon {settings.horizon_s} s differs from the {arena.name} episode {arena.episode_s} s")
     offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, min_separation, pattern))
                         for i in range(count)])
-    lb = lower_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
+    lb = lower_bound(offsets.reshape(-1, AGENT.position_dim), settings).reshape(count, n_agents).mean(axis=1)
     df = pd.DataFrame({"arena": arena.name, "pattern": pattern, "n_agents": int(n_agents), "seed": int(seed),
                        "scenario": np.arange(count), "oracle_cost": lb, "oracle_cost_time_avg": lb / arena.episode_s})
     if with_upper:
-        df["oracle_upper"] = upper_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
+        df["oracle_upper"] = upper_bound(offsets.reshape(-1, AGENT.position_dim), settings).reshape(count, n_agents).mean(axis=1)
     return df
 
 
@@ -185,7 +186,7 @@ def receding_horizon_cost(offsets: np.ndarray, episode_s: float, horizon_s: floa
     (min ∫₀^H‖x‖dt + ‖x(H)‖, exact piecewise-constant programme) every ``dt`` and applies its first
     control (exact double-integrator step; cost by the trapezoid rule on ``substeps`` per step).
     What a receding horizon as short as V̂'s (0.2 s) costs without any other agent."""
-    x = np.asarray(offsets, dtype=float).reshape(-1, 2).copy()
+    x = np.asarray(offsets, dtype=float).reshape(-1, AGENT.position_dim).copy()
     v = np.zeros_like(x)
     s = OracleSettings(horizon_s=horizon_s, u_max=u_max, v_max=v_max, dt=dt)
     steps = int(round(episode_s / dt))
