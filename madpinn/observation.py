@@ -193,6 +193,14 @@ def split_observation(obs: torch.Tensor, n_neighbours: int):
     return positions, velocities, goals
 
 
+def join_observation(positions: torch.Tensor, velocities: torch.Tensor, goals: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`split_observation`: ``(positions, velocities, goals)`` each ``[..., n+1, d]``,
+    relative to the ego position (the ego's own position is dropped) -> observation ``[..., D]``."""
+    ego = torch.cat([velocities[..., 0, :], goals[..., 0, :]], dim=-1)
+    nbr = torch.cat([positions[..., 1:, :], velocities[..., 1:, :], goals[..., 1:, :]], dim=-1).flatten(-2)
+    return torch.cat([ego, nbr], dim=-1)
+
+
 def running_cost(obs: torch.Tensor, n_neighbours: int) -> torch.Tensor:
     """l_d: sum over observed agents of the distance to their goal, ``[...]`` (m)."""
     positions, _, goals = split_observation(obs, n_neighbours)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import torch
 
 from madpinn.dynamics.double_integrator import hold_step
-from madpinn.observation import split_observation
+from madpinn.observation import join_observation, split_observation
 from madpinn.value_functions.sampling import ConflictSamplingSettings, place_conflicts
 from madpinn.value_functions.z_search import min_feasible_z
 
@@ -95,11 +95,8 @@ def draw_safe_states(vhat, n: int, conflict: ConflictSamplingSettings, generator
 
 
 def _observation(pos, vel, goal):
-    """Global ``[B, A, 2]`` arrays -> observation relative to agent 0 ``[B, D]``."""
-    rel_p, rel_g = pos - pos[:, :1], goal - pos[:, :1]
-    ego = torch.cat([vel[:, 0], rel_g[:, 0]], -1)
-    nbr = torch.cat([rel_p[:, 1:], vel[:, 1:], rel_g[:, 1:]], -1).flatten(1)
-    return torch.cat([ego, nbr], -1)
+    """Global ``[B, A, d]`` arrays -> observation relative to agent 0 ``[B, D]``."""
+    return join_observation(pos - pos[:, :1], vel, goal - pos[:, :1])
 
 
 @torch.no_grad()
