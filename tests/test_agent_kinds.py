@@ -60,3 +60,10 @@ def test_a_scalar_radius_is_the_old_recorder():
     res, _ = run_episode(DoubleIntegratorBackend(MODEL, DT), NominalPD(MODEL, 6.0, 4.9), starts, goals, 4, 0.3,
                          progress=False)
     assert res.collided.tolist() == [[True, True, True, True]] and res.collision_radius == pytest.approx(0.3)
+
+
+def test_policies_and_backends_with_one_box_refuse_per_agent_bounds():
+    from madpinn.policies.mppi import MPPIPlanner
+
+    with pytest.raises(ValueError, match="MPPI needs one u_max and v_max"):
+        MPPIPlanner(None, MODEL, 0.1, torch.Generator())

@@ -90,6 +90,11 @@ class AgentModel(BoxControlSystem):
             return float(bound)
         return torch.as_tensor(bound, dtype=like.dtype, device=like.device)[:, None]
 
+    def require_uniform_bounds(self, user: str) -> None:
+        """Raise for per-agent bounds where ``user`` (a policy, a backend) holds one box for all agents."""
+        if not all(isinstance(b, (int, float)) for b in (self.u_max, self.v_max)):
+            raise ValueError(f"{user} needs one u_max and v_max for all agents, got u_max={self.u_max}, v_max={self.v_max}")
+
     @property
     def control_bound(self) -> float:
         """ū of :class:`BoxControlSystem` (a scalar bound; per-agent bounds clip in :meth:`clip_control`)."""

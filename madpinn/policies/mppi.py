@@ -119,6 +119,7 @@ class MPPIPlanner:
 
     def __init__(self, params: MPPISettings, dynamics: AgentModel, collision_radius: float,
                  generator: torch.Generator):
+        dynamics.require_uniform_bounds("MPPI")   # its samples are [B = S·N, K, m]: no agent axis to broadcast over
         self.p = params
         self.dynamics = dynamics
         self.r = float(collision_radius)

@@ -44,6 +44,7 @@ class MujocoBackend:
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"sim.dt must be positive, got {dt}")
         settings.validate()
+        dynamics.require_uniform_bounds("the MuJoCo backend")   # its arrays are [S·N, d]
         self.dynamics = dynamics
         self._axes = slice(0, dynamics.position_dim)   # the model's axes among MuJoCo's x, y, z
         self.dt = float(dt)
