@@ -57,7 +57,7 @@ NET = {"hidden": 256, "layers": 3, "first_omega": 30.0, "hidden_omega": 30.0}
 def models(vhat_path: str | None, vs_path: str | None, tmp: Path):
     if vhat_path and vs_path and Path(vhat_path).is_file() and Path(vs_path).is_file():
         return load_vhat(vhat_path), load_vs(vs_path), "trained"
-    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.value_functions.epigraph import EpigraphSystem
     from madpinn.dynamics.pair import PairSystem
     from madpinn.value_functions.model import build_network, model_payload, save_atomic
     from madpinn.value_functions.problems import EpigraphProblem, PairProblem

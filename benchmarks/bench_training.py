@@ -24,7 +24,7 @@ import torch
 
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.device import resolve_device
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.observation import ObservationSettings
 from madpinn.value_functions.model import build_network
 from madpinn.value_functions.problems import EpigraphProblem, assemble

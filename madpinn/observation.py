@@ -2,11 +2,12 @@
 
 One implementation shared by value-function training, policies and metrics.
 
-Observation layout for ``n`` neighbours, ``D = 4 + 6n`` (all offsets relative to the ego
-position, so the observation is translation invariant; units m and m/s)::
+Observation layout for ``n`` neighbours of agents with ``d``-dimensional positions (the agent
+model's ``position_dim``, 2 for the planar double integrator), ``D = 2d + 3d·n`` (all offsets
+relative to the ego position, so the observation is translation invariant; units m and m/s)::
 
-    [ v_ego (2), g_ego - p_ego (2),
-      for each neighbour j:  p_j - p_ego (2), v_j (2), g_j - p_ego (2) ]
+    [ v_ego (d), g_ego - p_ego (d),
+      for each neighbour j:  p_j - p_ego (d), v_j (d), g_j - p_ego (d) ]
 
 Deployment maps a global state into this layout with :func:`build_observation`: goal offsets
 beyond ``goal_range − carrot_margin`` are shortened along their direction (a carrot strictly inside
@@ -28,8 +29,15 @@ from dataclasses import dataclass, replace
 
 import torch
 
-EGO_DIM = 4
-NEIGHBOUR_DIM = 6
+from madpinn.dynamics import AGENT
+
+_D = AGENT.position_dim
+EGO_VELOCITY, EGO_GOAL = slice(0, _D), slice(_D, 2 * _D)
+"""where the ego's velocity and goal offset sit in the observation"""
+NEIGHBOUR_POSITION, NEIGHBOUR_VELOCITY, NEIGHBOUR_GOAL = slice(0, _D), slice(_D, 2 * _D), slice(2 * _D, 3 * _D)
+"""where a neighbour's position offset, velocity and goal offset sit in its block"""
+EGO_DIM = 2 * _D
+NEIGHBOUR_DIM = 3 * _D
 PHANTOM = -1
 NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
 TRAINING_MAPPING = {"carrot_margin": 0.0, "neighbour_goal": "ego"}
@@ -102,7 +110,7 @@ class ObservationSettings:
 
 
 def shrink_to_box(vec: torch.Tensor, bound: float) -> torch.Tensor:
-    """Scale 2-vectors ``[..., 2]`` along their direction so that max |coordinate| ≤ bound."""
+    """Scale d-vectors ``[..., d]`` along their direction so that max |coordinate| ≤ bound."""
     max_abs = vec.abs().amax(dim=-1, keepdim=True)
     scale = torch.where(max_abs > bound, bound / max_abs.clamp_min(1e-12), torch.ones_like(max_abs))
     return vec * scale
@@ -112,7 +120,7 @@ def clip_ray_to_box(origin: torch.Tensor, ray: torch.Tensor, bound: float) -> to
     """Largest ``s ∈ [0, 1]`` with ``origin + s·ray`` inside ``[−bound, bound]²`` (per row), times
     ``ray``: the ray cut at the box, direction kept. ``origin`` outside the box gives the part of
     the ray that stays no farther out than ``origin`` (s = 0 when the ray points outward).
-    Shapes ``[..., 2]``."""
+    Shapes ``[..., d]``."""
     hi = origin.clamp_min(bound)    # an origin outside the box is never pushed further out
     lo = origin.clamp_max(-bound)
     room = torch.where(ray > 0, hi - origin, origin - lo)   # distance to the wall the ray heads for
@@ -140,15 +148,15 @@ def gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
 def build_observation(
     state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSettings
 ) -> torch.Tensor:
-    """Global state ``[S, N, 4]``, goals ``[S, N, 2]``, neighbour indices ``[S, N, n]`` (−1 =
-    phantom) -> observations ``[S, N, 4 + 6n]``."""
-    if state.dim() != 3 or state.shape[-1] != 4:
-        raise ValueError(f"state must be [S, N, 4], got {tuple(state.shape)}")
-    if goals.shape != state.shape[:-1] + (2,):
-        raise ValueError(f"goals must be [S, N, 2] matching state, got {tuple(goals.shape)}")
+    """Global state ``[S, N, 2d]``, goals ``[S, N, d]``, neighbour indices ``[S, N, n]`` (−1 =
+    phantom) -> observations ``[S, N, 2d + 3d·n]``."""
+    if state.dim() != 3 or state.shape[-1] != AGENT.state_dim:
+        raise ValueError(f"state must be [S, N, {AGENT.state_dim}], got {tuple(state.shape)}")
+    if goals.shape != state.shape[:-1] + (_D,):
+        raise ValueError(f"goals must be [S, N, {_D}] matching state, got {tuple(goals.shape)}")
     if neighbours.shape != state.shape[:-1] + (spec.n_neighbours,):
         raise ValueError(f"neighbours must be [S, N, {spec.n_neighbours}], got {tuple(neighbours.shape)}")
-    p, v = state[..., 0:2], state[..., 2:4]
+    p, v = AGENT.position(state), AGENT.velocity(state)
     phantom = neighbours < 0
     idx = neighbours.clamp_min(0)
     p_j = gather_agents(p, idx) - p.unsqueeze(2)
@@ -172,17 +180,25 @@ def build_observation(
 
 
 def split_observation(obs: torch.Tensor, n_neighbours: int):
-    """Observation ``[..., D]`` -> ``(positions, velocities, goals)`` each ``[..., n+1, 2]``,
+    """Observation ``[..., D]`` -> ``(positions, velocities, goals)`` each ``[..., n+1, d]``,
     relative to the ego position (ego first, at the origin)."""
     if obs.shape[-1] != EGO_DIM + NEIGHBOUR_DIM * n_neighbours:
         raise ValueError(f"observation has {obs.shape[-1]} features, expected {EGO_DIM + NEIGHBOUR_DIM * n_neighbours}")
     lead = obs.shape[:-1]
     nbr = obs[..., EGO_DIM:].reshape(*lead, n_neighbours, NEIGHBOUR_DIM)
-    ego_p = torch.zeros(*lead, 1, 2, dtype=obs.dtype, device=obs.device)
-    positions = torch.cat([ego_p, nbr[..., 0:2]], dim=-2)
-    velocities = torch.cat([obs[..., None, 0:2], nbr[..., 2:4]], dim=-2)
-    goals = torch.cat([obs[..., None, 2:4], nbr[..., 4:6]], dim=-2)
+    ego_p = torch.zeros(*lead, 1, _D, dtype=obs.dtype, device=obs.device)
+    positions = torch.cat([ego_p, nbr[..., NEIGHBOUR_POSITION]], dim=-2)
+    velocities = torch.cat([obs[..., None, EGO_VELOCITY], nbr[..., NEIGHBOUR_VELOCITY]], dim=-2)
+    goals = torch.cat([obs[..., None, EGO_GOAL], nbr[..., NEIGHBOUR_GOAL]], dim=-2)
     return positions, velocities, goals
+
+
+def join_observation(positions: torch.Tensor, velocities: torch.Tensor, goals: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`split_observation`: ``(positions, velocities, goals)`` each ``[..., n+1, d]``,
+    relative to the ego position (the ego's own position is dropped) -> observation ``[..., D]``."""
+    ego = torch.cat([velocities[..., 0, :], goals[..., 0, :]], dim=-1)
+    nbr = torch.cat([positions[..., 1:, :], velocities[..., 1:, :], goals[..., 1:, :]], dim=-1).flatten(-2)
+    return torch.cat([ego, nbr], dim=-1)
 
 
 def running_cost(obs: torch.Tensor, n_neighbours: int) -> torch.Tensor:
@@ -210,7 +226,7 @@ def constraint(obs: torch.Tensor, n_neighbours: int, collision_radius: float) ->
 
 
 def pairwise_distances(positions: torch.Tensor) -> torch.Tensor:
-    """positions ``[S, N, 2]`` -> distances ``[S, N, N]`` with +inf on the diagonal.
+    """positions ``[S, N, d]`` -> distances ``[S, N, N]`` with +inf on the diagonal.
 
     Exact differences, not the matrix-product expansion (whose float32 cancellation error reaches
     millimetres at arena scale — too coarse for collision checks at r = 0.1 m).
@@ -224,7 +240,7 @@ def nearest_neighbours(state: torch.Tensor, n: int, radius: float | None = None)
     """Indices ``[S, N, n]`` of the n nearest other agents (−1 where fewer exist or all
     remaining are beyond ``radius``)."""
     S, N, _ = state.shape
-    d = pairwise_distances(state[..., 0:2])
+    d = pairwise_distances(AGENT.position(state))
     if radius is not None:
         d = d.masked_fill(d > radius, float("inf"))
     k = min(n, N - 1)

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel, DoubleIntegrator
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,6 @@ class AgentSettings:
         a = cfg["agents"]
         return cls(collision_radius=float(a["collision_radius"]), u_max=float(a["u_max"]), v_max=float(a["v_max"]))
 
-    def dynamics(self) -> DoubleIntegrator:
+    def dynamics(self) -> AgentModel:
         """The agents' double integrator (the one place it is built from settings)."""
         return DoubleIntegrator(u_max=self.u_max, v_max=self.v_max)

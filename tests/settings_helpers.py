@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from madpinn.config import deep_merge, load_config
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.marl.defmarl.epigraph import EpigraphSettings
 from madpinn.marl.env import EnvSettings, RewardSettings

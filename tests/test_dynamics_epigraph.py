@@ -5,7 +5,7 @@ import itertools
 import pytest
 import torch
 
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.observation import build_observation, constraint, running_cost, terminal_cost
 from settings_helpers import observation_settings
 

@@ -24,8 +24,8 @@ LAYERS = [
     {"conflicts", "encounters"},     # a scenario layout's conflicts: its pattern, its straight-line encounters
     {"scenarios"},
     {"config"},                      # reads scenarios to check agent counts
-    {"observation"},
-    {"dynamics"},
+    {"dynamics"},                    # the agent models and the pair system
+    {"observation"},                 # its layout follows the agent model
     {"settings"},                    # the agents' settings build the dynamics
     {"value_functions", "marl", "marl_hash"},
     {"policies"},

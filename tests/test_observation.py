@@ -199,7 +199,7 @@ def test_bad_carrot_margin_and_mode_fail_early():
 def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_hash(paper_cfg):
     import copy
 
-    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.value_functions.epigraph import EpigraphSystem
     from madpinn.value_functions.build import training_hash
 
     cfg = copy.deepcopy(paper_cfg)
@@ -209,3 +209,10 @@ def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_
     assert spec.carrot_margin == 0.0 and spec.neighbour_goal == "ego"
     cfg["value_functions"]["vhat"]["velocity_saturation"] = True      # this one does retrain
     assert training_hash(cfg, "vhat") != training_hash(paper_cfg, "vhat")
+
+
+def test_join_observation_inverts_split_observation():
+    from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, join_observation, split_observation
+
+    obs = torch.randn(5, 7, EGO_DIM + NEIGHBOUR_DIM * 3, generator=torch.Generator().manual_seed(3), dtype=torch.float64)
+    assert torch.equal(join_observation(*split_observation(obs, 3)), obs)

@@ -27,7 +27,7 @@ import pytest
 from conftest import REPO
 from madpinn.config import ConfigError, method_config, validate_config
 from madpinn.config.schema import _schema, node_at, object_branch, resolve
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.evaluation.oracle import OracleSettings
 from madpinn.marl.defmarl.epigraph import EpigraphSettings

@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.value_functions import CheckpointError, load_vhat, load_vs
 from madpinn.value_functions.model import build_network, model_payload, save_atomic

@@ -4,7 +4,7 @@ terminal condition of both parameterisations."""
 import pytest
 import torch
 
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.value_functions.model import PairValue, VHat, build_network
 from madpinn.value_functions.problems import EpigraphProblem, PairProblem, assemble

@@ -8,7 +8,7 @@ import torch
 
 from madpinn.commands import main
 from madpinn.config import ConfigError, REPO_ROOT, load_config, validate_config
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.value_functions import load_vhat, load_vs, min_feasible_z
 from madpinn.value_functions.model import VHat, PairValue, build_network

@@ -15,9 +15,11 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics import AGENT
+from madpinn.dynamics.double_integrator import hold_step
 from madpinn.dynamics.system import BoxControlSystem
 
-STATE_DIM = 4
+STATE_DIM = AGENT.state_dim
 
 
 @dataclass(frozen=True)
@@ -40,7 +42,7 @@ class PairSystem(BoxControlSystem):
 
     def control_grad(self, dv_dx: torch.Tensor) -> torch.Tensor:
         """``∂V/∂v`` ``[..., 2]``: the relative control enters the relative velocity."""
-        return dv_dx[..., 2:4]
+        return AGENT.velocity(dv_dx)
 
     @property
     def state_dim(self) -> int:
@@ -52,7 +54,8 @@ class PairSystem(BoxControlSystem):
         return 2.0 * self.u_max
 
     def half_widths(self) -> torch.Tensor:
-        return torch.tensor([self.p_range] * 2 + [self.v_range] * 2, dtype=torch.float64)
+        d = AGENT.position_dim
+        return torch.tensor([self.p_range] * d + [self.v_range] * d, dtype=torch.float64)
 
     def sample(self, batch: int, generator: torch.Generator, dtype=torch.float32, device="cpu") -> torch.Tensor:
         u = torch.rand(batch, STATE_DIM, generator=generator, dtype=dtype)
@@ -60,11 +63,11 @@ class PairSystem(BoxControlSystem):
 
     def target(self, x: torch.Tensor) -> torch.Tensor:
         """ψ(x) = ‖p‖ − r ``[...]`` (m)."""
-        return torch.linalg.vector_norm(x[..., 0:2], dim=-1) - self.collision_radius
+        return torch.linalg.vector_norm(AGENT.position(x), dim=-1) - self.collision_radius
 
     def target_and_grad(self, x: torch.Tensor):
         """ψ ``[B]`` and ∂ψ/∂x ``[B, 4]`` (exact away from p = 0)."""
-        p = x[..., 0:2]
+        p = AGENT.position(x)
         norm = torch.linalg.vector_norm(p, dim=-1, keepdim=True)
         grad_p = p / norm.clamp_min(1e-12)
         return norm[..., 0] - self.collision_radius, torch.cat([grad_p, torch.zeros_like(p)], dim=-1)
@@ -75,22 +78,20 @@ class PairSystem(BoxControlSystem):
 
     def f(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """Vector field ``[..., 4]`` for the relative control ``u [..., 2]`` (clipped to ±2u_max)."""
-        return torch.cat([x[..., 2:4], u.clamp(-self.u_rel_max, self.u_rel_max)], dim=-1)
+        return AGENT.join(AGENT.velocity(x), u.clamp(-self.u_rel_max, self.u_rel_max))
 
     def hamiltonian(self, x: torch.Tensor, dv_dx: torch.Tensor) -> torch.Tensor:
         """``max_u ⟨∇V, f(x, u)⟩`` ``[B]``; the maximising (safest) relative control
         ``2u_max·sign(∂V/∂v)`` ``[B, 2]`` is :meth:`optimal_control` (from the box)."""
-        return self.hamiltonian_from((dv_dx[..., 0:2] * x[..., 2:4]).sum(-1), dv_dx)
+        return self.hamiltonian_from((AGENT.position(dv_dx) * AGENT.velocity(x)).sum(-1), dv_dx)
 
     def hjb_residual(self, x, value, dv_dt, dv_dx) -> torch.Tensor:
         """Paper eq. (HJI-VI): ``min{∂_t V + H_s, ψ − V}`` ``[B]``."""
         return torch.minimum(dv_dt + self.hamiltonian(x, dv_dx), self.target(x) - value)
 
     def step(self, x: torch.Tensor, u: torch.Tensor, dt: float) -> torch.Tensor:
-        """Exact zero-order-hold step of the relative double integrator."""
-        u = u.clamp(-self.u_rel_max, self.u_rel_max)
-        p, v = x[..., 0:2], x[..., 2:4]
-        return torch.cat([p + v * dt + 0.5 * u * dt * dt, v + u * dt], dim=-1)
+        """Exact zero-order-hold step of the relative double integrator (:func:`hold_step`, no saturation)."""
+        return AGENT.join(*hold_step(AGENT.position(x), AGENT.velocity(x), u.clamp(-self.u_rel_max, self.u_rel_max), dt))
 
     @classmethod
     def from_config(cls, cfg: dict) -> "PairSystem":
@@ -106,7 +107,7 @@ def free_drift_and_grad(x: torch.Tensor, remaining: float | torch.Tensor, radius
     ``x [B, 4]`` over the remaining horizon ``T'`` (s): the safety margin with no relative
     control, a lower bound of the exact V_s (which maximises over controls); ``≤ ψ`` (τ = 0).
     Gradient by the envelope theorem at the minimiser τ*: ``(u, τ*·u)``, u the unit closest offset."""
-    p, v = x[..., 0:2], x[..., 2:4]
+    p, v = AGENT.position(x), AGENT.velocity(x)
     tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(min=0.0)
     tau = torch.minimum(tau, torch.as_tensor(remaining, dtype=x.dtype, device=x.device).expand_as(tau))
     d = p + v * tau[..., None]

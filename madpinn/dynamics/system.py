@@ -26,7 +26,7 @@ class BoxControlSystem:
     control_mode: ClassVar[str]
     """``"min"`` or ``"max"``: what the control does to the value"""
     control_ndim: ClassVar[int] = 1
-    """trailing dimensions of :meth:`control_grad` (1: ``[..., m]``; 2: ``[..., agents, 2]``)"""
+    """trailing dimensions of :meth:`control_grad` (1: ``[..., m]``; 2: ``[..., agents, d]``)"""
 
     @property
     def control_bound(self) -> float:

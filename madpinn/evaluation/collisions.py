@@ -22,6 +22,8 @@ from collections import Counter
 import numpy as np
 import torch
 
+from madpinn.dynamics import AGENT
+
 
 class CollisionProbe:
     """Wraps a MAD-PINN policy; classifies collision onsets seen at its decision times."""
@@ -44,7 +46,7 @@ class CollisionProbe:
 
     def act(self, state, goals, t):
         u = self.policy.act(state, goals, t)
-        p, v = state[..., 0:2].detach().cpu().double(), state[..., 2:4].detach().cpu().double()
+        p, v = AGENT.position(state).detach().cpu().double(), AGENT.velocity(state).detach().cpu().double()
         rel = p[:, :, None] - p[:, None]
         d = rel.norm(dim=-1)
         S, N, _ = d.shape

@@ -32,7 +32,10 @@ from typing import Mapping
 
 import numpy as np
 import pandas as pd
+import torch
 
+from madpinn.dynamics import AGENT
+from madpinn.dynamics.double_integrator import hold_step
 from madpinn.scenarios import UNIFORM, Arena, generate_scenario
 
 BATCH = 64   # agents per programme (padded with zero offsets, whose cost is exactly 0)
@@ -70,12 +73,13 @@ class OracleSettings:
 def _programme(kind: str, steps: int, h: float, u_max: float, v_max: float, batch: int):
     import cvxpy as cp
 
-    x0 = cp.Parameter((batch, 2), name="x0")
-    v0 = cp.Parameter((batch, 2), name="v0")
-    X = [cp.Variable((batch, steps + 1)) for _ in range(2)]   # per axis: offsets at t_k (m)
-    V = [cp.Variable((batch, steps + 1)) for _ in range(2)]   # velocities (m/s)
+    d = AGENT.position_dim
+    x0 = cp.Parameter((batch, d), name="x0")
+    v0 = cp.Parameter((batch, d), name="v0")
+    X = [cp.Variable((batch, steps + 1)) for _ in range(d)]   # per axis: offsets at t_k (m)
+    V = [cp.Variable((batch, steps + 1)) for _ in range(d)]   # velocities (m/s)
     cons = []
-    for a in range(2):
+    for a in range(d):
         x, v = X[a], V[a]
         cons += [x[:, 0] == x0[:, a], v[:, 0] == v0[:, a], cp.abs(v) <= v_max]
         dx, dv = x[:, 1:] - x[:, :-1], v[:, 1:] - v[:, :-1]
@@ -85,29 +89,34 @@ def _programme(kind: str, steps: int, h: float, u_max: float, v_max: float, batc
                      cp.abs(dx) <= v_max * h]
         else:
             cons += [cp.abs(dv) <= u_max * h, dx == h * (v[:, :-1] + v[:, 1:]) / 2]   # ZOH: x += h v + h²u/2
-    M = [cp.Variable((batch, steps)) for _ in range(2)] if kind == "lower" else None   # interval means (m)
+    M = [cp.Variable((batch, steps)) for _ in range(d)] if kind == "lower" else None   # interval means (m)
     if kind == "lower":
-        for a in range(2):
+        for a in range(d):
             cons.append(cp.abs(M[a] - (X[a][:, :-1] + X[a][:, 1:]) / 2) <= u_max * h**2 / 12)
-        run = cp.norm(cp.vstack([cp.vec(M[0], order="C"), cp.vec(M[1], order="C")]), 2, axis=0)
+        run = cp.norm(cp.vstack([cp.vec(m, order="C") for m in M]), 2, axis=0)
         cost = h * cp.sum(run)
     else:
-        node = cp.norm(cp.vstack([cp.vec(X[0], order="C"), cp.vec(X[1], order="C")]), 2, axis=0)
+        node = cp.norm(cp.vstack([cp.vec(x, order="C") for x in X]), 2, axis=0)
         w = np.ones(steps + 1)
         w[[0, -1]] = 0.5                                            # trapezoid weights per block
-        dv = [cp.vec(V[a][:, 1:] - V[a][:, :-1], order="C") for a in range(2)]
+        dv = [cp.vec(v[:, 1:] - v[:, :-1], order="C") for v in V]
         bow = h**2 / 12 * cp.sum(cp.norm(cp.vstack(dv), 2, axis=0))   # Σ h³/12·‖u_k‖, u_k = Δv_k / h
         cost = h * (np.tile(w, batch) @ node) + bow
-    final = cp.norm(cp.vstack([X[0][:, steps], X[1][:, steps]]), 2, axis=0)
+    final = cp.norm(cp.vstack([x[:, steps] for x in X]), 2, axis=0)
     cost = cost + cp.sum(final)
     return cp.Problem(cp.Minimize(cost), cons), x0, v0, X, V, M
+
+
+def _norm(axes: list[np.ndarray]) -> np.ndarray:
+    """Euclidean norm over per-axis arrays (``np.hypot`` folded over the axes)."""
+    return np.hypot.reduce(np.stack(axes), axis=0)
 
 
 def _solve(kind: str, offsets: np.ndarray, s: OracleSettings, velocities: np.ndarray | None = None):
     """Programme ``kind`` for ``offsets`` ``[A, 2]`` = start − goal (m) and initial ``velocities``
     ``[A, 2]`` (m/s, default rest). Returns each agent's optimum ``[A]`` and first control ``[A, 2]``."""
-    offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
-    vel = np.zeros_like(offsets) if velocities is None else np.asarray(velocities, dtype=float).reshape(-1, 2)
+    offsets = np.asarray(offsets, dtype=float).reshape(-1, AGENT.position_dim)
+    vel = np.zeros_like(offsets) if velocities is None else np.asarray(velocities, dtype=float).reshape(-1, AGENT.position_dim)
     if not (np.isfinite(offsets).all() and np.isfinite(vel).all()) or vel.shape != offsets.shape:
         raise ValueError("oracle offsets and velocities must be finite arrays of the same shape [A, 2]")
     if (np.abs(vel) > s.v_max + 1e-9).any():
@@ -117,21 +126,21 @@ def _solve(kind: str, offsets: np.ndarray, s: OracleSettings, velocities: np.nda
     prob, x0, v0, X, V, M = _programme(kind, s.steps, h, s.u_max, s.v_max, batch)
     for first in range(0, len(offsets), batch):
         n = len(offsets[first:first + batch])
-        pad = np.zeros((batch - n, 2))
+        pad = np.zeros((batch - n, offsets.shape[1]))
         x0.value = np.vstack([offsets[first:first + batch], pad])
         v0.value = np.clip(np.vstack([vel[first:first + batch], pad]), -s.v_max, s.v_max)
         prob.solve(solver="CLARABEL")
         if prob.status != "optimal":
             raise RuntimeError(f"oracle {kind} programme ended '{prob.status}'")
         # the programme is block-separable, so each agent's block is optimal alone: its own cost
-        node = np.hypot(X[0].value, X[1].value)                       # [B, K+1] ‖x_k‖
+        node = _norm([x.value for x in X])                            # [B, K+1] ‖x_k‖
         if kind == "lower":
-            per = h * np.hypot(M[0].value, M[1].value).sum(axis=1)
+            per = h * _norm([m.value for m in M]).sum(axis=1)
         else:
-            dv = np.hypot(np.diff(V[0].value, axis=1), np.diff(V[1].value, axis=1))
+            dv = _norm([np.diff(v.value, axis=1) for v in V])
             per = h * (node[:, :-1] + node[:, 1:]).sum(axis=1) / 2 + h**2 / 12 * dv.sum(axis=1)
         out[first:first + n] = (per + node[:, -1])[:n]
-        first_u[first:first + n] = np.stack([V[a].value[:n, 1] - V[a].value[:n, 0] for a in range(2)], axis=-1) / h
+        first_u[first:first + n] = np.stack([V[a].value[:n, 1] - V[a].value[:n, 0] for a in range(len(V))], axis=-1) / h
     return out, np.clip(first_u, -s.u_max, s.u_max)
 
 
@@ -157,11 +166,11 @@ def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, min_sepa
         raise ValueError(f"oracle horizon {settings.horizon_s} s differs from the {arena.name} episode {arena.episode_s} s")
     offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, min_separation, pattern))
                         for i in range(count)])
-    lb = lower_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
+    lb = lower_bound(offsets.reshape(-1, AGENT.position_dim), settings).reshape(count, n_agents).mean(axis=1)
     df = pd.DataFrame({"arena": arena.name, "pattern": pattern, "n_agents": int(n_agents), "seed": int(seed),
                        "scenario": np.arange(count), "oracle_cost": lb, "oracle_cost_time_avg": lb / arena.episode_s})
     if with_upper:
-        df["oracle_upper"] = upper_bound(offsets.reshape(-1, 2), settings).reshape(count, n_agents).mean(axis=1)
+        df["oracle_upper"] = upper_bound(offsets.reshape(-1, AGENT.position_dim), settings).reshape(count, n_agents).mean(axis=1)
     return df
 
 
@@ -183,7 +192,7 @@ def receding_horizon_cost(offsets: np.ndarray, episode_s: float, horizon_s: floa
     (min ∫₀^H‖x‖dt + ‖x(H)‖, exact piecewise-constant programme) every ``dt`` and applies its first
     control (exact double-integrator step; cost by the trapezoid rule on ``substeps`` per step).
     What a receding horizon as short as V̂'s (0.2 s) costs without any other agent."""
-    x = np.asarray(offsets, dtype=float).reshape(-1, 2).copy()
+    x = np.asarray(offsets, dtype=float).reshape(-1, AGENT.position_dim).copy()
     v = np.zeros_like(x)
     s = OracleSettings(horizon_s=horizon_s, u_max=u_max, v_max=v_max, dt=dt)
     steps = int(round(episode_s / dt))
@@ -193,8 +202,8 @@ def receding_horizon_cost(offsets: np.ndarray, episode_s: float, horizon_s: floa
     cost = np.zeros(len(x))
     for _ in range(steps):
         u = _solve("upper", x, s, v)[1]
-        path = x + tau * v + tau**2 / 2 * u                         # [substeps+1, A, 2]
-        d = np.linalg.norm(path, axis=-1)
+        path, vel = (a.numpy() for a in hold_step(*(torch.from_numpy(a) for a in (x[None], v[None], u[None], tau))))
+        d = np.linalg.norm(path, axis=-1)                           # path [substeps+1, A, d]
         cost += (dt / substeps) * (d[:-1] + d[1:]).sum(axis=0) / 2
-        x, v = path[-1], np.clip(v + dt * u, -v_max, v_max)
+        x, v = path[-1], np.clip(vel[-1], -v_max, v_max)            # tau[-1] = dt
     return cost + np.linalg.norm(x, axis=-1)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.marl.features import LocalObs, local_observation
 from madpinn.observation import ObservationSettings, pairwise_distances
 from madpinn.scenarios import Arena, generate_scenarios
@@ -85,7 +85,7 @@ class GoalReachingEnv:
 
     def __init__(
         self,
-        dynamics: DoubleIntegrator,
+        dynamics: AgentModel,
         arena: Arena,
         obs_spec: ObservationSettings,
         cfg: EnvSettings,
@@ -130,7 +130,7 @@ class GoalReachingEnv:
         return local_observation(self.state, self.goals, self.obs_spec, self.cfg.neighbours)
 
     def goal_distance(self) -> torch.Tensor:
-        return torch.linalg.vector_norm(self.state[..., 0:2] - self.goals, dim=-1)
+        return torch.linalg.vector_norm(self.dynamics.position(self.state) - self.goals, dim=-1)
 
     @property
     def done(self) -> bool:
@@ -149,7 +149,7 @@ class GoalReachingEnv:
         for _ in range(self.cfg.substeps):
             self.state = self.dynamics.step(self.state, u, sub_dt)
             if self.state.shape[1] > 1:
-                min_sep = torch.minimum(min_sep, pairwise_distances(self.state[..., 0:2]).amin(-1))
+                min_sep = torch.minimum(min_sep, pairwise_distances(self.dynamics.position(self.state)).amin(-1))
         self.t += 1
         info = StepInfo(dist_prev, self.goal_distance(), min_sep, min_sep <= self.obs_spec.collision_radius, u)
         return self.observe(), info

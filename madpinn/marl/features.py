@@ -15,7 +15,17 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, ObservationSettings, build_observation, nearest_neighbours
+from madpinn.dynamics import AGENT
+from madpinn.observation import (
+    EGO_DIM,
+    NEIGHBOUR_DIM,
+    NEIGHBOUR_GOAL,
+    NEIGHBOUR_POSITION,
+    NEIGHBOUR_VELOCITY,
+    ObservationSettings,
+    build_observation,
+    nearest_neighbours,
+)
 
 EGO_FEATURES = EGO_DIM
 NEIGHBOUR_FEATURES = NEIGHBOUR_DIM
@@ -56,8 +66,8 @@ def local_observation(state: torch.Tensor, goals: torch.Tensor, spec: Observatio
     obs = build_observation(state, goals, idx, kspec)
     ego = obs[..., :EGO_DIM]
     nbr = obs[..., EGO_DIM:].reshape(*obs.shape[:-1], k, NEIGHBOUR_DIM)
-    v_rel = nbr[..., 2:4] - state[..., None, 2:4]
-    nbr = torch.cat([nbr[..., 0:2], v_rel, nbr[..., 4:6]], dim=-1)
+    v_rel = nbr[..., NEIGHBOUR_VELOCITY] - AGENT.velocity(state)[..., None, :]
+    nbr = torch.cat([nbr[..., NEIGHBOUR_POSITION], v_rel, nbr[..., NEIGHBOUR_GOAL]], dim=-1)
     mask = idx >= 0
     nbr = nbr * mask.unsqueeze(-1)  # phantom slots carry zeros (and are masked in the encoder)
     return LocalObs(ego, nbr, mask)

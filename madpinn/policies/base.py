@@ -21,7 +21,7 @@ from typing import Any, Callable, Mapping, Protocol
 import torch
 
 from madpinn.config import ConfigError
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.observation import ObservationSettings
 
 
@@ -37,8 +37,8 @@ class PolicyContext:
 
     method: Any
     """the method's settings (its registered settings class, built by :func:`policy_settings`)"""
-    dynamics: DoubleIntegrator
-    """the agents' double integrator (control bound ``u_max``)"""
+    dynamics: AgentModel
+    """the agents' model (layout, bounds ``u_max`` / ``v_max``, step)"""
     obs_spec: ObservationSettings
     """decentralized observation layout and ranges"""
     device: torch.device

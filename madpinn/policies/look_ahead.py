@@ -16,16 +16,17 @@ from __future__ import annotations
 
 import torch
 
+from madpinn.dynamics import AGENT
+from madpinn.dynamics.double_integrator import hold_step
 from madpinn.observation import ObservationSettings, build_observation
 
 
 def predict_states(state: torch.Tensor, accel: torch.Tensor | None, horizon: float) -> torch.Tensor:
-    """Double-integrator prediction of ``state`` ``[..., 4]`` (m, m/s) ``horizon`` seconds ahead
-    under the constant acceleration ``accel`` ``[..., 2]`` (m/s²; None: constant velocity)."""
-    p, v = state[..., 0:2], state[..., 2:4]
-    if accel is None:
-        return torch.cat([p + v * horizon, v], dim=-1)
-    return torch.cat([p + v * horizon + 0.5 * accel * horizon**2, v + accel * horizon], dim=-1)
+    """Double-integrator prediction (:func:`hold_step`, no saturation) of ``state`` ``[..., n]``
+    (m, m/s) ``horizon`` seconds ahead under the constant acceleration ``accel`` ``[..., d]``
+    (m/s²; None: constant velocity)."""
+    p, v = AGENT.position(state), AGENT.velocity(state)
+    return AGENT.join(*hold_step(p, v, torch.zeros_like(v) if accel is None else accel, horizon))
 
 
 def observation_with_own_state(
@@ -50,6 +51,6 @@ def look_ahead_observation(
     """Observations ``[S, N, D]`` τ = ``horizon`` s ahead: own state under ``last_command``
     ``[S, N, 2]`` (None, e.g. at the first step: zero acceleration), the others' at constant
     velocity."""
-    accel = torch.zeros_like(state[..., 0:2]) if last_command is None else last_command
+    accel = torch.zeros_like(AGENT.velocity(state)) if last_command is None else last_command
     return observation_with_own_state(predict_states(state, accel, horizon), predict_states(state, None, horizon),
                                       goals, neighbours, spec)

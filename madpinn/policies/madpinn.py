@@ -37,6 +37,7 @@ from pathlib import Path
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
@@ -160,7 +161,7 @@ class MadPinnPolicy:
         self._update_neighbours(x, int(round(t / self.sim_dt)))
         tau = self.settings.look_ahead
         if tau > 0.0:
-            u_last = self._u_last if self._u_last is not None and self._u_last.shape == x[..., :2].shape else None
+            u_last = self._u_last if self._u_last is not None and self._u_last.shape == AGENT.velocity(x).shape else None
             obs = look_ahead_observation(x, u_last, g, self.neighbours, self.spec, tau)
         else:
             obs = build_observation(x, g, self.neighbours, self.spec)
@@ -176,7 +177,7 @@ class MadPinnPolicy:
         z, feasible = r.z, r.feasible
         u = self.vhat.system.optimal_control(r.grad, obs)[:, 0]
         if self.settings.infeasible == "brake":
-            brake = -self.vhat.system.u_max * torch.sign(x.reshape(S * N, 4)[:, 2:4])
+            brake = -self.vhat.system.u_max * torch.sign(AGENT.velocity(x).reshape(S * N, -1))
             u = torch.where(feasible.unsqueeze(-1), u, brake)
         st = self.stats
         st["policy_steps"] += 1
@@ -186,8 +187,8 @@ class MadPinnPolicy:
         st["warm_hits"] += int(r.hit.sum())
         st["vhat_value_rows"] += r.value_rows
         st["vhat_grad_rows"] += r.grad_rows
-        self._u_last = u.reshape(S, N, 2)
-        return u.reshape(S, N, 2).to(device=state.device, dtype=state.dtype)
+        self._u_last = u.reshape(S, N, AGENT.control_dim)
+        return self._u_last.to(device=state.device, dtype=state.dtype)
 
 
 class FilteredMadPinnPolicy(SafetyFilteredPolicy):

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours, split_observation
 from madpinn.policies.base import PolicyContext, register_policy
 
@@ -117,8 +117,9 @@ class MPPIPlanner:
     Holds the plan ``U`` ``[B, H, 2]`` (m/s²), its knot index, and the per-agent λ ``[B]``.
     """
 
-    def __init__(self, params: MPPISettings, dynamics: DoubleIntegrator, collision_radius: float,
+    def __init__(self, params: MPPISettings, dynamics: AgentModel, collision_radius: float,
                  generator: torch.Generator):
+        dynamics.require_uniform_bounds("MPPI")   # its samples are [B = S·N, K, m]: no agent axis to broadcast over
         self.p = params
         self.dynamics = dynamics
         self.r = float(collision_radius)
@@ -128,7 +129,7 @@ class MPPIPlanner:
         self.knot = 0
 
     def reset(self, batch: int, device, dtype) -> None:
-        self.U = torch.zeros(batch, self.p.horizon, 2, device=device, dtype=dtype)
+        self.U = torch.zeros(batch, self.p.horizon, self.dynamics.control_dim, device=device, dtype=dtype)
         self.penalty = torch.full((batch,), self.p.penalty_weight, device=device, dtype=dtype)
         self.knot = 0
 
@@ -140,7 +141,7 @@ class MPPIPlanner:
             raise ValueError(f"MPPI queried at t={t} s before its current knot {self.knot} (call reset)")
         if shift:
             kept = self.U[:, shift:]
-            self.U = torch.cat([kept, self.U.new_zeros(self.U.shape[0], self.p.horizon - kept.shape[1], 2)], dim=1)
+            self.U = torch.cat([kept, self.U.new_zeros(self.U.shape[0], self.p.horizon - kept.shape[1], self.U.shape[2])], dim=1)
             self.knot = knot
         return max((knot + 1) * self.p.plan_dt - t, _KNOT_EPS)
 
@@ -156,11 +157,11 @@ class MPPIPlanner:
         B, H, K = ego_vel.shape[0], p.horizon, p.samples
         U = self.U
         # knot-major layout [H, B, K, 2]: each knot's controls are contiguous for the rollout
-        noise = torch.randn(H, B, K, 2, generator=self.gen, device=U.device, dtype=U.dtype) * p.noise_sigma
+        noise = torch.randn(H, B, K, U.shape[2], generator=self.gen, device=U.device, dtype=U.dtype) * p.noise_sigma
         noise[:, :, 0] = 0.0
         V = self.dynamics.clip_control(U.transpose(0, 1).unsqueeze(2) + noise)
 
-        state = torch.cat([torch.zeros_like(ego_vel), ego_vel], dim=-1).unsqueeze(1).expand(B, K, 4)
+        state = self.dynamics.join(torch.zeros_like(ego_vel), ego_vel).unsqueeze(1).expand(B, K, self.dynamics.state_dim)
         gx, gy = goal[:, 0:1], goal[:, 1:2]  # [B, 1]
         # neighbours as [B, 1, n] coordinate tensors (structure of arrays)
         nx, ny = nbr_pos[..., 0].unsqueeze(1), nbr_pos[..., 1].unsqueeze(1)
@@ -176,7 +177,7 @@ class MPPIPlanner:
             dt = first_dt if h == 0 else p.plan_dt
             elapsed += dt
             state = self.dynamics.step(state, V[h], dt)
-            px, py = state[..., 0], state[..., 1]  # [B, K]
+            px, py = self.dynamics.position(state).unbind(-1)  # [B, K] each: the planar core (x / y arrays)
             cost += dt * torch.hypot(px - gx, py - gy)
             rx = px.unsqueeze(-1) - (nx + elapsed * nvx)  # [B, K, n]
             ry = py.unsqueeze(-1) - (ny + elapsed * nvy)
@@ -184,7 +185,7 @@ class MPPIPlanner:
             depth = (reach - d).clamp_min(0.0) * mask
             violation += dt * depth.sum(-1)
             rx_prev, ry_prev = rx, ry
-        cost += p.terminal_weight * torch.hypot(state[..., 0] - gx, state[..., 1] - gy)
+        cost += p.terminal_weight * torch.hypot(px - gx, py - gy)
         total = cost + self.penalty.unsqueeze(1) * violation
         if p.action_cost:
             total = total + perturbation_cost(U, V, p.temperature, p.noise_sigma)
@@ -199,7 +200,7 @@ class MPPIPlanner:
 class MPPIPolicy:
     """Policy protocol around :class:`MPPIPlanner`: observation, neighbours, one batched plan."""
 
-    def __init__(self, planner: MPPIPlanner, spec: ObservationSettings, dynamics: DoubleIntegrator):
+    def __init__(self, planner: MPPIPlanner, spec: ObservationSettings, dynamics: AgentModel):
         self.planner = planner
         self.spec = spec
         self.dynamics = dynamics
@@ -213,16 +214,17 @@ class MPPIPolicy:
         n = self.spec.n_neighbours
         nbr = nearest_neighbours(state, n, radius=self.spec.sensing_radius)
         obs = build_observation(state, goals, nbr, self.spec)
-        positions, velocities, goals_rel = split_observation(obs, n)  # [S, N, n+1, 2] each
+        positions, velocities, goals_rel = split_observation(obs, n)  # [S, N, n+1, d] each
+        d = self.dynamics.position_dim
         u = self.planner.plan(
-            ego_vel=velocities[..., 0, :].reshape(S * N, 2),
-            goal=goals_rel[..., 0, :].reshape(S * N, 2),
-            nbr_pos=positions[..., 1:, :].reshape(S * N, n, 2),
-            nbr_vel=velocities[..., 1:, :].reshape(S * N, n, 2),
+            ego_vel=velocities[..., 0, :].reshape(S * N, d),
+            goal=goals_rel[..., 0, :].reshape(S * N, d),
+            nbr_pos=positions[..., 1:, :].reshape(S * N, n, d),
+            nbr_vel=velocities[..., 1:, :].reshape(S * N, n, d),
             nbr_mask=(nbr >= 0).reshape(S * N, n),
             t=float(t),
         )
-        return self.dynamics.clip_control(u.reshape(S, N, 2))
+        return self.dynamics.clip_control(u.reshape(S, N, self.dynamics.control_dim))
 
 
 def make_generator(device, seed: int) -> torch.Generator:

@@ -42,6 +42,7 @@ from typing import Callable
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.dynamics.pair import free_drift_and_grad
 from madpinn.observation import PHANTOM, nearest_neighbours, pairwise_distances
 
@@ -97,7 +98,7 @@ def in_domain(state: torch.Tensor, p_range: float, v_range: float, radius: float
     """``[S, N, N]`` bool: pair state inside the V_s training box and, with ``radius`` (m), partner
     within the sensing radius (``d_ij ≤ radius``); self-pairs excluded."""
     S, N, _ = state.shape
-    p, v = state[..., 0:2], state[..., 2:4]
+    p, v = AGENT.position(state), AGENT.velocity(state)
     ok = ((p.unsqueeze(2) - p.unsqueeze(1)).abs() <= p_range).all(-1)
     ok &= ((v.unsqueeze(2) - v.unsqueeze(1)).abs() <= v_range).all(-1)
     if radius is not None:
@@ -135,7 +136,7 @@ def pair_scores_brute_force(state: torch.Tensor, vs, chunk: int = 65536, radius:
     """Reference definition: V_s on all ``S·N·(N−1)`` ordered pairs, ``+∞`` out of domain or
     beyond ``radius`` ``[S, N, N]``."""
     S, N, _ = state.shape
-    x = relative_states(state).reshape(-1, 4)
+    x = relative_states(state).reshape(-1, AGENT.state_dim)
     values = _vs_in_chunks(vs, x, chunk).reshape(S, N, N)
     mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
     return values.masked_fill(~mask, float("inf"))
@@ -171,7 +172,7 @@ class DriftMargins:
 
     def of(self, x: torch.Tensor) -> torch.Tensor:
         """Margin ``[B]`` (m) of pair states ``x [B, 4]``."""
-        speed = torch.linalg.vector_norm(x[:, 2:4], dim=-1)
+        speed = torch.linalg.vector_norm(AGENT.velocity(x), dim=-1)
         edges = torch.tensor(self.edges, dtype=x.dtype, device=x.device)
         b = torch.bucketize(speed, edges).clamp(max=len(self.margins) - 1)
         return torch.tensor(self.margins, dtype=x.dtype, device=x.device)[b]
@@ -195,7 +196,7 @@ def calibrate_drift_margins(vs, samples: int = MARGIN_SAMPLES, seed: int = MARGI
     excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius) - _vs_in_chunks(vs, x, chunk).to("cpu", x.dtype)
     top = float(system.v_range) * 2**0.5
     edges = torch.linspace(0.0, top, bins + 1)[1:]
-    b = torch.bucketize(torch.linalg.vector_norm(x[:, 2:4], dim=-1), edges).clamp(max=bins - 1)
+    b = torch.bucketize(torch.linalg.vector_norm(AGENT.velocity(x), dim=-1), edges).clamp(max=bins - 1)
     worst = torch.full((bins,), 0.0).scatter_reduce(0, b, excess.clamp_min(0.0), reduce="amax")
     worst = torch.cummax(worst, 0).values
     return DriftMargins(tuple(edges.tolist()), tuple((factor * worst + pad).tolist()))
@@ -229,7 +230,7 @@ def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, 
         return scores
     r = vs.collision_radius
     psi = torch.full((S, N, N), float("inf"), dtype=state.dtype, device=state.device)
-    psi[s_idx, i_idx, j_idx] = torch.linalg.vector_norm(x[:, 0:2], dim=-1) - r
+    psi[s_idx, i_idx, j_idx] = torch.linalg.vector_norm(AGENT.position(x), dim=-1) - r
     k = min(n, N)
     psi_k, first = torch.topk(psi, k, dim=-1, largest=False)           # [S, N, k]
     pos = torch.full((S, N, N), -1, dtype=torch.long, device=state.device)
@@ -275,7 +276,7 @@ def random_selector(n: int, radius: float, generator: torch.Generator) -> Select
     ``radius`` (m) of the ego; fewer -> phantoms. Draws from ``generator`` (seeded per job)."""
 
     def select(state: torch.Tensor) -> torch.Tensor:
-        d = pairwise_distances(state[..., 0:2])
+        d = pairwise_distances(AGENT.position(state))
         keys = torch.rand(d.shape, generator=generator, device=generator.device, dtype=state.dtype).to(state.device)
         return select_lowest(keys.masked_fill(d > radius, float("inf")), n)
 

@@ -7,14 +7,14 @@ from typing import Mapping
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.policies.base import PolicyContext, register_policy
 
 
 class NominalPD:
     """u = clip(kp·(g − p) − kd·v, ±u_max) per axis (kp in 1/s², kd in 1/s)."""
 
-    def __init__(self, dynamics: DoubleIntegrator, kp: float, kd: float):
+    def __init__(self, dynamics: AgentModel, kp: float, kd: float):
         self.dynamics = dynamics
         self.kp = float(kp)
         self.kd = float(kd)
@@ -23,7 +23,7 @@ class NominalPD:
         pass
 
     def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
-        u = self.kp * (goals - state[..., 0:2]) - self.kd * state[..., 2:4]
+        u = self.kp * (goals - self.dynamics.position(state)) - self.kd * self.dynamics.velocity(state)
         return self.dynamics.clip_control(u)
 
 

@@ -37,6 +37,7 @@ from typing import Mapping
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.observation import gather_agents, nearest_neighbours
 from madpinn.policies.base import Policy
 from madpinn.policies.cbvf_qp import solve_box_qp
@@ -87,20 +88,20 @@ class CBVFFilter:
         real = idx >= 0
         x_rel = state.unsqueeze(2) - gather_agents(state, idx.clamp_min(0))  # [S, N, C, 4]
         if self.coordination_range is not None:  # gate on the nearest neighbour's distance
-            dist = x_rel[..., 0:2].norm(dim=-1).masked_fill(~real, float("inf"))
+            dist = AGENT.position(x_rel).norm(dim=-1).masked_fill(~real, float("inf"))
             real = real & (dist.amin(-1, keepdim=True) <= self.coordination_range)
         C = idx.shape[-1]
-        v_all = self.vs.value(x_rel.reshape(-1, 4), t=0.0).reshape(S, N, C)
+        v_all = self.vs.value(x_rel.reshape(-1, AGENT.state_dim), t=0.0).reshape(S, N, C)
         v_all = v_all.masked_fill(~real, float("inf"))
         k = min(self.critical, C)
         _, order = torch.topk(v_all, k, dim=-1, largest=False)  # [S, N, k]
         active = torch.gather(real, 2, order)
-        x_k = torch.gather(x_rel, 2, order.unsqueeze(-1).expand(S, N, k, 4))
-        V, dV = self.vs.value_and_grad(x_k.reshape(-1, 4), t=0.0)
+        x_k = torch.gather(x_rel, 2, order.unsqueeze(-1).expand(S, N, k, AGENT.state_dim))
+        V, dV = self.vs.value_and_grad(x_k.reshape(-1, AGENT.state_dim), t=0.0)
         V = V.reshape(S, N, k).to(state.dtype)
-        dV = dV.reshape(S, N, k, 4).to(state.dtype)
-        a = dV[..., 2:4]
-        b = -self.gamma * V - (dV[..., 0:2] * x_k[..., 2:4]).sum(-1)
+        dV = dV.reshape(S, N, k, AGENT.state_dim).to(state.dtype)
+        a = AGENT.velocity(dV)                                       # Bᵀ∇V_s: u_i enters v_i
+        b = -self.gamma * V - (AGENT.position(dV) * AGENT.velocity(x_k)).sum(-1)   # −γV − ⟨∇V_s, w(x)⟩
         if self.neighbour_control == "joint":
             if u_nom is None:
                 raise ValueError("neighbour_control 'joint' needs the nominal controls u_nom [S, N, 2] of all agents")
@@ -117,8 +118,9 @@ class CBVFFilter:
             return u_nom
         a, b, active, V, grad_v = self.constraint_rows(state, u_nom)
         k = a.shape[2]
-        u, feasible = solve_box_qp(u_nom.reshape(-1, 2), a.reshape(-1, k, 2), b.reshape(-1, k), self.u_max, active.reshape(-1, k))
-        u, feasible = u.reshape(S, N, 2), feasible.reshape(S, N)
+        m = AGENT.control_dim
+        u, feasible = solve_box_qp(u_nom.reshape(-1, m), a.reshape(-1, k, m), b.reshape(-1, k), self.u_max, active.reshape(-1, k))
+        u, feasible = u.reshape(S, N, m), feasible.reshape(S, N)
         any_nbr = active[..., 0]
         safest = self.u_max * torch.sign(grad_v[..., 0, :])
         fallback = any_nbr & (~feasible | (V[..., 0] < self.threshold))

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.observation import pairwise_distances
 from madpinn.settings import AgentSettings
 
@@ -38,7 +38,7 @@ class DoubleIntegratorBackend:
     planar analogue of a drone knocked out by a contact. None: agents pass through each other.
     """
 
-    def __init__(self, dynamics: DoubleIntegrator, dt: float, freeze_radius: float | None = None):
+    def __init__(self, dynamics: AgentModel, dt: float, freeze_radius: float | None = None):
         self.dynamics = dynamics
         self.dt = float(dt)
         self.freeze_radius = None if freeze_radius is None else float(freeze_radius)
@@ -48,7 +48,7 @@ class DoubleIntegratorBackend:
         """``[S, N]`` bool: agents stopped by a collision (all False without ``freeze_radius``)"""
 
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
-        self.state = torch.cat([positions, velocities], dim=-1)
+        self.state = self.dynamics.join(positions, velocities)
         self._accel = torch.zeros_like(positions)
         self.frozen = torch.zeros(positions.shape[:-1], dtype=torch.bool, device=positions.device)
         self._freeze_new()
@@ -57,8 +57,9 @@ class DoubleIntegratorBackend:
     def command(self, accel: torch.Tensor, duration: float) -> None:
         if self.state is None:
             raise RuntimeError("reset() before command()")
-        if accel.shape != self.state.shape[:-1] + (2,):
-            raise ValueError(f"accel must be {tuple(self.state.shape[:-1]) + (2,)}, got {tuple(accel.shape)}")
+        shape = self.state.shape[:-1] + (self.dynamics.control_dim,)
+        if accel.shape != shape:
+            raise ValueError(f"accel must be {tuple(shape)}, got {tuple(accel.shape)}")
         if not torch.isfinite(accel).all():
             raise ValueError("non-finite acceleration command")
         self._accel = self.dynamics.clip_control(accel)
@@ -76,10 +77,11 @@ class DoubleIntegratorBackend:
         """Stop the agents that are now within ``freeze_radius`` of another (at their current position)."""
         if self.freeze_radius is None or self.state.shape[1] < 2:
             return
-        hit = pairwise_distances(self.state[..., 0:2]).amin(dim=-1) <= self.freeze_radius
+        hit = pairwise_distances(self.dynamics.position(self.state)).amin(dim=-1) <= self.freeze_radius
         new = hit & ~self.frozen
         if new.any():
-            self.state = torch.cat([self.state[..., 0:2], torch.where(new[..., None], 0.0, self.state[..., 2:4])], dim=-1)
+            p, v = self.dynamics.position(self.state), self.dynamics.velocity(self.state)
+            self.state = self.dynamics.join(p, torch.where(new[..., None], 0.0, v))
             self.frozen |= new
 
 

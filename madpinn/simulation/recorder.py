@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from madpinn.dynamics.agent_model import Bound, pair_threshold
 from madpinn.observation import pairwise_distances
 from madpinn.separation import safe_at
 
@@ -24,7 +25,7 @@ class EpisodeResult:
     min_separation: ``[S, N]`` smallest distance to any other agent over the episode (m), in the
     simulation dtype: ``collided == (min_separation <= r)`` exactly, and the same test at any other
     radius ρ gives the agents a simulation recorded at ρ would call collided (:func:`safe_at`).
-    collision_radius: r (m) of ``collided``.
+    collision_radius: r (m) of ``collided``, or one per agent (a pair collides within the mean of its two).
     final_distance: ``[S, N]`` distance to goal at the final time (m).
     times: ``[T']`` (s) and positions ``[T', S, N, 2]`` (m) of the decimated trajectory.
     """
@@ -39,7 +40,7 @@ class EpisodeResult:
     goals: np.ndarray
     n_steps: int
     dt: float
-    collision_radius: float = float("nan")
+    collision_radius: float | tuple = float("nan")
 
     def safe_at(self, radius: float) -> np.ndarray:
         """``[S, N]`` bool: agents that never came within ``radius`` (m) of another agent."""
@@ -47,12 +48,13 @@ class EpisodeResult:
 
 
 class EpisodeRecorder:
-    """Feed the planar positions ``[S, N, 2]`` at steps 0..K with :meth:`update`, then :meth:`finish`."""
+    """Feed the positions ``[S, N, d]`` at steps 0..K with :meth:`update`, then :meth:`finish`."""
 
-    def __init__(self, goals: torch.Tensor, dt: float, collision_radius: float, record_every: int = 0):
+    def __init__(self, goals: torch.Tensor, dt: float, collision_radius: Bound, record_every: int = 0):
+        """``collision_radius``: r (m), or one radius per agent (a pair collides within the mean of its two)."""
         self.goals = goals
         self.dt = float(dt)
-        self.r = float(collision_radius)
+        self.r = float(collision_radius) if isinstance(collision_radius, (int, float)) else tuple(map(float, collision_radius))
         self.record_every = int(record_every)
         S, N, _ = goals.shape
         dev = goals.device
@@ -73,9 +75,10 @@ class EpisodeRecorder:
             self.integral += 0.5 * self.dt * (self._last_dist + dist)
         self._last_dist = dist
         if positions.shape[1] > 1:
-            sep = pairwise_distances(positions).amin(dim=-1)
+            d = pairwise_distances(positions)
+            sep = d.amin(dim=-1)
             self.min_sep = torch.minimum(self.min_sep, sep)
-            hit = sep <= self.r
+            hit = sep <= self.r if isinstance(self.r, float) else (d <= pair_threshold(self.r, d)).any(dim=-1)
             new = hit & ~self.collided
             self.first_collision = torch.where(new, torch.full_like(self.first_collision, k), self.first_collision)
             self.collided |= hit

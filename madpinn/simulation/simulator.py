@@ -7,6 +7,8 @@ import time
 import torch
 from tqdm.auto import tqdm
 
+from madpinn.dynamics import AGENT
+from madpinn.dynamics.agent_model import Bound
 from madpinn.simulation.backend import SimBackend
 from madpinn.simulation.recorder import EpisodeRecorder, EpisodeResult
 
@@ -17,26 +19,28 @@ def run_episode(
     starts: torch.Tensor,
     goals: torch.Tensor,
     n_steps: int,
-    collision_radius: float,
+    collision_radius: Bound,
     policy_period: int = 1,
     record_every: int = 0,
     progress: bool = True,
     desc: str = "episode",
 ) -> tuple[EpisodeResult, dict]:
-    """Simulate ``n_steps`` steps of ``backend.dt`` from rest at ``starts`` ``[S, N, 2]``.
+    """Simulate ``n_steps`` steps of ``backend.dt`` from rest at ``starts`` ``[S, N, d]``.
 
-    The policy (``reset(state, goals)``, ``act(state, goals, t) -> accel [S, N, 2]``) is queried
-    every ``policy_period`` simulation steps. Returns the episode result and timing statistics.
+    The policy (``reset(state, goals)``, ``act(state, goals, t) -> accel [S, N, m]``) is queried
+    every ``policy_period`` simulation steps. ``collision_radius``: r (m) or one per agent.
+    Returns the episode result and timing statistics.
     """
-    if starts.shape != goals.shape or starts.dim() != 3 or starts.shape[-1] != 2:
-        raise ValueError(f"starts and goals must both be [S, N, 2], got {tuple(starts.shape)} and {tuple(goals.shape)}")
+    d = AGENT.position_dim
+    if starts.shape != goals.shape or starts.dim() != 3 or starts.shape[-1] != d:
+        raise ValueError(f"starts and goals must both be [S, N, {d}], got {tuple(starts.shape)} and {tuple(goals.shape)}")
     if n_steps < 1 or policy_period < 1:
         raise ValueError("n_steps and policy_period must be ≥ 1")
     dt = backend.dt
     state = backend.reset(starts, torch.zeros_like(starts))
     policy.reset(state, goals)
     rec = EpisodeRecorder(goals, dt, collision_radius, record_every)
-    rec.update(state[..., 0:2])
+    rec.update(AGENT.position(state))
     policy_time = 0.0
     t0 = time.perf_counter()
     with torch.no_grad():
@@ -47,9 +51,9 @@ def run_episode(
                 policy_time += time.perf_counter() - tp
                 backend.command(accel, policy_period * dt)
             state = backend.step()
-            rec.update(state[..., 0:2])
+            rec.update(AGENT.position(state))
     wall = time.perf_counter() - t0
-    result = rec.finish(state[..., 0:2])
+    result = rec.finish(AGENT.position(state))
     S, N, _ = starts.shape
     stats = {
         "wall_s": wall,

@@ -13,7 +13,7 @@ KINDS = ("vhat", "vs")
 
 def problem_from_config(cfg: dict, kind: str):
     """The PINN problem of V̂ (``kind="vhat"``, epigraph system) or V_s (``"vs"``, pair system)."""
-    from madpinn.dynamics.epigraph import EpigraphSystem
+    from madpinn.value_functions.epigraph import EpigraphSystem
     from madpinn.dynamics.pair import PairSystem
     from madpinn.value_functions.problems import EpigraphProblem, PairProblem
     from madpinn.value_functions.sampling import ConflictSamplingSettings, NearSamplingSettings

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from madpinn.dynamics import AGENT
 from madpinn.dynamics.pair import PairSystem
 
 
@@ -108,9 +109,10 @@ def solve_pair_grid(system: PairSystem, nodes: int, p_range: float, v_range: flo
     times = tuple(sorted({float(t) for t in times}, reverse=True))
     if any(not 0.0 <= t < system.horizon for t in times):
         raise ValueError(f"grid times must lie in [0, T = {system.horizon}), got {times}")
-    lo = np.array([-p_range, -p_range, -v_range, -v_range])
-    grid = hj.Grid.from_lattice_parameters_and_boundary_conditions(hj.sets.Box(jnp.array(lo), jnp.array(-lo)), (nodes,) * 4)
-    psi = jnp.linalg.norm(grid.states[..., :2], axis=-1) - system.collision_radius
+    lo = np.array([-p_range] * AGENT.position_dim + [-v_range] * AGENT.position_dim)
+    grid = hj.Grid.from_lattice_parameters_and_boundary_conditions(hj.sets.Box(jnp.array(lo), jnp.array(-lo)),
+                                                                   (nodes,) * AGENT.state_dim)
+    psi = jnp.linalg.norm(grid.states[..., AGENT.position_slice()], axis=-1) - system.collision_radius
     settings = hj.SolverSettings.with_accuracy(accuracy, value_postprocessor=lambda t, v: jnp.minimum(v, psi))
     hj_times = jnp.array([0.0] + [t - system.horizon for t in times])      # backward: s = t − T
     t0 = time.perf_counter()

@@ -17,7 +17,7 @@ from dataclasses import asdict
 
 import torch
 
-from madpinn.dynamics.epigraph import EpigraphSystem
+from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.observation import TRAINING_MAPPING, ObservationSettings
 from madpinn.value_functions.sampling import (

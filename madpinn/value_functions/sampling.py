@@ -22,7 +22,15 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, split_observation
+from madpinn.dynamics import AGENT
+from madpinn.observation import (
+    EGO_DIM,
+    EGO_VELOCITY,
+    NEIGHBOUR_DIM,
+    NEIGHBOUR_POSITION,
+    NEIGHBOUR_VELOCITY,
+    split_observation,
+)
 
 
 @dataclass(frozen=True)
@@ -63,7 +71,7 @@ class ConflictSamplingSettings:
 
 def _velocity_columns(agent: torch.Tensor) -> torch.Tensor:
     """First velocity column of observed agent ``agent`` (0 = ego) in the observation vector."""
-    return torch.where(agent == 0, torch.zeros_like(agent), EGO_DIM + (agent - 1) * NEIGHBOUR_DIM + 2)
+    return torch.where(agent == 0, torch.full_like(agent, EGO_VELOCITY.start), EGO_DIM + (agent - 1) * NEIGHBOUR_DIM + NEIGHBOUR_VELOCITY.start)
 
 
 def _draw_course(m: int, horizon: float, sampling: ConflictSamplingSettings, generator: torch.Generator,
@@ -97,8 +105,8 @@ def _redraw_closing(out: torch.Tensor, a, c, va, vc, speed: tuple[float, float],
     rows = torch.arange(m, device=device)
     for agent, v in ((a, va), (c, vc)):
         col = _velocity_columns(agent)
-        out[rows, col] = v[:, 0]
-        out[rows, col + 1] = v[:, 1]
+        for k in range(v.shape[-1]):
+            out[rows, col + k] = v[:, k]
     return va, vc
 
 
@@ -128,9 +136,9 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     if sampling.closing_speed is not None:
         va, vc = _redraw_closing(out, a, c, va, vc, sampling.closing_speed, v_max, generator)
     pc = (pa - (vc - va) * tau[:, None] + d).clamp(-offset_range, offset_range)
-    cols = EGO_DIM + (c - 1) * NEIGHBOUR_DIM                   # position offset of neighbour c
-    out[rows, cols] = pc[:, 0]
-    out[rows, cols + 1] = pc[:, 1]
+    cols = EGO_DIM + (c - 1) * NEIGHBOUR_DIM + NEIGHBOUR_POSITION.start   # position offset of neighbour c
+    for k in range(pc.shape[-1]):
+        out[rows, cols + k] = pc[:, k]
     return out
 
 
@@ -152,8 +160,8 @@ def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampli
     out = x.clone()
     if sampling.closing_speed is not None:
         rel = _draw_closing_velocity(m, sampling.closing_speed, generator, dtype, device)
-        out[:m, 2:4] = rel.clamp(-v_range, v_range)
-    out[:m, 0:2] = (-out[:m, 2:4] * tau[:, None] + d).clamp(-p_range, p_range)
+        out[:m, AGENT.velocity_slice()] = rel.clamp(-v_range, v_range)
+    out[:m, AGENT.position_slice()] = (-AGENT.velocity(out[:m]) * tau[:, None] + d).clamp(-p_range, p_range)
     return out
 
 

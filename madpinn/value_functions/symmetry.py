@@ -26,6 +26,7 @@ import itertools
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
 
 GROUPS = ("none", "point", "d4", "full")
@@ -49,7 +50,7 @@ def observation_transforms(name: str, n_neighbours: int) -> torch.Tensor:
     """Group elements as matrices ``[G, D, D]`` acting on observations (``o' = g·o``), float64."""
     if name not in GROUPS:
         raise ValueError(f"symmetry group must be one of {GROUPS}, got '{name}'")
-    n_vec = (EGO_DIM + NEIGHBOUR_DIM * n_neighbours) // 2
+    n_vec = (EGO_DIM + NEIGHBOUR_DIM * n_neighbours) // AGENT.position_dim
     perms = list(itertools.permutations(range(n_neighbours))) if name == "full" else [tuple(range(n_neighbours))]
     mats = []
     for m in _planar_group(name):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.observation import build_observation
 from madpinn.value_functions.z_search import min_feasible_z
 
@@ -84,15 +85,12 @@ def heatmap_observations(spec, half_width: float = 1.0, points: int = 101, cfg: 
     P = points * points
     ego_p = torch.stack([xx.flatten(), yy.flatten()], dim=-1)
     nb_p = torch.tensor(cfg["neighbours"], dtype=torch.float32)
-    state = torch.zeros(P, 3, 4)
-    state[:, 0, 0:2] = ego_p
-    state[:, 0, 2:4] = torch.tensor(cfg["ego_velocity"])
-    state[:, 1:, 0:2] = nb_p
-    state[:, 1:, 2:4] = torch.tensor(cfg["neighbour_velocity"])
-    goals = torch.zeros(P, 3, 2)
-    goals[:, 0] = torch.tensor(cfg["ego_goal"])
-    goals[:, 1:] = torch.tensor(cfg["neighbour_goals"])
-    neighbours = torch.tensor([[1, 2], [0, 2], [0, 1]]).expand(P, 3, 2)
+    ego_v, nb_v = torch.tensor(cfg["ego_velocity"]), torch.tensor(cfg["neighbour_velocity"])
+    positions = torch.cat([ego_p[:, None], nb_p.expand(P, -1, -1)], dim=1)                  # [P, 3, d]
+    velocities = torch.cat([ego_v.expand(P, 1, -1), nb_v.expand(P, len(nb_p), -1)], dim=1)
+    state = AGENT.join(positions, velocities)
+    goals = torch.cat([torch.tensor(cfg["ego_goal"]).expand(P, 1, -1), torch.tensor(cfg["neighbour_goals"]).expand(P, -1, -1)], dim=1)
+    neighbours = torch.tensor([[1, 2], [0, 2], [0, 1]]).expand(P, -1, -1)
     obs = build_observation(state, goals, neighbours, spec)[:, 0]
     return axis, obs
 

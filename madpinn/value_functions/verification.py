@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.observation import split_observation
+from madpinn.dynamics.double_integrator import hold_step
+from madpinn.observation import join_observation, split_observation
 from madpinn.value_functions.sampling import ConflictSamplingSettings, place_conflicts
 from madpinn.value_functions.z_search import min_feasible_z
 
@@ -94,11 +95,8 @@ def draw_safe_states(vhat, n: int, conflict: ConflictSamplingSettings, generator
 
 
 def _observation(pos, vel, goal):
-    """Global ``[B, A, 2]`` arrays -> observation relative to agent 0 ``[B, D]``."""
-    rel_p, rel_g = pos - pos[:, :1], goal - pos[:, :1]
-    ego = torch.cat([vel[:, 0], rel_g[:, 0]], -1)
-    nbr = torch.cat([rel_p[:, 1:], vel[:, 1:], rel_g[:, 1:]], -1).flatten(1)
-    return torch.cat([ego, nbr], -1)
+    """Global ``[B, A, d]`` arrays -> observation relative to agent 0 ``[B, D]``."""
+    return join_observation(pos - pos[:, :1], vel, goal - pos[:, :1])
 
 
 @torch.no_grad()
@@ -121,10 +119,10 @@ def rollout(vhat, obs: torch.Tensor, z: torch.Tensor, dt: float, substeps: int) 
         u = system.optimal_control(dv_dobs)                                 # [B, n+1, 2]
         l0 = system.running_cost(o)
         s = fr[:, None, None, None] * h                                      # [S, 1, 1, 1]
-        traj = pos[None] + vel[None] * s + 0.5 * u[None] * s * s             # [S, B, A, 2]
+        traj, vels = hold_step(pos[None], vel[None], u[None], s)             # [S, B, A, d] each
         d = torch.linalg.vector_norm(traj[..., iu, :] - traj[..., ju, :], dim=-1).amin(-1).amin(0)
         min_d = torch.minimum(min_d, d)
-        pos, vel = traj[-1], vel + u * h
+        pos, vel = traj[-1], vels[-1]                                        # s[-1] = h
         l1 = system.running_cost(_observation(pos, vel, goal))
         z = z - 0.5 * (l0 + l1) * h                                          # trapezoid of ż = −l_d
     final_cost = system.running_cost(_observation(pos, vel, goal))

@@ -25,9 +25,9 @@ import mujoco
 import numpy as np
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.simulation.mujoco.forces import apply_rotor_thrusts
-from madpinn.simulation.mujoco.model import compile_world, scenario_offsets
+from madpinn.simulation.mujoco.model import FREE_JOINT_DOFS, HORIZONTAL, ROTORS, compile_world, scenario_offsets
 from madpinn.simulation.mujoco.readings import make_controller
 from madpinn.simulation.mujoco.settings import MujocoSettings
 
@@ -39,12 +39,14 @@ class PhysicsDivergedError(RuntimeError):
 class MujocoBackend:
     """Batched Crazyflie simulation; ``dt`` (s) is the step of :meth:`step`."""
 
-    def __init__(self, dynamics: DoubleIntegrator, dt: float, settings: MujocoSettings,
+    def __init__(self, dynamics: AgentModel, dt: float, settings: MujocoSettings,
                  device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32, contacts: bool = False):
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"sim.dt must be positive, got {dt}")
         settings.validate()
+        dynamics.require_uniform_bounds("the MuJoCo backend")   # its arrays are [S·N, d]
         self.dynamics = dynamics
+        self._axes = slice(0, dynamics.position_dim)   # the model's axes among MuJoCo's x, y, z
         self.dt = float(dt)
         self.settings = settings
         self.spec = settings.spec
@@ -58,33 +60,34 @@ class MujocoBackend:
 
     # ------------------------------------------------------------------ protocol
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
-        """Place S × N level drones at ``positions`` ``[S, N, 2]`` (m), altitude ``altitude``, with
-        planar ``velocities`` ``[S, N, 2]`` (m/s); returns the planar state ``[S, N, 4]``."""
-        if positions.dim() != 3 or positions.shape[-1] != 2 or velocities.shape != positions.shape:
-            raise ValueError(f"positions and velocities must both be [S, N, 2], got {tuple(positions.shape)} and {tuple(velocities.shape)}")
+        """Place S × N level drones at ``positions`` ``[S, N, d]`` (m), altitude ``altitude``, with
+        ``velocities`` ``[S, N, d]`` (m/s) on the model's axes; returns the model's state ``[S, N, 2d]``."""
+        d = self.dynamics.position_dim
+        if positions.dim() != 3 or positions.shape[-1] != d or velocities.shape != positions.shape:
+            raise ValueError(f"positions and velocities must both be [S, N, {d}], got {tuple(positions.shape)} and {tuple(velocities.shape)}")
         S, N, _ = positions.shape
         count = S * N
         if not 1 <= count <= self.settings.max_drones:
             raise ValueError(f"the MuJoCo backend simulates 1..{self.settings.max_drones} drones (sim.mujoco.max_drones), got S×N = {S}×{N} = {count}")
-        p = positions.detach().to("cpu", torch.float64).reshape(count, 2).numpy()
-        v = velocities.detach().to("cpu", torch.float64).reshape(count, 2).numpy()
+        p = positions.detach().to("cpu", torch.float64).reshape(count, d).numpy()
+        v = velocities.detach().to("cpu", torch.float64).reshape(count, d).numpy()
         if not (np.isfinite(p).all() and np.isfinite(v).all()):
             raise ValueError("non-finite initial positions or velocities")
         self._shape = (S, N)
         self._build_worlds(count, N)
         self.qpos = np.zeros((count, 7))
         self.qvel = np.zeros((count, 6))
-        self.qpos[:, 0:2] = p
+        self.qpos[:, self._axes] = p
         self.qpos[:, 2] = self.settings.altitude
         self.qpos[:, 3] = 1.0
-        self.qvel[:, 0:2] = v
+        self.qvel[:, self._axes] = v
         for model, data, sl in self._worlds:
             mujoco.mj_resetData(model, data)
             data.qpos[:] = self._to_world(self.qpos[sl], sl).reshape(-1)
             data.qvel[:] = self.qvel[sl].reshape(-1)
             mujoco.mj_forward(model, data)
-        self.reference = np.concatenate([p, np.clip(v, -self.dynamics.v_max, self.dynamics.v_max)], axis=1)
-        self.accel = np.zeros((count, 2))
+        self.reference = self.dynamics.join(torch.from_numpy(p), torch.from_numpy(np.clip(v, -self.dynamics.v_max, self.dynamics.v_max))).numpy()
+        self.accel = np.zeros((count, self.dynamics.control_dim))
         self.thrusts = np.zeros((count, 4))
         self.controller.reset(count)
         self.time = 0.0
@@ -95,11 +98,12 @@ class MujocoBackend:
         the next ``duration`` s: the setpoint integrates it, and it is the feed-forward."""
         if self._shape is None:
             raise RuntimeError("reset() before command()")
-        if tuple(accel.shape) != self._shape + (2,):
-            raise ValueError(f"accel must be {self._shape + (2,)}, got {tuple(accel.shape)}")
+        shape = self._shape + (self.dynamics.control_dim,)
+        if tuple(accel.shape) != shape:
+            raise ValueError(f"accel must be {shape}, got {tuple(accel.shape)}")
         if not (math.isfinite(duration) and duration > 0):
             raise ValueError(f"command duration must be positive, got {duration}")
-        a = accel.detach().to("cpu", torch.float64).reshape(-1, 2)
+        a = accel.detach().to("cpu", torch.float64).reshape(-1, self.dynamics.control_dim)
         if not torch.isfinite(a).all():
             raise ValueError("non-finite acceleration command (NaN/inf setpoint)")
         self.accel = self.dynamics.clip_control(a).numpy()
@@ -123,12 +127,13 @@ class MujocoBackend:
         :meth:`command` (a setpoint step when far from the current position)."""
         if self._shape is None:
             raise RuntimeError("reset() before hold()")
-        if tuple(positions.shape) != self._shape + (2,):
-            raise ValueError(f"positions must be {self._shape + (2,)}, got {tuple(positions.shape)}")
-        p = positions.detach().to("cpu", torch.float64).reshape(-1, 2).numpy()
+        d = self.dynamics.position_dim
+        if tuple(positions.shape) != self._shape + (d,):
+            raise ValueError(f"positions must be {self._shape + (d,)}, got {tuple(positions.shape)}")
+        p = positions.detach().to("cpu", torch.float64).reshape(-1, d).numpy()
         if not np.isfinite(p).all():
             raise ValueError("non-finite position setpoint")
-        self.reference = np.concatenate([p, np.zeros_like(p)], axis=1)
+        self.reference = self.dynamics.join(torch.from_numpy(p), torch.zeros(p.shape, dtype=torch.float64)).numpy()
         self.accel = np.zeros_like(p)
 
     # ------------------------------------------------------------------ internals
@@ -144,7 +149,7 @@ class MujocoBackend:
             stop = min(count, start + per_world)
             model = compile_world(stop - start, self.h, self.spec, actuated, self.contacts, visual=False)
             self._worlds.append((model, mujoco.MjData(model), slice(start, stop)))
-        self._offsets = np.zeros((count, 2))
+        self._offsets = np.zeros((count, 2))   # scenario offsets in the horizontal plane
         if self.contacts:
             for _, _, sl in self._worlds:
                 self._offsets[sl] = scenario_offsets(sl.stop - sl.start, group)
@@ -154,7 +159,7 @@ class MujocoBackend:
         if not self.contacts:
             return qpos
         out = qpos.copy()
-        out[:, 0:2] += self._offsets[sl]
+        out[:, HORIZONTAL] += self._offsets[sl]
         return out
 
     def _setpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -164,9 +169,9 @@ class MujocoBackend:
             p_d[:, 2] = self.settings.altitude
             self._setpoint_buffers = (p_d, v_d, a_ff)
         p_d, v_d, a_ff = self._setpoint_buffers
-        p_d[:, 0:2] = self.reference[:, 0:2]
-        v_d[:, 0:2] = self.reference[:, 2:4]
-        a_ff[:, 0:2] = self.accel
+        p_d[:, self._axes] = self.dynamics.position(self.reference)
+        v_d[:, self._axes] = self.dynamics.velocity(self.reference)
+        a_ff[:, self._axes] = self.accel
         return p_d, v_d, a_ff
 
     def _substep(self) -> None:
@@ -178,22 +183,22 @@ class MujocoBackend:
             mujoco.mj_step(model, data)
             self.qpos[sl] = data.qpos.reshape(-1, 7)
             if self.contacts:
-                self.qpos[sl, 0:2] -= self._offsets[sl]
-            self.qvel[sl] = data.qvel.reshape(-1, 6)
+                self.qpos[sl, HORIZONTAL] -= self._offsets[sl]
+            self.qvel[sl] = data.qvel.reshape(-1, FREE_JOINT_DOFS)
         ref = self.dynamics.step(torch.from_numpy(self.reference), torch.from_numpy(self.accel), self.h)
         self.reference = ref.numpy()
 
     def _planar_state(self) -> torch.Tensor:
         S, N = self._shape
-        planar = np.concatenate([self.qpos[:, 0:2], self.qvel[:, 0:2]], axis=1).reshape(S, N, 4)
-        return torch.from_numpy(planar).to(device=self.device, dtype=self.dtype)
+        state = self.dynamics.join(torch.from_numpy(self.qpos[:, self._axes]), torch.from_numpy(self.qvel[:, self._axes]))
+        return state.reshape(S, N, self.dynamics.state_dim).to(device=self.device, dtype=self.dtype)
 
     # ------------------------------------------------------------------ inspection
     @property
     def rotor_thrusts(self) -> np.ndarray:
         """Rotor thrusts ``[S, N, 4]`` (N) applied during the last physics step."""
         S, N = self._shape
-        return self.thrusts.reshape(S, N, 4)
+        return self.thrusts.reshape(S, N, ROTORS)
 
     @property
     def poses(self) -> np.ndarray:

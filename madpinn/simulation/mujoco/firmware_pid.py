@@ -32,7 +32,7 @@ import numpy as np
 
 from madpinn.simulation.mujoco.controller import RotorMixer
 from madpinn.simulation.mujoco.firmware import MASS_THRUST, FirmwarePidGains, torque_per_count
-from madpinn.simulation.mujoco.model import GRAVITY, CrazyflieSpec
+from madpinn.simulation.mujoco.model import GRAVITY, HORIZONTAL, CrazyflieSpec
 from madpinn.simulation.mujoco.rotations import euler_zyx
 
 COUNT_LIMIT = 32767.0
@@ -72,12 +72,12 @@ class FirmwarePidController(RotorMixer):
         e_p = p_d - pos
         self.i_pos_z = np.clip(self.i_pos_z + e_p[:, 2] * dt, -g.pos_i_limit_z, g.pos_i_limit_z)
         v_sp = np.empty_like(pos)
-        v_sp[:, 0:2] = g.pos_kp_xy * e_p[:, 0:2]
+        v_sp[:, HORIZONTAL] = g.pos_kp_xy * e_p[:, HORIZONTAL]
         v_sp[:, 2] = g.pos_kp_z * e_p[:, 2] + g.pos_ki_z * self.i_pos_z
         v_sp = np.clip(v_sp, -g.vel_max, g.vel_max)
         e_v = v_sp - vel
         self.i_vel = np.clip(self.i_vel + e_v * dt, -g.vel_i_limit, g.vel_i_limit)
-        tilt_deg = np.clip(g.vel_kp_xy * e_v[:, 0:2] + g.vel_ki_xy * self.i_vel[:, 0:2], -g.tilt_max_deg, g.tilt_max_deg)
+        tilt_deg = np.clip(g.vel_kp_xy * e_v[:, HORIZONTAL] + g.vel_ki_xy * self.i_vel[:, HORIZONTAL], -g.tilt_max_deg, g.tilt_max_deg)
         counts = g.thrust_scale * (g.vel_kp_z * e_v[:, 2] + g.vel_ki_z * self.i_vel[:, 2])
         thrust = np.maximum(self.spec.mass * GRAVITY + counts / MASS_THRUST, g.thrust_min / MASS_THRUST)
         # +x acceleration: positive pitch (b_3 towards +x); +y acceleration: negative roll

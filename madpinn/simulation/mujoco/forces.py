@@ -17,6 +17,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from madpinn.simulation.mujoco.model import FREE_JOINT_DOFS
 from madpinn.simulation.mujoco.rotations import body_z_axis, rotation_matrix
 
 FORCE_MODES = ("qfrc", "xfrc", "site")
@@ -31,7 +32,7 @@ def apply_rotor_thrusts(mode: str, data: mujoco.MjData, thrusts: np.ndarray, qua
     wrench = thrusts @ mixer.T
     force = body_z_axis(quat) * wrench[:, 0:1]
     if mode == "qfrc":
-        qfrc = data.qfrc_applied.reshape(-1, 6)
+        qfrc = data.qfrc_applied.reshape(-1, FREE_JOINT_DOFS)
         qfrc[:, 0:3] = force
         qfrc[:, 3:6] = wrench[:, 1:4]
     elif mode == "xfrc":

@@ -35,6 +35,11 @@ COLLISION_CYLINDER = (0.06, 0.015)
 # m between neighbouring scenarios' origins when contacts are on: far beyond any arena
 # (half width ≤ 4 m here) and any drift, so drones of different scenarios never meet.
 SCENARIO_SPACING = 100.0
+HORIZONTAL = slice(0, 2)
+"""x, y of the world frame: the plane scenarios are laid out in and the firmware's horizontal loops act in (z: altitude)"""
+FREE_JOINT_DOFS = 6
+"""velocity coordinates of a drone's free joint: linear (3), then angular (3)"""
+ROTORS = 4
 
 
 @dataclass(frozen=True)

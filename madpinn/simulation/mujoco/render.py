@@ -67,7 +67,7 @@ def render_clip(traj_path: str | Path, out_path: str | Path, settings, max_frame
     try:
         for k in frames_idx:
             qpos = data.qpos.reshape(n, 7)
-            qpos[:, 0:2] = positions[k]
+            qpos[:, : positions.shape[-1]] = positions[k]   # the recorded axes
             qpos[:, 2] = altitude
             qpos[:, 3:7] = [1.0, 0.0, 0.0, 0.0]
             hit = (first_hit >= 0) & (first_hit * step_dt <= times[k] + 1e-9)

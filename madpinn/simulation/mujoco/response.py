@@ -12,9 +12,9 @@ import math
 import numpy as np
 import torch
 
-from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics import AgentModel
 from madpinn.simulation.mujoco.backend import MujocoBackend
-from madpinn.simulation.mujoco.model import GRAVITY
+from madpinn.simulation.mujoco.model import GRAVITY, HORIZONTAL
 
 
 def reversal(backend: MujocoBackend, direction, u: float = 4.0, v0: float = -1.0, hold_s: float = 0.4,
@@ -24,21 +24,21 @@ def reversal(backend: MujocoBackend, direction, u: float = 4.0, v0: float = -1.0
     the command flips; the drone's acceleration along the direction (finite difference of its
     velocity at the physics rate) gives the times (ms) until it changes sign and until it
     reaches −2 m/s². Also returns the largest rotor thrust seen (N)."""
-    d = torch.tensor(np.asarray(direction, dtype=float)).reshape(1, 1, 2)
-    unit = (d / d.norm()).reshape(2).numpy()
+    d = torch.tensor(np.asarray(direction, dtype=float)).reshape(1, 1, -1)   # [1, 1, d] on the model's axes
+    unit = (d / d.norm()).reshape(-1).numpy()
     dt = backend.dt
-    backend.reset(torch.zeros(1, 1, 2, dtype=torch.float64), v0 * d)
+    backend.reset(torch.zeros_like(d), v0 * d)
     for _ in range(int(round(hold_s / dt))):
         backend.command(u * d, dt)
         backend.step()
     h = backend.h
-    v_prev = float(backend.qvel[0, 0:2] @ unit)
+    v_prev = float(backend.qvel[0, HORIZONTAL] @ unit)
     t, t_sign, t_two, thrust_max = 0.0, math.inf, math.inf, 0.0
     backend.command(-u * d, dt)
     for _ in range(int(round(after_s / h))):   # one physics substep at a time (the backend's own substep)
         backend._substep()
         t += h
-        v = float(backend.qvel[0, 0:2] @ unit)
+        v = float(backend.qvel[0, HORIZONTAL] @ unit)
         a, v_prev = (v - v_prev) / h, v
         thrust_max = max(thrust_max, float(backend.thrusts.max()))
         if t_sign == math.inf and a < 0:
@@ -63,7 +63,7 @@ def sign_change_bound_ms(backend: MujocoBackend, direction, u: float = 4.0) -> f
     return 1e3 * math.sqrt(2.0 * tilt / alpha)
 
 
-def velocity_hold(backend: MujocoBackend, dynamics: DoubleIntegrator, target: float = 1.0, seconds: float = 2.0,
+def velocity_hold(backend: MujocoBackend, dynamics: AgentModel, target: float = 1.0, seconds: float = 2.0,
                   n: int = 4, seed: int = 0) -> dict:
     """Closed-loop bang-bang velocity hold ``u = −u_max·sign(v − target)`` per axis at every
     ``dt``, for the drone (``mujoco``: the policy sees the measured velocity), the drone with the
@@ -77,23 +77,24 @@ def velocity_hold(backend: MujocoBackend, dynamics: DoubleIntegrator, target: fl
     starts = torch.zeros(1, n, 2, dtype=torch.float64)
     out = {}
     for name in ("mujoco", "mujoco_on_setpoint", "double_integrator"):
-        state = backend.reset(starts, v0) if name != "double_integrator" else torch.cat([starts, v0], -1)
+        state = backend.reset(starts, v0) if name != "double_integrator" else dynamics.join(starts, v0)
         vs = []
         for _ in range(int(round(seconds / dt))):
-            seen = torch.from_numpy(backend.reference[:, 2:4]).reshape(1, n, 2) if name == "mujoco_on_setpoint" else state[..., 2:4]
+            seen = (torch.from_numpy(dynamics.velocity(backend.reference)).reshape(1, n, -1) if name == "mujoco_on_setpoint"
+                    else dynamics.velocity(state))
             u = -dynamics.u_max * torch.sign(seen - target)
             if name == "double_integrator":
                 state = dynamics.step(state, u, dt)
             else:
                 backend.command(u, dt)
                 state = backend.step()
-            vs.append(state[..., 2:4].clone())
+            vs.append(dynamics.velocity(state).clone())
         last = torch.stack(vs[len(vs) // 2:])
         out[name] = float(((last.amax(0) - last.amin(0)) / 2).max())
     return out
 
 
-def bang_bang_tracking(backend: MujocoBackend, dynamics: DoubleIntegrator, mean_dwell_s: float, n: int = 16,
+def bang_bang_tracking(backend: MujocoBackend, dynamics: AgentModel, mean_dwell_s: float, n: int = 16,
                        seconds: float = 3.0, seed: int = 0) -> dict:
     """Open-loop random bang-bang (±u_max per axis, flipping with probability dt / mean_dwell_s
     per step) from rest: planar RMS / max error (m) to the exact double integrator, largest
@@ -107,11 +108,11 @@ def bang_bang_tracking(backend: MujocoBackend, dynamics: DoubleIntegrator, mean_
     err, thrust_min, thrust_max, alt = [], math.inf, 0.0, 0.0
     for _ in range(int(round(seconds / dt))):
         cur = np.where(rng.random((n, 2)) < dt / mean_dwell_s, -cur, cur)
-        a = torch.from_numpy(cur).reshape(1, n, 2)
+        a = torch.from_numpy(cur).reshape(1, n, -1)
         backend.command(a, dt)
         state = backend.step()
         ref = dynamics.step(ref, a, dt)
-        err.append(torch.linalg.vector_norm(state[..., 0:2] - ref[..., 0:2], dim=-1))
+        err.append(torch.linalg.vector_norm(dynamics.position(state) - dynamics.position(ref), dim=-1))
         thrust_min = min(thrust_min, float(backend.thrusts.min()))
         thrust_max = max(thrust_max, float(backend.thrusts.max()))
         alt = max(alt, float(np.abs(backend.qpos[:, 2] - backend.settings.altitude).max()))

@@ -37,10 +37,13 @@ from dataclasses import dataclass
 
 import torch
 
+from madpinn.dynamics import AGENT
 from madpinn.dynamics.system import BoxControlSystem
 from madpinn.observation import (
     EGO_DIM,
+    EGO_VELOCITY,
     NEIGHBOUR_DIM,
+    NEIGHBOUR_VELOCITY,
     ObservationSettings,
     constraint,
     running_cost,
@@ -66,7 +69,7 @@ class EpigraphSystem(BoxControlSystem):
     velocity_saturation: bool
 
     control_mode = "min"   # the agents minimise the epigraph value (cost)
-    control_ndim = 2       # one control per observed agent: [..., n+1, 2]
+    control_ndim = 2       # one control per observed agent: [..., n+1, d]
 
     @property
     def control_bound(self) -> float:
@@ -83,27 +86,29 @@ class EpigraphSystem(BoxControlSystem):
         return self.spec.dim + 1
 
     def velocity_index(self) -> torch.Tensor:
-        """Indices ``[n+1, 2]`` of each agent's velocity inside the observation."""
-        idx = [[0, 1]] + [[EGO_DIM + NEIGHBOUR_DIM * j + 2, EGO_DIM + NEIGHBOUR_DIM * j + 3] for j in range(self.spec.n_neighbours)]
-        return torch.tensor(idx, dtype=torch.long)
+        """Indices ``[n+1, d]`` of each agent's velocity inside the observation."""
+        ego = torch.arange(EGO_DIM)[EGO_VELOCITY]
+        nbr = [EGO_DIM + NEIGHBOUR_DIM * j + torch.arange(NEIGHBOUR_DIM)[NEIGHBOUR_VELOCITY] for j in range(self.spec.n_neighbours)]
+        return torch.stack([ego, *nbr])
 
     def half_widths(self) -> torch.Tensor:
         """Per-coordinate half width ``[D]`` of the symmetric observation domain (m, m/s)."""
-        s = self.spec
-        nbr = [s.offset_range] * 2 + [self.v_max] * 2 + [s.goal_range] * 2
-        return torch.tensor([self.v_max] * 2 + [s.goal_range] * 2 + nbr * s.n_neighbours, dtype=torch.float64)
+        s, d = self.spec, AGENT.position_dim
+        nbr = [s.offset_range] * d + [self.v_max] * d + [s.goal_range] * d
+        return torch.tensor([self.v_max] * d + [s.goal_range] * d + nbr * s.n_neighbours, dtype=torch.float64)
 
     @staticmethod
     def default_z_max(spec: ObservationSettings, v_max: float, u_max: float, horizon: float) -> float:
         """Upper bound of the cost over the horizon on the sampled domain (cost units).
 
         Each agent's distance to its goal is at most its largest initial distance (ego:
-        ``√2·goal_range``; neighbour: ``√2·(goal_range + offset_range)``) plus its largest
-        displacement ``√2·(v_max·T + u_max·T²/2)``; the cost is ``(T + 1)`` times the sum.
+        ``√d·goal_range``; neighbour: ``√d·(goal_range + offset_range)``) plus its largest
+        displacement ``√d·(v_max·T + u_max·T²/2)``; the cost is ``(T + 1)`` times the sum.
         """
-        move = math.sqrt(2.0) * (v_max * horizon + 0.5 * u_max * horizon**2)
-        ego = math.sqrt(2.0) * spec.goal_range + move
-        nbr = math.sqrt(2.0) * (spec.goal_range + spec.offset_range) + move
+        diagonal = math.sqrt(float(AGENT.position_dim))   # per-coordinate bounds -> Euclidean
+        move = diagonal * (v_max * horizon + 0.5 * u_max * horizon**2)
+        ego = diagonal * spec.goal_range + move
+        nbr = diagonal * (spec.goal_range + spec.offset_range) + move
         return (horizon + 1.0) * (ego + spec.n_neighbours * nbr)
 
     # ---- sampling -----------------------------------------------------------------------
@@ -148,11 +153,11 @@ class EpigraphSystem(BoxControlSystem):
         lead = obs.shape[:-1]
         n = self.spec.n_neighbours
         ego = torch.cat([torch.zeros_like(v_ego[..., 0, :]), -v_ego[..., 0, :]], dim=-1)
-        nbr = torch.cat([v[..., 1:, :] - v_ego, torch.zeros_like(v[..., 1:, :]), (-v_ego).expand(*lead, n, 2)], dim=-1)
+        nbr = torch.cat([v[..., 1:, :] - v_ego, torch.zeros_like(v[..., 1:, :]), (-v_ego).expand(*lead, n, v.shape[-1])], dim=-1)
         return torch.cat([ego, nbr.flatten(-2)], dim=-1)
 
     def f(self, obs: torch.Tensor, z: torch.Tensor, u: torch.Tensor):
-        """Augmented vector field for agent controls ``u [B, n+1, 2]`` (clipped to the box):
+        """Augmented vector field for agent controls ``u [B, n+1, d]`` (clipped to the box):
         returns ``(d obs/dt [B, D], dz/dt [B])``."""
         u = u.clamp(-self.u_max, self.u_max)
         do = self.transport(obs).clone()
@@ -163,14 +168,14 @@ class EpigraphSystem(BoxControlSystem):
         return do, -self.running_cost(obs)
 
     def velocity_grad(self, dv_dobs: torch.Tensor) -> torch.Tensor:
-        """``∂V/∂v_a`` ``[B, n+1, 2]`` from the observation gradient ``[B, D]``."""
+        """``∂V/∂v_a`` ``[B, n+1, d]`` from the observation gradient ``[B, D]``."""
         idx = self.velocity_index().to(dv_dobs.device)
         return dv_dobs[..., idx]
 
     control_grad = velocity_grad   # the controls enter the observed agents' velocities
 
     def _outward(self, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Where control ``u`` pushes velocity ``v`` (both ``[..., n+1, 2]``) beyond ±v_max."""
+        """Where control ``u`` pushes velocity ``v`` (both ``[..., n+1, d]``) beyond ±v_max."""
         return ((v >= self.v_max) & (u > 0)) | ((v <= -self.v_max) & (u < 0))
 
     def hamiltonian(self, obs: torch.Tensor, dv_dobs: torch.Tensor, dv_dz: torch.Tensor) -> torch.Tensor:
@@ -186,7 +191,7 @@ class EpigraphSystem(BoxControlSystem):
         return drift - self.u_max * effective.sum((-1, -2))
 
     def optimal_control(self, dv_dobs: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
-        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, 2]``;
+        """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, d]``;
         with ``velocity_saturation`` (``obs`` then required) 0 where it would push a saturated
         velocity further out."""
         u = super().optimal_control(dv_dobs)
