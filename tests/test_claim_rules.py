@@ -1,0 +1,199 @@
+"""Issue 61: each claim rule's verdict flips on altered report cells; the verdict scale; the paper's
+consistency checks flip on altered paper values; one cell is judged alike in every table."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import pytest
+import yaml
+
+from conftest import REPO
+from madpinn.evaluation.claim_checks import DOES_NOT, HOLDS, UNSTATED, Check, claim_verdict, headline
+from madpinn.evaluation.claims import build_claims
+from madpinn.evaluation.paper_consistency import check_paper, least_std
+from madpinn.evaluation.reproduction import PAPER_VALUES
+
+REPORT = json.loads((REPO / "paper_figures" / "reproduction.json").read_text())
+T1, T2, T3, T4 = "table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation"
+NS = (3, 8, 12, 16)
+BASELINES = ("defmarl-n3", "defmarl-n8", "safemarl", "mppi")
+
+
+def _fig(rep, table, run, n, key, mean, half=0.005):
+    c = rep[table][run][str(n)]
+    c[key] = mean
+    c[f"{key}_ci"] = [mean - half, mean + half]
+
+
+def _vs(rep, table, run, n, key, d, half=0.005):
+    rep[table][run][str(n)]["vs_ours"][key] = {"diff": d, "lo": d - half, "hi": d + half}
+
+
+def _verdict(rep, claim):
+    return build_claims(rep)["verdicts"][claim]
+
+
+@pytest.fixture
+def rep():
+    return copy.deepcopy(REPORT)
+
+
+def test_scale_and_unstated_readings():
+    ok = lambda row, stated=True: Check("e", "o", (), True, reading="s" if stated else "alt", stated=stated, row=row)  # noqa: E731
+    bad = lambda row: Check("e", "o", (), False, row=row)  # noqa: E731
+    assert claim_verdict([ok("a"), bad("b")]) == "partly (1 of 2)"
+    assert claim_verdict([ok("a"), bad("b"), ok("b", stated=False)]) == UNSTATED      # b holds under our reading
+    assert claim_verdict([bad("a"), bad("b"), ok("b", stated=False)]) == DOES_NOT     # a holds under none
+    core = Check("e", "o", (), False, essential=True, margin=5.0)
+    assert headline([Check("e", "o", (), False, margin=-9.0), core]) is core
+
+
+def test_best_tradeoff_ignores_safer_baselines(rep):
+    for n in NS:
+        _fig(rep, T1, "madpinn", n, "safety", 0.995)
+        for b in BASELINES:
+            _vs(rep, T1, b, n, "cost_time_avg", 0.05)
+            _vs(rep, T1, b, n, "safety", 0.03)      # safer than Ours: the paper never claims otherwise
+    assert _verdict(rep, "best_tradeoff") == HOLDS
+    _vs(rep, T1, "mppi", 8, "cost_time_avg", -0.05)
+    assert _verdict(rep, "best_tradeoff") == "partly (7 of 8)"
+
+
+def test_fig2_ordering_per_baseline(rep):
+    for n in NS:
+        for b in (*BASELINES, "safemarl-layered", "mppi-literal"):
+            _vs(rep, T1, b, n, "cost_time_avg", 0.05)
+            _vs(rep, T1, b, n, "safety", -0.05)
+    assert _verdict(rep, "fig2_ordering") == HOLDS
+    _vs(rep, T1, "safemarl", 16, "cost_time_avg", 0.0)
+    _vs(rep, T1, "safemarl", 16, "safety", 0.05)
+    assert _verdict(rep, "fig2_ordering") == UNSTATED         # the layered filter still never dominates
+    _vs(rep, T1, "safemarl-layered", 16, "safety", 0.05)
+    _vs(rep, T1, "safemarl-layered", 16, "cost_time_avg", 0.0)
+    assert _verdict(rep, "fig2_ordering") == "partly (15 of 16)"
+
+
+def test_safemarl_costlier_one_verdict_per_run(rep):
+    for n in NS:
+        for run, d in (("safemarl", 0.1), ("safemarl-layered", 0.1)):
+            _vs(rep, T1, run, n, "cost_time_avg", d)
+            _vs(rep, T1, run, n, "safety", 0.0)
+    assert _verdict(rep, "safemarl_costlier") == HOLDS
+    for n in NS:
+        _vs(rep, T1, "safemarl", n, "cost_time_avg", -0.1)
+    claim = next(c for c in build_claims(rep)["claims"] if c["id"] == "safemarl_costlier")
+    assert claim["verdict"] == UNSTATED and claim["readings"]["SafeMARL (layered filter)"] == HOLDS
+    assert claim["readings"]["the paper's"] == "partly (4 of 8)"
+    assert claim["headline"]["part"] == "cost" and "cheaper" in claim["headline"]["observed"]
+
+
+def test_mppi_poor(rep):
+    for n in NS:
+        _vs(rep, T1, "mppi", n, "cost_time_avg", 0.05)
+        _vs(rep, T1, "mppi", n, "safety", -0.05)
+    assert _verdict(rep, "mppi_poor") == HOLDS
+    _vs(rep, T1, "mppi", 3, "cost_time_avg", -0.05)
+    assert _verdict(rep, "mppi_poor") == "partly (7 of 8)"
+
+
+def test_degrade_is_comparative(rep):
+    for run in ("madpinn", "defmarl-n3", "defmarl-n8", "mppi", "mppi-literal"):
+        fall = 0.02 if run == "madpinn" else 0.4
+        for key in ("safety", "safe_scenarios"):
+            _fig(rep, T1, run, 3, key, 0.99)
+            _fig(rep, T1, run, 16, key, 0.99 - fall)
+    assert _verdict(rep, "defmarl_mppi_degrade") == HOLDS
+    _fig(rep, T1, "madpinn", 16, "safe_scenarios", 0.5)          # Ours' safe scenarios fall as much
+    assert _verdict(rep, "defmarl_mppi_degrade").startswith("partly")
+    _fig(rep, T1, "defmarl-n3", 16, "safety", 0.99)              # no fall at all: essential
+    assert _verdict(rep, "defmarl_mppi_degrade") == DOES_NOT
+
+
+def test_safe_scenarios_high(rep):
+    for n in NS:
+        for run in ("madpinn", "madpinn-lookahead"):
+            _fig(rep, T1, run, n, "safe_scenarios", rep[T1]["madpinn"][str(n)]["paper_safe_scenarios"])
+    assert _verdict(rep, "safe_scenarios_high") == HOLDS
+    _fig(rep, T1, "madpinn", 16, "safe_scenarios", 0.5)
+    assert _verdict(rep, "safe_scenarios_high") == UNSTATED
+
+
+def test_table2_scales(rep):
+    for run in rep[T2]:
+        if run.startswith("madpinn"):
+            for n, c in rep[T2][run].items():
+                for key in ("safety", "safe_scenarios"):
+                    _fig(rep, T2, run, n, key, rep[T2]["madpinn"][n][f"paper_{key}"])
+                _fig(rep, T2, run, n, "cost_time_avg", rep[T2]["madpinn"][n]["paper_cost"] - 0.1)
+    assert _verdict(rep, "table2_scales") == HOLDS
+    _fig(rep, T2, "madpinn", 256, "safety", 0.5)
+    assert _verdict(rep, "table2_scales") == UNSTATED              # our variants still reach it
+    for run in rep[T2]:
+        if run.startswith("madpinn"):
+            _fig(rep, T2, run, 256, "safety", 0.5)
+    assert _verdict(rep, "table2_scales") == DOES_NOT
+
+
+def test_neighbour_cost_names_its_convention(rep):
+    for run in ("madpinn-nearest", "madpinn-random"):
+        _vs(rep, T3, run, 12, "cost_time_avg", 0.1)
+    claim = next(c for c in build_claims(rep)["claims"] if c["id"] == "neighbour_cost_least")
+    assert claim["verdict"] == HOLDS and any("all agents" in r for r in claim["readings"])
+    _vs(rep, T3, "madpinn-random", 12, "cost_time_avg", -0.1)
+    assert _verdict(rep, "neighbour_cost_least") == "partly (1 of 2)"
+
+
+def test_update_cost_and_sensitivity(rep):
+    ks = [r for r in rep[T4] if r.startswith("madpinn-k")]
+    for i, run in enumerate(ks):
+        _fig(rep, T4, run, 12, "cost_time_avg", 0.5 + 0.01 * i)
+        _fig(rep, T4, run, 12, "safety", 0.99 - 0.06 * i)
+    assert _verdict(rep, "update_cost_rises") == HOLDS and _verdict(rep, "update_safety_more_sensitive") == HOLDS
+    for i, run in enumerate(ks):
+        _fig(rep, T4, run, 12, "cost_time_avg", 0.5 + 0.1 * i)
+        _fig(rep, T4, run, 12, "safety", 0.99)
+    assert _verdict(rep, "update_safety_more_sensitive") == DOES_NOT
+    _fig(rep, T4, ks[-1], 12, "cost_time_avg", 0.3)
+    assert _verdict(rep, "update_cost_rises") == DOES_NOT
+
+
+def test_same_cell_judged_alike():
+    values = [r for r in build_claims(REPORT)["values"] if r["figure"] == "safety" and r["n"] == 12
+              and r["run"] in ("madpinn", "madpinn-value", "madpinn-k5")]
+    assert len(values) == 3 and len({r["reproduces"] for r in values}) == 1
+    assert all("t-interval" in r["paper"] for r in values)
+
+
+def _consistency(tmp_path, edit):
+    raw = yaml.safe_load(PAPER_VALUES.read_text())
+    edit(raw)
+    path = tmp_path / "paper_values.yaml"
+    path.write_text(yaml.safe_dump(raw, allow_unicode=True))
+    return [r for r in check_paper(path) if not r["holds"]]
+
+
+def test_paper_consistency_flips(tmp_path):
+    bad = _consistency(tmp_path, lambda r: None)
+    k1 = [r for r in bad if r["run"] == "madpinn-k1"]
+    assert [r["check"] for r in k1] == ["safety vs safe scenarios"]      # 99.99 % safety, 99 % safe scenarios
+    assert not [r for r in bad if r["table"] == T2]                      # the ¼ at 128 / 256 agents is possible
+
+    def fix(r):
+        r["tables"][T4]["runs"]["madpinn-k1"]["n"][12]["safety"] = 0.998
+    assert not [r for r in _consistency(tmp_path, fix) if r["run"] == "madpinn-k1"]
+
+    def disagree(r):
+        r["tables"][T3]["runs"]["madpinn-value"]["n"][12]["cost"] = 0.55
+    assert any(r["check"] == "cost agrees across tables" for r in _consistency(tmp_path, disagree))
+
+    def overflow(r):
+        r["tables"][T1]["runs"]["safemarl"]["n"][8][1] = 0.05           # 99.8 % ± 5 % exceeds 100 %
+    assert any(r["check"] == "safety: mean ± std in [0, 100 %]" for r in _consistency(tmp_path, overflow))
+
+
+def test_least_std_on_a_grid():
+    assert least_std(0.98, 0.98, 5, 20) == pytest.approx(0.0245, abs=1e-4)   # 1, 1, 1, 0.95, 0.95
+    assert least_std(0.98, 0.98, 5, 100) == pytest.approx(0.0, abs=1e-12)
+    assert least_std(0.981, 0.981, 5, 20) is None
