@@ -178,7 +178,7 @@ def cost(x) -> str:
 
 
 def pct(p: float | None) -> str:
-    """A paper fraction as the paper prints it (0.9933 -> 99.33 %)."""
+    """A paper fraction as a percentage with the digits the paper prints (0.5 -> 50 %)."""
     return "–" if p is None else f"{100 * p:.6g} %"
 
 

@@ -1,7 +1,7 @@
 """The paper's numbers checked against each other (issue 61): arithmetic that every table of
 paper_values.yaml must satisfy, computed from that file alone.
 
-Each printed value stands for an interval: ± half a unit of its last printed digit (99.33 % ->
+Each printed value stands for an interval: ± half a unit of its last printed digit (12.34 % ->
 ± 0.005 pp). A check fails only when no values inside those intervals satisfy it:
 
 - **safety vs safe scenarios**: a collision involves at least two agents (``collision_agents``), so a
