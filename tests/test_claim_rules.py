@@ -197,3 +197,40 @@ def test_least_std_on_a_grid():
     assert least_std(0.98, 0.98, 5, 20) == pytest.approx(0.0245, abs=1e-4)   # 1, 1, 1, 0.95, 0.95
     assert least_std(0.98, 0.98, 5, 100) == pytest.approx(0.0, abs=1e-12)
     assert least_std(0.981, 0.981, 5, 20) is None
+
+
+def test_evaluate_by_hand_refuses_a_protocol_seed(tmp_path):
+    """Issue 61 item 4: `python -m madpinn evaluate --seed 0` outside the workflow stops before any
+    simulation unless --protocol-seed-reason says why; the workflow's jobs carry MADPINN_WORKFLOW_JOB."""
+    import subprocess
+    import sys
+
+    from conftest import SMOKE, subprocess_env
+    from madpinn.commands.seed_guard import WORKFLOW_ENV, protocol_seed_reason
+    from madpinn.config import ConfigError
+
+    env = {k: v for k, v in subprocess_env().items() if k != WORKFLOW_ENV}
+    cmd = [sys.executable, "-m", "madpinn", "evaluate", "--config", str(REPO / "config.yaml"), str(SMOKE), "--study", "main",
+           "--run", "nominal", "--n-agents", "3", "--seed", "0", "--out", str(tmp_path / "x.parquet"), "--no-track"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert proc.returncode == 2 and "protocol seed" in proc.stderr and "--protocol-seed-reason" in proc.stderr, proc.stderr[-2000:]
+    assert list(tmp_path.glob("x*")) == []
+    with pytest.raises(ConfigError):
+        protocol_seed_reason(4, "  ", environ={})
+    assert protocol_seed_reason(0, "reproduce issue 61's figure", environ={}) == "reproduce issue 61's figure"
+    assert protocol_seed_reason(0, None, environ={WORKFLOW_ENV: "1"}) is None      # the workflow's own job
+    assert protocol_seed_reason(100, None, environ={}) is None                     # a validation seed
+
+
+def test_the_reason_is_recorded(tmp_path, monkeypatch):
+    """The reason lands in the cell's JSON summary (and, as a tag, in its MLflow run)."""
+    from conftest import SMOKE
+    from madpinn.commands.evaluate import evaluate
+    from madpinn.commands.seed_guard import REASON_KEY, WORKFLOW_ENV
+    from madpinn.config import load_config
+
+    monkeypatch.delenv(WORKFLOW_ENV, raising=False)
+    cfg = load_config([REPO / "config.yaml", SMOKE])
+    s = evaluate(cfg, "main", "nominal", 3, 0, tmp_path / "c.parquet", progress=False, track=False,
+                 protocol_seed_reason="a test", by_hand=True)
+    assert s[REASON_KEY] == "a test" and json.loads((tmp_path / "c.json").read_text())[REASON_KEY] == "a test"
