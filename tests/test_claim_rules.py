@@ -234,3 +234,13 @@ def test_the_reason_is_recorded(tmp_path, monkeypatch):
     s = evaluate(cfg, "main", "nominal", 3, 0, tmp_path / "c.parquet", progress=False, track=False,
                  protocol_seed_reason="a test", by_hand=True)
     assert s[REASON_KEY] == "a test" and json.loads((tmp_path / "c.json").read_text())[REASON_KEY] == "a test"
+
+
+def test_cost_proportional_is_a_reading_of_ours(rep):
+    base = rep[T1]["madpinn"]["16"]["cost_time_avg"]
+    for n in rep[T2]["madpinn"]:
+        _fig(rep, T2, "madpinn", n, "cost_time_avg", 3 * base)
+    claim = next(c for c in build_claims(rep)["claims"] if c["id"] == "table2_cost_proportional")
+    assert claim["verdict"] == UNSTATED and all(not ch["stated"] for ch in claim["checks"])
+    _fig(rep, T2, "madpinn", 256, "cost_time_avg", 6 * base)
+    assert _verdict(rep, "table2_cost_proportional") == "partly (2 of 3)"

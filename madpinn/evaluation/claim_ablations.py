@@ -181,3 +181,30 @@ def safety_more_sensitive(rep: Mapping) -> list[Check]:
                          (name(T4, r0, n), name(T4, r1, n)), s_fall > c_rise, "safety much more sensitive",
                          "sensitivity", margin=s_fall - c_rise))
     return out
+
+
+PROPORTIONAL = "cost ratio at most the arena side ratio (our reading: the paper states no tolerance)"
+
+
+def cost_proportional(rep: Mapping) -> list[Check]:
+    """Per Table II N: Ours' cost ÷T over its Table I cost ÷T at the most agents, conservative interval
+    from the two cells' intervals, not significantly above the arena side ratio (paper_values.yaml)."""
+    from madpinn.evaluation.claim_rules import T1
+    from madpinn.evaluation.paper_consistency import raw
+
+    sides = raw()["protocol"]["arena_side"]
+    side = sides["large"] / sides["small"]
+    small_ns = ns(rep, T1, "madpinn")
+    base = fig(cell(rep, T1, "madpinn", small_ns[-1]), "cost_time_avg") if small_ns else None
+    out = []
+    for n in ns(rep, T2, "madpinn") if base else []:
+        f = fig(cell(rep, T2, "madpinn", n), "cost_time_avg")
+        if f is None:
+            continue
+        r = (f[0] / base[0], f[1] / base[2], f[2] / base[1])
+        out.append(Check(f"N = {n}: cost ÷T at most {side:g}× Table I's at N = {small_ns[-1]} (arena side {sides['small']:g} "
+                         f"→ {sides['large']:g} m)", f"ratio {r[0]:.2f} [{r[1]:.2f}, {r[2]:.2f}]",
+                         (name(T2, "madpinn", n), name(T1, "madpinn", small_ns[-1])), r[1] <= side,
+                         f"paper: Table II {(cell(rep, T2, 'madpinn', n) or {}).get('paper_cost')}; Table I cost only plotted",
+                         "cost", margin=(side - r[1]) / max(r[2] - r[1], 1e-3), reading=PROPORTIONAL, stated=False))
+    return out
