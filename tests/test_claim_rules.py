@@ -206,8 +206,8 @@ def test_evaluate_by_hand_refuses_a_protocol_seed(tmp_path):
     import sys
 
     from conftest import SMOKE, subprocess_env
-    from madpinn.commands.seed_guard import WORKFLOW_ENV, protocol_seed_reason
-    from madpinn.config import ConfigError
+    from madpinn.commands.seed_guard import MIN_VALIDATION_SEED, WORKFLOW_ENV, ProtocolSeedError, protocol_seed_reason
+    from madpinn.marl.validation import MIN_VALIDATION_SEED as MARL_MIN
 
     env = {k: v for k, v in subprocess_env().items() if k != WORKFLOW_ENV}
     cmd = [sys.executable, "-m", "madpinn", "evaluate", "--config", str(REPO / "config.yaml"), str(SMOKE), "--study", "main",
@@ -215,7 +215,8 @@ def test_evaluate_by_hand_refuses_a_protocol_seed(tmp_path):
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp_path)
     assert proc.returncode == 2 and "protocol seed" in proc.stderr and "--protocol-seed-reason" in proc.stderr, proc.stderr[-2000:]
     assert list(tmp_path.glob("x*")) == []
-    with pytest.raises(ConfigError):
+    assert MIN_VALIDATION_SEED == MARL_MIN
+    with pytest.raises(ProtocolSeedError):
         protocol_seed_reason(4, "  ", environ={})
     assert protocol_seed_reason(0, "reproduce issue 61's figure", environ={}) == "reproduce issue 61's figure"
     assert protocol_seed_reason(0, None, environ={WORKFLOW_ENV: "1"}) is None      # the workflow's own job
@@ -244,3 +245,36 @@ def test_cost_proportional_is_a_reading_of_ours(rep):
     assert claim["verdict"] == UNSTATED and all(not ch["stated"] for ch in claim["checks"])
     _fig(rep, T2, "madpinn", 256, "cost_time_avg", 6 * base)
     assert _verdict(rep, "table2_cost_proportional") == "partly (2 of 3)"
+
+
+def _timing(all_pairs_ms, deployment_ms, exponent=(0.5, 0.2, 0.8)):
+    rows = [{"arena": "small", "n": n, "all pairs": a, "deployment": d}
+            for n, a, d in zip((3, 16, 256), all_pairs_ms, deployment_ms)]
+    fit = dict(zip(("exponent", "lo", "hi"), exponent))
+    return {"rows": rows, "fit": {"all pairs": fit, "deployment": fit}, "hardware": "test CPU"}
+
+
+def test_timing_claim_flips():
+    from madpinn.evaluation.paper_consistency import raw
+
+    ms = raw()["protocol"]["neighbour_selection_ms"]
+    verdict_of = lambda t: build_claims(REPORT, timing=t)["verdicts"]["neighbour_selection_time"]   # noqa: E731
+    assert verdict_of(_timing([ms / 2] * 3, [ms / 4] * 3)) == HOLDS
+    assert verdict_of(_timing([ms / 2, ms / 2, 3 * ms], [ms / 4] * 3)) == UNSTATED   # only within the sensing radius
+    assert verdict_of(_timing([ms / 2] * 3, [ms / 4] * 3, exponent=(2.0, 1.5, 2.5))) == DOES_NOT
+    assert "neighbour_selection_time" not in build_claims(REPORT)["verdicts"]
+
+
+def test_timing_measures_every_agent_count():
+    """The workflow's benchmark on a reduced config (three agent counts, one scenario, one repeat)."""
+    from madpinn.config import load_config
+    from madpinn.evaluation.neighbour_timing import fit_exponent, measure
+    from madpinn.value_functions import load_vs
+
+    cfg = load_config([REPO / "config.yaml"])
+    cfg["studies"]["main"]["agent_counts"], cfg["studies"]["scaling"]["agent_counts"] = [3, 8], [16]
+    out = measure(cfg, load_vs(REPO / "models" / "vs.pt"), count=1, repeats=1)
+    assert [r["n"] for r in out["rows"]] == [3, 8, 16] and all(r["deployment"] > 0 and r["all pairs"] > 0 for r in out["rows"])
+    assert out["fit"]["deployment"]["exponent"] is not None and out["hardware"]
+    fit = fit_exponent([1, 2, 4, 8], [3.0, 6.0, 12.0, 24.0])
+    assert fit["exponent"] == pytest.approx(1.0) and fit["lo"] == pytest.approx(1.0)

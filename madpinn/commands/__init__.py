@@ -29,6 +29,7 @@ COMMAND_MODULES = [
     "madpinn.commands.safemarl",  # train-safemarl-nominal
     "madpinn.commands.defmarl",  # train-defmarl
     "madpinn.commands.gap",  # gap-decomposition
+    "madpinn.commands.timing",  # neighbour-timing
 ]
 
 

@@ -14,20 +14,23 @@ from __future__ import annotations
 import os
 from typing import Mapping
 
-from madpinn.config import ConfigError
-from madpinn.marl.validation import MIN_VALIDATION_SEED
-
+MIN_VALIDATION_SEED = 100
+"""validation seeds start here (:data:`madpinn.marl.validation.MIN_VALIDATION_SEED`; not imported: a
+cell job would then load a module its source hash does not cover)"""
 WORKFLOW_ENV = "MADPINN_WORKFLOW_JOB"
 REASON_KEY = "protocol_seed_reason"
 
 
+class ProtocolSeedError(ValueError):
+    """A protocol seed asked for by hand without a reason."""
+
+
 def protocol_seed_reason(seed: int, reason: str | None, environ: Mapping[str, str] = os.environ) -> str | None:
-    """The reason to record for ``seed`` (None: nothing to record); raises :class:`ConfigError` for a
-    protocol seed run by hand without a reason."""
+    """The reason to record for ``seed`` (None: nothing to record); raises :class:`ProtocolSeedError`
+    for a protocol seed run by hand without a reason."""
     if seed >= MIN_VALIDATION_SEED or environ.get(WORKFLOW_ENV):
         return reason.strip() if reason and reason.strip() else None
     if not reason or not reason.strip():
-        raise ConfigError(f"seed {seed} is a protocol seed (< {MIN_VALIDATION_SEED}: the tables' cells); by hand use "
-                          f"a validation seed (≥ {MIN_VALIDATION_SEED}), or say why with --protocol-seed-reason TEXT "
-                          "(recorded in the cell's summary and MLflow run)")
+        raise ProtocolSeedError(f"seed {seed} is a protocol seed (< {MIN_VALIDATION_SEED}: the tables' cells), "
+                                "evaluated by hand without a reason")
     return reason.strip()
