@@ -278,3 +278,35 @@ def test_timing_measures_every_agent_count():
     assert out["fit"]["deployment"]["exponent"] is not None and out["hardware"]
     fit = fit_exponent([1, 2, 4, 8], [3.0, 6.0, 12.0, 24.0])
     assert fit["exponent"] == pytest.approx(1.0) and fit["lo"] == pytest.approx(1.0)
+
+
+def test_heatmap_reading_and_its_claim():
+    """A synthetic heatmap: cost rising with the distance to the goal, a wall of infeasible cells on
+    one agent. The reading finds both; moving the minimum away from the goal flips the claim."""
+    import numpy as np
+
+    from madpinn.value_functions.heatmap_reading import heatmap_reading
+    from madpinn.value_functions.validation import HEATMAP
+
+    axis = np.linspace(-1, 1, 101)
+    xx, yy = np.meshgrid(axis, axis)
+    z = np.hypot(xx - HEATMAP["ego_goal"][0], yy - HEATMAP["ego_goal"][1])
+    ok = np.ones_like(z, dtype=bool)
+    for x, y in HEATMAP["neighbours"]:
+        ok &= np.hypot(xx - x, yy - y) > 0.1
+    reading = heatmap_reading(axis, z, ok, 0.1)
+    assert all(a["infeasible_share"] == 1.0 for a in reading["agents"]) and reading["lowest_to_goal"] < 0.02
+    verdict_of = lambda r: build_claims(REPORT, heatmap=r)["verdicts"]["value_heatmap"]   # noqa: E731
+    assert verdict_of(reading) == HOLDS
+    moved = heatmap_reading(axis, np.hypot(xx - 0.8, yy - 0.8), ok, 0.1)
+    assert verdict_of(moved) == "partly (2 of 4)"
+
+
+def test_findings_block_follows_the_files():
+    from madpinn.evaluation.readme_blocks import findings_lines
+
+    claims = json.loads((REPO / "paper_figures" / "claims.json").read_text())
+    lines = findings_lines(claims, REPORT)
+    assert "Table IV row \"1\"" in lines[1]
+    fixed = dict(claims, consistency=[dict(r, holds=True) for r in claims["consistency"]])
+    assert findings_lines(fixed, REPORT)[1].startswith("- The paper's own numbers: 0 of") and "Table IV" not in findings_lines(fixed, REPORT)[1]

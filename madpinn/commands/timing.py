@@ -29,5 +29,6 @@ def register(sub) -> None:
     p.add_argument("--repeats", type=int, default=3, help="best of this many timings")
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_neighbour_timing,
-                   reads=keys("experiment", "observation", "studies.main", "studies.scaling", "arenas",
-                              "sim.start_separation", "methods.madpinn.vs_band"))
+                   reads=keys("experiment", "observation.n_neighbours", "observation.sensing_radius",
+                              *(f"studies.{s}.{k}" for s in ("main", "scaling") for k in ("arena", "agent_counts")),
+                              "arenas", "sim.start_separation", "methods.madpinn.vs_band"))

@@ -50,9 +50,9 @@ def paper_interval(c: dict, key: str, std: tuple[float, int] | None = None, seed
 
 def value_rows(rep: Mapping, seeds: int = 5) -> list[dict]:
     """One row per (paper table, paper row, N, figure) the report holds."""
-    from madpinn.evaluation.reproduction import paper_values
+    from madpinn.evaluation.reproduction import paper_table_numbers, paper_values
 
-    shared, out = _shared_std(), []
+    shared, out, numbers = _shared_std(), [], paper_table_numbers()
     for table, t in paper_values().items():
         for run in t["runs"]:
             for n, c in rep.get(table, {}).get(run, {}).items():
@@ -67,7 +67,7 @@ def value_rows(rep: Mapping, seeds: int = 5) -> list[dict]:
                     p = c.get("paper_cost" if not pct else f"paper_{key}")
                     shown = (f"{100 * p:.6g} %" if pct else f"{p:g}") + (
                         f" (t-interval {100 * paper[0]:.1f}, {100 * paper[1]:.1f})" if pct and paper[0] != paper[1] else "")
-                    out.append({"table": table, "run": run, "label": c["label"], "n": int(n), "figure": word,
+                    out.append({"table": table, "paper_table": f"Table {numbers.get(table, table)}", "run": run, "label": c["label"], "n": int(n), "figure": word,
                                 "ours": pp(ours) if pct else f"{ours[0]:.2f} [{ours[1]:.2f}, {ours[2]:.2f}]",
                                 "paper": shown, "reproduces": ours[1] <= paper[1] and paper[0] <= ours[2]})
     return out

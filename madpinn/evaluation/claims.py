@@ -101,13 +101,6 @@ CLAIMS = (
           ab.safety_more_sensitive),
 )
 """every claim the table tests, in the paper's order"""
-NOT_TESTED = (
-    ("Value heatmap: high value where the other agents are, low value at the goal", "Fig. 3 and its reading, Setup",
-     "no rule yet: the heatmap job writes no values the claims could read"),
-)
-"""claims of the paper the table does not test yet: (claim, where, why)"""
-
-
 def _check_dict(c: Check) -> dict:
     return {"expected": c.expected, "observed": c.observed, "cells": list(c.cells), "paper": c.paper, "part": c.part,
             "passed": c.passed, "essential": c.essential, "reading": c.reading, "stated": c.stated, "row": c.row}
@@ -126,16 +119,34 @@ def timing_claim() -> Claim:
                  "paper_figures/neighbour_timing.json)", timing_checks)
 
 
-def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None) -> dict:
+def heatmap_claim() -> Claim:
+    """The heatmap's reading; its checks read the heatmap job's JSON, not the report."""
+    from madpinn.evaluation.claim_heatmap import heatmap_checks
+
+    return Claim("value_heatmap", "Value heatmap: regions of high value overlap the other agents' positions; low values "
+                 "are concentrated around the goal", "Setup, tex 405; Fig. value function",
+                 "on the heatmap's grid (paper_figures/fig_value_heatmap.json): most cells within r of each other agent "
+                 "infeasible or above the arena's median; the goal cell in the lowest decile; the lowest cell within r "
+                 "of the goal", heatmap_checks)
+
+
+def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, heatmap: Mapping | None = None) -> dict:
     """``{"claims": [...], "verdicts": {id: verdict}, "counts": {scale word: n}, "values": [...],
-    "consistency": [...], "not_tested": [...], "provenance": {...}}`` from a reproduction report and
-    the neighbour-timing measurement (``timing``: its JSON; None: the timing claim is left out)."""
+    "consistency": [...], "provenance": {...}}`` from a reproduction report, the neighbour-timing
+    measurement and the heatmap's reading (``timing``, ``heatmap``: their JSON; None: that claim is left out)."""
     from madpinn.evaluation.claim_values import value_rows
     from madpinn.evaluation.paper_consistency import check_paper
 
+    extra = {"neighbour_selection_time": (timing_claim, timing), "value_heatmap": (heatmap_claim, heatmap)}
+    inputs = {cl.id: report for cl in claims}
+    listed = list(claims)
+    for cid, (make, data) in extra.items():
+        if data:
+            listed.append(make())
+            inputs[cid] = data
     out = []
-    for cl in (*claims, *((timing_claim(),) if timing else ())):
-        checks = cl.checks(timing) if cl.id == "neighbour_selection_time" else cl.checks(report)
+    for cl in listed:
+        checks = cl.checks(inputs[cl.id])
         top = headline(checks)
         out.append({"id": cl.id, "claim": cl.text, "source": cl.source, "rule": cl.rule, "verdict": claim_verdict(checks),
                     "readings": {r: verdict(cs) for r, cs in by_reading(checks).items()},
@@ -147,7 +158,6 @@ def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None) 
     return {"claims": out, "verdicts": verdicts,
             "counts": {w: sum(scale_of(v) == w for v in verdicts.values()) for w in SCALE},
             "values": value_rows(report), "consistency": check_paper(),
-            "not_tested": [{"claim": a, "source": b, "why": c} for a, b, c in NOT_TESTED],
             "provenance": {"config_hash": prov.get("config_hash"), "collisions": prov.get("collisions"),
                            "intervals": prov.get("intervals"), "vhat_recipe": VHAT_PROVENANCE,
                            "rule": "per reading: every check passes: holds; k of n: partly (k of n); a failed essential "
@@ -161,16 +171,18 @@ def readme_lines(claims: dict) -> list[str]:
     return [f"- {c['claim']} ({c['source'].split(';')[0]}): **{c['verdict']}**" for c in claims["claims"]]
 
 
-def write_claims(report_path: str | Path, out_dir: str | Path, timing_path: str | Path | None = None) -> list[Path]:
-    """Read ``reproduction.json`` at ``report_path`` (and the neighbour timing at ``timing_path``); write
-    ``claims.json``, ``claims.md`` and ``claims.html`` (the page the Snakemake report shows) into ``out_dir``."""
+def write_claims(report_path: str | Path, out_dir: str | Path, timing_path: str | Path | None = None,
+                 heatmap_path: str | Path | None = None) -> list[Path]:
+    """Read ``reproduction.json`` at ``report_path`` (and the neighbour timing, the heatmap's reading);
+    write ``claims.json``, ``claims.md`` and ``claims.html`` (the page the Snakemake report shows) into ``out_dir``."""
     from madpinn.evaluation.claims_page import to_markdown
     from madpinn.evaluation.html import markdown_page
 
     report = json.loads(Path(report_path).read_text())
     if not isinstance(report, dict) or "provenance" not in report:
         raise ValueError(f"{report_path} is not a reproduction report (no provenance)")
-    claims = build_claims(report, timing=json.loads(Path(timing_path).read_text()) if timing_path else None)
+    read = lambda p: json.loads(Path(p).read_text()) if p else None   # noqa: E731
+    claims = build_claims(report, timing=read(timing_path), heatmap=read(heatmap_path))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     js, md, page = out_dir / "claims.json", out_dir / "claims.md", out_dir / "claims.html"

@@ -47,7 +47,7 @@ def values_section(claims: dict) -> list[str]:
              f"else its point) overlaps our 95 % interval: {k} of {len(rows)} values.", "",
              "| table | row | N | figure | ours [95 %] | paper | reproduces |", "|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['table']} | {r['label']} | {r['n']} | {r['figure']} | {r['ours']} | {r['paper']} "
+        lines.append(f"| {r['paper_table']} | {r['label']} | {r['n']} | {r['figure']} | {r['ours']} | {r['paper']} "
                      f"| {_mark(r['reproduces'])} |")
     return lines
 
@@ -59,14 +59,14 @@ def consistency_section(claims: dict) -> list[str]:
              "each printed value stands for ± half a unit of its last digit; a check fails only when no values "
              f"inside those bounds satisfy it. {len(bad)} of {len(rows)} checks cannot hold:", "",
              "| table | row | N | check | reading | expected | observed |", "|---|---|---|---|---|---|---|"]
-    lines += [f"| {r['table']} | {r['label']} | {r['n']} | {r['check']} | {r['reading'] or '–'} | {r['expected']} "
+    lines += [f"| {r['paper_table']} | {r['label']} | {r['n']} | {r['check']} | {r['reading'] or '–'} | {r['expected']} "
               f"| {r['observed']} |" for r in bad]
     lines += ["", "Safety against safe scenarios, every row (the share of a failing scenario's agents that collide "
               "is what the two figures imply):", "", "| table | row | N | observed | holds |", "|---|---|---|---|---|"]
-    lines += [f"| {r['table']} | {r['label']} | {r['n']} | {r['observed']} | {_mark(r['holds'])} |"
+    lines += [f"| {r['paper_table']} | {r['label']} | {r['n']} | {r['observed']} | {_mark(r['holds'])} |"
               for r in rows if r["check"] == "safety vs safe scenarios"]
     lines += ["", "Rows that must agree:", "", "| tables | check | observed | holds |", "|---|---|---|---|"]
-    lines += [f"| {r['table']} | {r['check']} | {r['observed']} | {_mark(r['holds'])} |"
+    lines += [f"| {r['paper_table']} | {r['check']} | {r['observed']} | {_mark(r['holds'])} |"
               for r in rows if r["label"] == "same cell"]
     return lines
 
@@ -81,8 +81,6 @@ def to_markdown(claims: dict) -> str:
              f"- config hash `{prov.get('config_hash')}`", f"- collisions: {prov.get('collisions')}",
              f"- intervals: {prov.get('intervals')}", f"- seed provenance: {prov.get('vhat_recipe')}", "",
              "## Claims", "", *claims_section(claims), "",
-             "## Claims not tested yet", "", "| claim | where | why |", "|---|---|---|",
-             *(f"| {c['claim']} | {c['source']} | {c['why']} |" for c in claims["not_tested"]), "",
              "## Values per cell (not claims)", "", *values_section(claims), "",
              "## The paper's numbers against each other", "", *consistency_section(claims)]
     return "\n".join(lines) + "\n"

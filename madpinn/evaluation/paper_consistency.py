@@ -20,7 +20,7 @@ from pathlib import Path
 
 import yaml
 
-from madpinn.evaluation.reproduction import PAPER_VALUES, paper_values
+from madpinn.evaluation.reproduction import PAPER_VALUES, paper_table_numbers, paper_values
 
 KEYS = ("safety", "safe_scenarios", "cost")
 
@@ -153,4 +153,8 @@ def check_paper(path: str | Path = PAPER_VALUES) -> list[dict]:
                 out += collided_share(table, run, row["label"], n, c, proto["collision_agents"])
                 out += counts(table, run, row["label"], n, c, readings)
                 out += spreads(table, run, row["label"], n, c, readings)
-    return out + agreement(values, r.get("same_cells", []))
+    out += agreement(values, r.get("same_cells", []))
+    numbers = paper_table_numbers(path)
+    for row in out:
+        row["paper_table"] = " = ".join(f"Table {numbers.get(t, t)}" for t in row["table"].split(" = "))
+    return out

@@ -77,6 +77,7 @@ rule claims_table:
         tracking=TRACKING,
         report=rules.reproduction_report.output.json,
         timing=NEIGHBOUR_TIMING,
+        heatmap=rules.fig_value_heatmap.output.json,
     output:
         md=kept(CLAIMS_OUTPUTS[0]),   # kept: a failed job never deletes the committed claims (common.smk)
         json=kept(CLAIMS_OUTPUTS[1]),
@@ -96,7 +97,7 @@ rule claims_table:
         f"{LOGS}/claims_table.log",
     shell:
         "python -m madpinn claims --config {params.config:q} --report {input.report:q} --timing {input.timing:q}"
-        " --out-dir {params.out_dir:q}"
+        " --heatmap {input.heatmap:q} --out-dir {params.out_dir:q}"
         " 2>&1 | tee {log:q}"
 
 
