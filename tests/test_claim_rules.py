@@ -310,3 +310,14 @@ def test_findings_block_follows_the_files():
     assert "Table IV row \"1\"" in lines[1]
     fixed = dict(claims, consistency=[dict(r, holds=True) for r in claims["consistency"]])
     assert findings_lines(fixed, REPORT)[1].startswith("- The paper's own numbers: 0 of") and "Table IV" not in findings_lines(fixed, REPORT)[1]
+
+
+def test_heatmap_reading_without_a_feasible_cell():
+    import numpy as np
+
+    from madpinn.value_functions.heatmap_reading import heatmap_reading
+
+    axis = np.linspace(-1, 1, 21)
+    reading = heatmap_reading(axis, np.zeros((21, 21)), np.zeros((21, 21), dtype=bool), 0.1)
+    assert reading["median"] is None and reading["lowest_to_goal"] is None
+    assert build_claims(REPORT, heatmap=reading)["verdicts"]["value_heatmap"] == "partly (2 of 4)"

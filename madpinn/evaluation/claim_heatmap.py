@@ -1,4 +1,4 @@
-"""The paper's reading of its value heatmap (Setup, tex 405): "Regions of high value (red) correspond
+"""The paper's reading of its value heatmap (Setup, tex 406): "Regions of high value (red) correspond
 to unsafe states overlapping with the positions of other agents ... regions of low value (blue) are
 concentrated around the goal", tested on the numbers the heatmap job writes beside the figure
 (:mod:`madpinn.value_functions.heatmap_reading`, ``paper_figures/fig_value_heatmap.json``)."""
@@ -28,7 +28,9 @@ def heatmap_checks(reading: Mapping | None) -> list[Check]:
                      "goal cell infeasible" if p is None else f"goal cell at the {p:.1f}th percentile", (),
                      p is not None and p <= LOW_PERCENTILE, "blue around the goal", "low value",
                      margin=None if p is None else (LOW_PERCENTILE - p) / 100))
-    out.append(Check(f"the lowest value within r = {r:g} m of the goal", f"lowest cell at {reading['lowest_to_goal']:.3f} m "
-                     "from the goal", (), reading["lowest_to_goal"] <= r, "blue around the goal", "low value",
-                     margin=(r - reading["lowest_to_goal"]) / r))
+    d = reading["lowest_to_goal"]
+    out.append(Check(f"the lowest value within r = {r:g} m of the goal",
+                     "no feasible cell" if d is None else f"lowest cell at {d:.3f} m from the goal", (),
+                     d is not None and d <= r, "blue around the goal", "low value",
+                     margin=None if d is None else (r - d) / r))
     return out

@@ -124,7 +124,7 @@ def heatmap_claim() -> Claim:
     from madpinn.evaluation.claim_heatmap import heatmap_checks
 
     return Claim("value_heatmap", "Value heatmap: regions of high value overlap the other agents' positions; low values "
-                 "are concentrated around the goal", "Setup, tex 405; Fig. value function",
+                 "are concentrated around the goal", "Setup, tex 406; Fig. value function",
                  "on the heatmap's grid (paper_figures/fig_value_heatmap.json): most cells within r of each other agent "
                  "infeasible or above the arena's median; the goal cell in the lowest decile; the lowest cell within r "
                  "of the goal", heatmap_checks)
