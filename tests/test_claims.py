@@ -50,8 +50,8 @@ def test_a_changed_cell_flips_a_verdict(tmp_path):
     SafeMARL stops being the costlier (its claim), through the same code path as the workflow's."""
     report, costly = _claims_of(tmp_path, 0.40)
     _, cheap = _claims_of(tmp_path, 0.20)
-    assert costly["verdicts"]["best_tradeoff"] == HOLDS and cheap["verdicts"]["best_tradeoff"] == DOES_NOT
-    assert costly["verdicts"]["safemarl_costlier"] == HOLDS and cheap["verdicts"]["safemarl_costlier"] == DOES_NOT
+    assert costly["verdicts"]["best_tradeoff"] == HOLDS and cheap["verdicts"]["best_tradeoff"] == "partly (1 of 2)"
+    assert costly["verdicts"]["safemarl_costlier"] == HOLDS and cheap["verdicts"]["safemarl_costlier"] == "partly (1 of 2)"
     vs = report["table_safety_scaling"]["safemarl"]["3"]["vs_ours"]
     assert vs["reference"] == "madpinn" and vs["interval"] == "t over seeds" and vs["n_seeds"] == 3 and vs["n_pairs"] == 18
     assert vs["cost_time_avg"]["lo"] > 0.05                     # 0.40 − 0.30 ± jitter of 0.01
@@ -63,9 +63,9 @@ def test_a_changed_cell_flips_a_verdict(tmp_path):
 
 
 def test_verdict_rule():
-    ok, bad = (Check("a", (), "", "", True), Check("b", (), "", "", False))
-    core = Check("c", (), "", "", False, essential=True)
-    assert verdict([ok, ok]) == HOLDS and verdict([ok, bad]) == PARTLY and verdict([bad]) == DOES_NOT
+    ok, bad = (Check("a", "", (), True), Check("b", "", (), False))
+    core = Check("c", "", (), False, essential=True)
+    assert verdict([ok, ok]) == HOLDS and verdict([ok, bad]) == f"{PARTLY} (1 of 2)" and verdict([bad]) == DOES_NOT
     assert verdict([ok, core]) == DOES_NOT
 
 

@@ -102,7 +102,7 @@ def assert_one_line(res, *words, code=None):
 
 def test_expected_errors_through_main(tmp_path, capsys):
     cfg = overlay(tmp_path, "")
-    cell = ["--n-agents", "3", "--seed", "0", "--out", str(tmp_path / "x.parquet"), "--no-progress", "--no-track"]
+    cell = ["--n-agents", "3", "--seed", "100", "--out", str(tmp_path / "x.parquet"), "--no-progress", "--no-track"]
 
     def check(*args, words, code):
         from madpinn.commands import main

@@ -185,7 +185,7 @@ def test_the_closure_covers_what_a_real_job_imports(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-c", _LOADED, "evaluate", "--config", str(REPO / "config.yaml"),
          str(REPO / "workflow" / "configs" / "smoke.yaml"), "--study", "main", "--run", "nominal",
-         "--n-agents", "3", "--seed", "0", "--backend", "double_integrator", "--out", str(out), "--no-track",
+         "--n-agents", "3", "--seed", "100", "--backend", "double_integrator", "--out", str(out), "--no-track",
          "--no-progress"], capture_output=True, text=True, cwd=tmp_path, timeout=600, env=_env())
     assert proc.returncode == 0 and out.is_file(), proc.stderr[-3000:]
     loaded = {m for m in re.search(r"^LOADED (.*)$", proc.stderr, re.M).group(1).split() if not is_glue(m)}

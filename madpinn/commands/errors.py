@@ -22,6 +22,7 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
     """(exception type, fix, exit code), most specific first. Imported lazily: the CLI's
     start-up stays light."""
     from madpinn.atomic import UnwritableDirectoryError
+    from madpinn.commands.seed_guard import ProtocolSeedError
     from madpinn.config import ConfigError, ConfigFileError, TargetError, WorkingDirectoryError
     from madpinn.marl.checkpoint import CheckpointError as MarlCheckpointError
     from madpinn.output_cache import CacheEntryError
@@ -34,6 +35,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
 
     retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
     return [
+        (ProtocolSeedError, "use a validation seed (≥ 100), or say why with --protocol-seed-reason TEXT (recorded in "
+                            "the cell's summary and MLflow run)", 2),
         (TargetError, "ask for a configured study, run, backend, arena and agent count (snakemake -n all lists the "
                       "workflow's cells)", 2),
         (WorkingDirectoryError, "run snakemake from the repository root (cd there), or pass --directory DIR to work in "

@@ -26,6 +26,8 @@ def evaluate(
     track: bool = True,
     echo: bool = False,
     collision_events: bool = False,
+    protocol_seed_reason: str | None = None,
+    by_hand: bool = False,
 ) -> dict:
     """Run one cell inside its live MLflow run (opened before the simulation), write its files,
     log them; return the summary. ``collision_events``: classify the collision onsets of a MAD-PINN
@@ -34,10 +36,12 @@ def evaluate(
     from dataclasses import replace
 
     from madpinn.commands.cell_runs import cell_metrics, cell_record
+    from madpinn.commands.seed_guard import REASON_KEY, protocol_seed_reason as guard
     from madpinn.config import ConfigError, RunSettings, check_cell
     from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 
     check_cell(cfg, n_agents, seed, study=study, run=run, backend=backend)   # as the workflow checks its targets
+    reason = guard(seed, protocol_seed_reason) if by_hand else protocol_seed_reason
 
     r = RunSettings.resolve(cfg, study, run)   # the run, merged once
     cs = CellSettings.from_run(cfg, r)   # the run's agents override included (run_limits)
@@ -48,8 +52,12 @@ def evaluate(
     backend = backend or str(r.sim["backend"])
     # the same key, params and metrics as a cell restored from the output cache (madpinn/commands/cell_runs.py)
     record = cell_record(r, n_agents, seed, backend, restored=False)
+    if reason:
+        record.tags[REASON_KEY] = reason
     with job(cfg, record, track) as tracker:
         cell = run_cell(cs, n_agents, seed, models=models, backend=backend, threads=threads, progress=progress)
+        if reason:
+            cell.summary[REASON_KEY] = reason
         record.artifacts = write_cell(cell, out)
         s = cell.summary
         record.metrics = cell_metrics(record.artifacts[0])
@@ -66,7 +74,8 @@ def evaluate(
 def _evaluate(args) -> int:
     evaluate(config_of(args), args.study, args.run, args.n_agents, args.seed, args.out, models=parse_models(args.model),
              backend=args.backend, threads=args.threads, progress=not args.no_progress, track=not args.no_track, echo=True,
-             collision_events=args.collision_events)
+             collision_events=args.collision_events, protocol_seed_reason=args.protocol_seed_reason,
+             by_hand=True)
     return 0
 
 
@@ -81,6 +90,9 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="per-scenario Parquet path")
     p.add_argument("--collision-events", action="store_true",
                    help="classify every collision onset of a MAD-PINN cell into its JSON summary (madpinn/evaluation/collisions.py)")
+    p.add_argument("--protocol-seed-reason", default=None, metavar="TEXT",
+                   help="why a protocol seed (< 100) is evaluated by hand; required for one outside the workflow, "
+                        "recorded in the cell's summary and MLflow run")
     add_model_arg(p, ("madpinn: vhat, vs", "safemarl: nominal, vs", "defmarl-<variant>: policy"))
     add_job_args(p)
     p.set_defaults(func=_evaluate, reads=cell)

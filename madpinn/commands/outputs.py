@@ -140,7 +140,7 @@ def _claims(args) -> int:
     cfg = config_of(args)
     record = JobRecord(job_key="report/claims", rule="claims_table", params={"report": str(args.report)})
     with job(cfg, record, not args.no_track) as run:
-        record.artifacts = write_claims(args.report, args.out_dir)
+        record.artifacts = write_claims(args.report, args.out_dir, timing_path=args.timing, heatmap_path=args.heatmap)
         write_commit_record(cfg, record.job_key, record.artifacts)
         return finish(run, record, echo=list(record.artifacts))
 
@@ -193,6 +193,8 @@ def register(sub) -> None:
     p = sub.add_parser("claims", help="the paper's claims tested on a reproduction report -> claims.{json,md,html}")
     add_config_arg(p)
     p.add_argument("--report", required=True, help="reproduction.json (python -m madpinn reproduction)")
+    p.add_argument("--timing", default=None, help="neighbour_timing.json (python -m madpinn neighbour-timing)")
+    p.add_argument("--heatmap", default=None, help="fig_value_heatmap.json (python -m madpinn fig-value-heatmap)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_claims, reads=keys("experiment"))

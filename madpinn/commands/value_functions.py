@@ -3,7 +3,7 @@
 - ``train-value --kind vhat|vs``: train (resumable), write the model, loss CSV/figure, MLflow run;
 - ``validate-vs``: rollout verification JSON + V_s slices figure;
 - ``validate-vhat``: held-out HJB residual statistics JSON;
-- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png);
+- ``fig-value-heatmap``: the paper's V̂ heatmap (.pdf, .png) and its reading in numbers (.json);
 - ``solve-vs-grid``: the hj_reachability grid reference of V_s (.npz) with its convergence check;
 - ``validate-vs-grid``: V_s against the grid reference (JSON + zero-level-set figure);
 - ``verify-vhat``: scenario-based (ε, β) verification of V̂ (uniform and conflict states);
@@ -193,13 +193,21 @@ def _validate_vhat(args) -> int:
 
 def _heatmap(args) -> int:
     from madpinn.value_functions import load_vhat
+    from madpinn.value_functions.figures import HEATMAP_POINTS, value_heatmap
+    from madpinn.value_functions.heatmap_reading import write_reading
+    from madpinn.value_functions.validation import heatmap_values
 
     cfg = config_of(args)
     record = JobRecord(job_key="figure/fig_value_heatmap", rule="fig_value_heatmap")
     with job(cfg, record, not args.no_track) as run:
         device, dtype = _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
         vhat = load_vhat(single_model(args.model, "vhat"), device=device, dtype=dtype)
-        record.artifacts = figure_of(vhat, cfg, "vhat", Path(args.out_stem))
+        axis, z_star, feasible, _ = heatmap_values(vhat, deployed_z_tolerance(cfg), cfg["arenas"]["small"]["half_width"],
+                                                   HEATMAP_POINTS)
+        stem = Path(args.out_stem)
+        record.artifacts = [*value_heatmap(axis, z_star, feasible, stem),   # the figure, as figure_of draws it
+                            *write_reading(axis, z_star, feasible, float(cfg["agents"]["collision_radius"]),
+                                           stem.with_suffix(".json"))]
         return finish(run, record, echo=list(record.artifacts))
 
 
@@ -374,8 +382,8 @@ def register(sub) -> None:
 
     p = sub.add_parser("fig-value-heatmap", help="paper figure: learned value over the ego position")
     common(p, "vhat")
-    p.add_argument("--out-stem", required=True, help="figure path without extension (.pdf and .png written)")
-    p.set_defaults(func=_heatmap, reads=keys("arenas.small.half_width", Z_TOL, *VF_RUN))
+    p.add_argument("--out-stem", required=True, help="figure path without extension (.pdf, .png and the reading's .json)")
+    p.set_defaults(func=_heatmap, reads=keys("arenas.small.half_width", "agents.collision_radius", Z_TOL, *VF_RUN))
 
     p = sub.add_parser("solve-vs-grid", help="grid reference of V_s (hj_reachability) with its convergence check")
     add_config_arg(p)

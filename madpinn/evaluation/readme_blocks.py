@@ -5,7 +5,9 @@ generated file under ``paper_figures/`` by a function here:
 
 - ``headline``: the protocol's headline numbers (Tables I–IV, ours beside the paper's, paired
   differences with their 95 % intervals), from ``reproduction.json``;
-- ``claims``: the verdicts of the claims table, from ``claims.json``.
+- ``claims``: the verdicts of the claims table, from ``claims.json``;
+- ``findings``: a few generated findings (verdict counts, the paper's numbers that cannot all be
+  true, the sensing radius's effect), from ``claims.json`` and ``reproduction.json``.
 
 ``tests/test_readme_blocks.py`` fails when a block differs from its rendering;
 ``python scripts/update_readme.py`` rewrites the blocks in place (the workflow never edits README).
@@ -90,10 +92,35 @@ def headline_lines(report: dict) -> list[str]:
             "| Cost ÷T, ours (paper) | Run − Ours, cost ÷T [95 %] |", "|---|---|---|---|---|---|---|", *rows]
 
 
-# block name -> (file under paper_figures/, renderer of its parsed JSON)
-BLOCKS: dict[str, tuple[str, Callable[[dict], list[str]]]] = {
-    "headline": ("reproduction.json", headline_lines),
-    "claims": ("claims.json", claims_lines),
+def _pts(d: dict) -> str:
+    return f"{100 * d['diff']:+.1f}"
+
+
+def findings_lines(claims: dict, report: dict) -> list[str]:
+    """Short generated findings (README's ``findings`` block)."""
+    counts = ", ".join(f"{w} {k}" for w, k in claims["counts"].items() if k)
+    bad = [r for r in claims["consistency"] if not r["holds"]]
+    always = sorted({f"{r['paper_table']} row \"{r['label']}\" at N = {r['n']} ({r['check']})" for r in bad if not r["reading"]})
+    readings = sorted({r["reading"] for r in bad if r["reading"]})
+    lines = [f"- Claims: {counts} (`paper_figures/claims.md`).",
+             f"- The paper's own numbers: {len(bad)} of {len(claims['consistency'])} consistency checks cannot hold"
+             + (f"; under every reading: {'; '.join(always)}" if always else "")
+             + (f"; the others only if its scenarios are read as {' or '.join(readings)}" if readings else "") + "."]
+    wide = {t: [c["vs_ours"]["safety"] for c in report.get(t, {}).get("madpinn-wide", {}).values()
+                if (c.get("vs_ours") or {}).get("safety")] for t in ("table_safety_scaling", "table_ours_scaling")}
+    if all(wide.values()):
+        small, large = (sorted(wide[t], key=lambda d: d["diff"]) for t in ("table_safety_scaling", "table_ours_scaling"))
+        label = next(iter(report["table_safety_scaling"]["madpinn-wide"].values()))["label"]
+        lines.append(f"- `madpinn-wide` ({label}) − `madpinn`, same scenarios: safety {_pts(small[0])} to "
+                     f"{_pts(small[-1])} points in Table I, {_pts(large[0])} to {_pts(large[-1])} in Table II.")
+    return lines
+
+
+# block name -> (files under paper_figures/, renderer of their parsed JSON, in that order)
+BLOCKS: dict[str, tuple[tuple[str, ...], Callable[..., list[str]]]] = {
+    "headline": (("reproduction.json",), headline_lines),
+    "claims": (("claims.json",), claims_lines),
+    "findings": (("claims.json", "reproduction.json"), findings_lines),
 }
 
 
@@ -102,8 +129,8 @@ def _pattern(name: str) -> re.Pattern:
 
 
 def rendered(name: str, figures_dir: str | Path) -> list[str]:
-    source, render = BLOCKS[name]
-    return render(json.loads((Path(figures_dir) / source).read_text()))
+    sources, render = BLOCKS[name]
+    return render(*(json.loads((Path(figures_dir) / source).read_text()) for source in sources))
 
 
 def block(text: str, name: str) -> list[str] | None:

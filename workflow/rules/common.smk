@@ -21,6 +21,10 @@ os.environ.update(PATH=os.pathsep.join([os.path.dirname(sys.executable), os.envi
 # Figures carry no build date (matplotlib honours SOURCE_DATE_EPOCH in PDF metadata), so a rerun
 # leaves the committed paper_figures/ byte-identical when the numbers are.
 os.environ.setdefault("SOURCE_DATE_EPOCH", "0")
+# Marks the workflow's own jobs: `evaluate` run by hand refuses protocol seeds without a reason
+# (madpinn/commands/seed_guard.py); an environment variable keeps the rules' text, and so the
+# output cache's provenance hashes, unchanged.
+os.environ["MADPINN_WORKFLOW_JOB"] = "1"
 CONDA_ENV = "../envs/madpinn.yaml"  # relative to workflow/rules/
 RESULTS = config["paths"]["results"]
 FIGURES = config["paths"]["figures"]

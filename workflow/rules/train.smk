@@ -157,6 +157,7 @@ rule fig_value_heatmap:
         png=report(kept(f"{FIGURES}/fig_value_heatmap.png"), caption="../report/fig_value_heatmap.rst",
                    category=REPORT_SECTIONS["paper_figures"], labels={"Item": "Fig. 4", "Shows": "value heatmap"}),
         pdf=kept(f"{FIGURES}/fig_value_heatmap.pdf"),
+        json=kept(f"{FIGURES}/fig_value_heatmap.json"),   # the figure's reading in numbers (claims page)
     params:
         config=RESOLVED,
         stem=stem_of("png"),
@@ -179,4 +180,5 @@ register_targets(
     f"{RESULTS}/validation/vs_rollouts.json",
     f"{RESULTS}/validation/vhat_residuals.json",
     *[f"{FIGURES}/{name}.{ext}" for name in ("fig_value_heatmap", "fig_vs_slices") for ext in ("pdf", "png")],
+    f"{FIGURES}/fig_value_heatmap.json",
 )
