@@ -9,6 +9,7 @@ from madpinn.config import ConfigError, method_config, study_backend, study_patt
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
+from madpinn.output_cache import cache_layers, install as install_output_cache
 from madpinn.provenance import plugin_module, registry
 from madpinn.commands import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
@@ -40,26 +41,37 @@ TRACKING = f"{RESULTS}/tracking/store.json"
 # Snakemake's between-workflow output cache (`--cache`; on in profiles/shipped): evaluation cells
 # and oracle bounds are stored under their provenance hash (rule code, params, the bytes of source
 # inputs such as the shipped models, recursively the producing jobs) and restored from there when
-# the same job comes again, on any machine that has the directory (docs/reference/reliability.md). Only read
-# when --cache is given; $SNAKEMAKE_OUTPUT_CACHE, when set, wins over paths.output_cache.
-OUTPUT_CACHE = os.environ.setdefault(
-    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"]["output_cache"] or f"{RESULTS}/output_cache")
-)
-def check_output_cache(directory):
-    """Stop before any job when an entry of the output cache cannot be read (madpinn/output_cache.py)."""
-    from madpinn.commands.errors import stop_workflow
-    from madpinn.output_cache import check_entries
+# the same job comes again, on any machine that has the directory (docs/reference/reliability.md).
+# Two layers (madpinn/output_cache.py): the committed paths.output_cache is only read; cells
+# computed anew go to the run's own layer, paths.results/output_cache, never onto an existing
+# entry (`python -m madpinn publish` copies them into the committed one). $SNAKEMAKE_OUTPUT_CACHE,
+# when set, is the one layer instead. Only used when --cache is given.
+COMMITTED_CACHE, OUTPUT_CACHE = cache_layers(config["paths"]["output_cache"], RESULTS,
+                                             os.environ.get("SNAKEMAKE_OUTPUT_CACHE"))
+if workflow.workflow_settings.cache is not None:
+    install_output_cache(OUTPUT_CACHE, COMMITTED_CACHE)
 
+
+def check_output_cache():
+    """Stop before any job (dry runs too) when an entry of the output cache is incomplete, a
+    symlink, unreadable or, committed, not its committed version: one line naming the entry and
+    its fix (madpinn/output_cache.py; issues 50 and 66). Snakemake restores an entry by a symlink
+    and checks nothing. Called at the end of the Snakefile, when the cached rules are known."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.output_cache import KINDS, check_entries, member_suffixes
+
+    if workflow.workflow_settings.cache is None or workflow.exec_mode != ExecMode.DEFAULT:
+        return
+    kinds = [member_suffixes(workflow.get_rule(r)) for r in workflow.workflow_settings.cache if workflow.is_rule(r)]
+    if not set(kinds) <= set(KINDS):   # what `python -m madpinn publish` copies as one entry
+        raise RuntimeError(f"the cached rules write {kinds}: update madpinn.output_cache.KINDS ({KINDS})")
     try:
-        check_entries(directory)
+        if COMMITTED_CACHE is not None and COMMITTED_CACHE.is_dir():
+            check_entries(COMMITTED_CACHE, kinds)
+        if OUTPUT_CACHE.is_dir():   # where another run may be storing an entry file by file
+            check_entries(OUTPUT_CACHE, kinds, complete=False, git=False)
     except Exception as exc:
         stop_workflow(exc)
-
-
-# Snakemake restores an entry by a symlink and checks nothing: every entry is read before any job,
-# dry runs included, and an unreadable one stops the run with one line (issue 50 item 1).
-if workflow.workflow_settings.cache is not None and workflow.exec_mode == ExecMode.DEFAULT and os.path.isdir(OUTPUT_CACHE):
-    check_output_cache(OUTPUT_CACHE)
 
 
 def kept(path):
@@ -306,8 +318,9 @@ onstart:
         raise SystemExit(1)
     _RUN_LOCK.append(fh)
     if workflow.workflow_settings.cache is not None:
-        os.makedirs(OUTPUT_CACHE, exist_ok=True)   # a cache entry is written after each cached job
+        os.makedirs(OUTPUT_CACHE, exist_ok=True)   # the run's own layer: a new entry after each computed cell
     write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
+    open_store(TRACKING_SETTINGS, TRACKING_STORE)
 
 
 # A run that ran jobs ends with where its outputs are, one line each (Snakemake skips this hook when
@@ -321,7 +334,9 @@ onsuccess:
 
 def start_tracking(settings, marker):
     """At a real start, under the run lock (skipped when another run holds it: this start then
-    stops in `onstart`): the store follows a changed URI, and pending runs are logged once."""
+    stops in `onstart`): the store marker follows a changed URI, and pending runs are logged once.
+    The store itself is created by `onstart` (open_store), once the DAG is built: a refused target
+    creates none."""
     from madpinn.tracking import flush_pending, follow_store
 
     if not settings.enabled:
@@ -330,10 +345,23 @@ def start_tracking(settings, marker):
     if fh is None:
         return
     with fh:
-        if follow_store(settings, marker):
-            sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
+        follow_store(settings, marker)
         if settings.pending_dir.is_dir():
             sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
+
+
+def open_store(settings, marker):
+    """In `onstart` (jobs are about to run; under the run lock): the store and the experiment,
+    created when missing and announced only then."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.tracking import ensure_store
+
+    try:
+        created = ensure_store(settings, marker)
+    except Exception as exc:
+        stop_workflow(exc)
+    if created:
+        sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
 
 
 def print_where_outputs(settings):
