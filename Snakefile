@@ -70,7 +70,8 @@ include: "workflow/rules/readings.smk"  # collision readings table, when contact
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 
 
-check_output_cache()   # every entry of the output cache whole and readable, dry runs too (common.smk)
+if workflow.workflow_settings.cache is not None:
+    check_cache_kinds()   # the cache entries' files checked in common.smk are those the cached rules write
 # Last, after every parse-time check has passed (a failed check writes nothing): a real start (not
 # a dry run, not a cluster job's own process) brings the MLflow store marker up to date before any
 # job. The marker is written when missing (fresh clone, or a deleted store: finished results are

@@ -56,22 +56,31 @@ def check_output_cache():
     """Stop before any job (dry runs too) when an entry of the output cache is incomplete, a
     symlink, unreadable or, committed, not its committed version: one line naming the entry and
     its fix (madpinn/output_cache.py; issues 50 and 66). Snakemake restores an entry by a symlink
-    and checks nothing. Called at the end of the Snakefile, when the cached rules are known."""
+    and checks nothing."""
     from madpinn.commands.errors import stop_workflow
-    from madpinn.output_cache import KINDS, check_entries, member_suffixes
+    from madpinn.output_cache import KINDS, check_entries
 
-    if workflow.workflow_settings.cache is None or workflow.exec_mode != ExecMode.DEFAULT:
-        return
-    kinds = [member_suffixes(workflow.get_rule(r)) for r in workflow.workflow_settings.cache if workflow.is_rule(r)]
-    if not set(kinds) <= set(KINDS):   # what `python -m madpinn publish` copies as one entry
-        raise RuntimeError(f"the cached rules write {kinds}: update madpinn.output_cache.KINDS ({KINDS})")
     try:
         if COMMITTED_CACHE is not None and COMMITTED_CACHE.is_dir():
-            check_entries(COMMITTED_CACHE, kinds)
+            check_entries(COMMITTED_CACHE, KINDS)
         if OUTPUT_CACHE.is_dir():   # where another run may be storing an entry file by file
-            check_entries(OUTPUT_CACHE, kinds, complete=False, git=False)
+            check_entries(OUTPUT_CACHE, KINDS, complete=False, git=False)
     except Exception as exc:
         stop_workflow(exc)
+
+
+def check_cache_kinds():
+    """The files of one entry of each cached rule are :data:`madpinn.output_cache.KINDS` (what the
+    check above and `python -m madpinn publish` take for one entry); called once the rules exist."""
+    from madpinn.output_cache import KINDS, member_suffixes
+
+    kinds = [member_suffixes(workflow.get_rule(r)) for r in workflow.workflow_settings.cache if workflow.is_rule(r)]
+    if not set(kinds) <= set(KINDS):
+        raise RuntimeError(f"the cached rules write {kinds}: update madpinn.output_cache.KINDS ({KINDS})")
+
+
+if workflow.workflow_settings.cache is not None and workflow.exec_mode == ExecMode.DEFAULT:
+    check_output_cache()
 
 
 def kept(path):
