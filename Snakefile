@@ -22,6 +22,9 @@ DEFAULT_CONFIG = Path(workflow.basedir) / "config.yaml"
 _ELSEWHERE = (workflow.exec_mode == ExecMode.DEFAULT and Path.cwd().resolve() != Path(workflow.basedir).resolve()
               and not any(a.startswith(("--directory", "-d")) for a in sys.argv[1:]))
 if _ELSEWHERE:
+    from madpinn.run_log import remove_own_logfile
+
+    remove_own_logfile(workflow)   # Snakemake's log of this start in .snakemake/log/: nothing stays behind
     stop_workflow(WorkingDirectoryError(f"snakemake runs in {Path.cwd()}, not in the repository {workflow.basedir}: "
                                         f"every output would go under {Path.cwd()} (results/ …)"))
 
@@ -67,23 +70,28 @@ include: "workflow/rules/readings.smk"  # collision readings table, when contact
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
 
 
+if workflow.workflow_settings.cache is not None:
+    check_cache_kinds()   # the cache entries' files checked in common.smk are those the cached rules write
 # Last, after every parse-time check has passed (a failed check writes nothing): a real start (not
-# a dry run, not a cluster job's own process) brings the MLflow store up to date before any job.
-# The store is created when its marker is missing (fresh clone, or a deleted store: finished
-# results are not recomputed) or follows a changed URI, and the runs whose logging failed during an
-# earlier job are logged, once. Done here and not in `onstart`, which Snakemake skips when every
-# target is up to date, and not by rerunning tracking_init, which would hide the jobs downstream of
-# it from that start (an ancient() input's producer masks its consumers in Snakemake 9's needrun
-# pass). A dry run writes nothing. (start_tracking: common.smk; the settings: tracking.smk)
+# a dry run, not a cluster job's own process) brings the MLflow store marker up to date before any
+# job. The marker is written when missing (fresh clone, or a deleted store: finished results are
+# not recomputed) or follows a changed URI, and the runs whose logging failed during an earlier job
+# are logged, once. Done here and not in `onstart`, which Snakemake skips when every target is up
+# to date, and not by rerunning tracking_init, which would hide the jobs downstream of it from that
+# start (an ancient() input's producer masks its consumers in Snakemake 9's needrun pass). The
+# store itself is created in `onstart`, when jobs are about to run: a target refused while the DAG
+# is built creates none. A dry run writes nothing. (start_tracking, open_store: common.smk; the
+# settings: tracking.smk)
 if not workflow.output_settings.dryrun and workflow.exec_mode == ExecMode.DEFAULT:
     start_tracking(TRACKING_SETTINGS, TRACKING_STORE)
     # The terminal output of a real run fits on a screen: progress every 10 % of the jobs, warnings
     # and errors; each job's block and output stay in its log (madpinn/run_log.py; MADPINN_LOG=full
-    # or --verbose: Snakemake's complete output).
-    if not workflow.output_settings.verbose:
-        from madpinn.run_log import install_summary
+    # or --verbose: Snakemake's complete output). Ctrl-C ends with one line: the same command resumes.
+    from madpinn.run_log import install_interrupt_line, install_summary
 
+    if not workflow.output_settings.verbose:
         install_summary()
+    install_interrupt_line()
 
 
 rule all:

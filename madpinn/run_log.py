@@ -54,3 +54,81 @@ def install_summary(logger_name: str = "snakemake.logging", step_pct: float = 10
     f = SummaryFilter(step_pct)
     logging.getLogger(logger_name).addFilter(f)
     return f
+
+
+# --- Ctrl-C: one line, the same command resumes (issue 66 item 3) ---
+
+INTERRUPTED = ("madpinn: interrupted (Ctrl-C) — fix: run the same command again: finished jobs are kept and the "
+               "interrupted ones rerun")
+_TERMINATING = "Terminating processes on user request"
+
+
+class InterruptFilter(logging.Filter):
+    """After Snakemake's "Terminating processes on user request" (Ctrl-C, or SIGINT to snakemake),
+    drop the rest of its terminal output (an "Error in rule … exit status 130" block per stopped
+    job, the failed job's log, "At least one job did not complete successfully") and print
+    :data:`INTERRUPTED` once at exit instead. Snakemake's log file keeps everything (the filter
+    sits on its terminal handler only); with ``MADPINN_LOG=full`` nothing is dropped, the line
+    still comes last."""
+
+    def __init__(self, drop: bool = True):
+        super().__init__()
+        self.drop = drop
+        self.interrupted = False
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if not self.interrupted:
+            msg = record.msg if isinstance(record.msg, str) else ""
+            if msg.startswith(_TERMINATING):
+                self.interrupted = True
+                import atexit
+
+                atexit.register(self._last_line)
+                return not self.drop
+            return True
+        return not self.drop
+
+    def _last_line(self) -> None:
+        import sys
+
+        sys.stderr.write(f"\n{INTERRUPTED}\n")
+        sys.stderr.flush()
+
+
+def _terminal_handlers(logger: logging.Logger) -> list[logging.Handler]:
+    return [h for h in logger.handlers if isinstance(h, logging.StreamHandler) and not isinstance(h, logging.FileHandler)]
+
+
+def install_interrupt_line(logger_name: str = "snakemake.logging") -> InterruptFilter:
+    """Add an :class:`InterruptFilter` to Snakemake's terminal handler (to the logger itself when
+    it has none of its own, e.g. with a logger plugin)."""
+    logger = logging.getLogger(logger_name)
+    f = InterruptFilter(drop=os.environ.get(FULL_ENV, "").lower() != "full")
+    for target in _terminal_handlers(logger) or [logger]:
+        target.addFilter(f)
+    return f
+
+
+def remove_own_logfile(workflow) -> None:
+    """Remove the log file Snakemake opened for this start (``.snakemake/log/<time>.snakemake.log``,
+    before any workflow code ran) and the ``.snakemake/log`` and ``.snakemake`` directories when
+    that leaves them empty: for a start refused before it did anything (run in the wrong
+    directory), so that nothing stays behind. Anything else in ``.snakemake/`` is kept."""
+    from pathlib import Path
+
+    manager = getattr(workflow, "logger_manager", None)
+    handlers = dict(getattr(manager, "logfile_handlers", {}) or {})
+    for handler, path in handlers.items():
+        try:
+            handler.close()
+            logging.getLogger("snakemake.logging").removeHandler(handler)
+            manager.logfile_handlers.pop(handler, None)
+            Path(path).unlink(missing_ok=True)
+        except OSError:
+            continue
+        for d in (Path(path).parent, Path(path).parent.parent):
+            if d.name in ("log", ".snakemake"):
+                try:
+                    d.rmdir()   # only when empty
+                except OSError:
+                    break

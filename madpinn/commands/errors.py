@@ -53,8 +53,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
         (PhysicsDivergedError, "lower sim.dt or sim.mujoco.timestep, or check the controller gains (sim.mujoco)", 5),
         (TrainingDiverged, "training diverged: lower value_functions.<kind>.lr (or output_scale) and rerun", 5),
         (FloatingPointError, "training diverged: lower the learning rate of the named training block and rerun", 5),
-        (CacheEntryError, "restore the named entry from git (git checkout -- <that file>), or delete it: its job then "
-                          "runs again and is cached anew", 7),
+        (CacheEntryError, "restore the named entry from git (git checkout -- <its files>), or delete all its files: "
+                          "its job then runs again", 7),
         (UnwritableDirectoryError, "make the directory writable (permissions, a read-write mount) or name another "
                                    "one (the command's --out-dir / --out)", 2),
         (TrackingError, "start the tracking server named by tracking.uri, or set tracking.enabled: false", 6),
@@ -77,7 +77,7 @@ def expected_line(exc: BaseException) -> str | None:
     """``madpinn: <problem> — fix: <what to do>`` for an expected error, None for any other (a bug)."""
     for kind, fix, _ in _expected():
         if isinstance(exc, kind):
-            return f"madpinn: {one_line(exc)} — fix: {fix}"
+            return f"madpinn: {one_line(exc)} — fix: {getattr(exc, 'fix', None) or fix}"   # an error may name its own
     return None
 
 

@@ -25,9 +25,9 @@ experiment, permanent purge), ``record`` (run records, pending files), ``live`` 
 """
 
 from madpinn.tracking.live import JobKilled, JobRun, job_run, log_job
-from madpinn.tracking.mlflow_store import TrackingError, check_store, follow_store, init_store, purge_runs, write_marker
+from madpinn.tracking.mlflow_store import TrackingError, check_store, ensure_store, follow_store, init_store, purge_runs, write_marker
 from madpinn.tracking.record import flush_pending
 from madpinn.tracking.settings import TrackingSettings, tracking_uri
 
-__all__ = ["JobKilled", "JobRun", "TrackingError", "TrackingSettings", "check_store", "flush_pending", "follow_store", "init_store",
+__all__ = ["JobKilled", "JobRun", "TrackingError", "TrackingSettings", "check_store", "ensure_store", "flush_pending", "follow_store", "init_store",
            "job_run", "log_job", "purge_runs", "tracking_uri", "write_marker"]

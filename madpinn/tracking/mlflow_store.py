@@ -273,14 +273,49 @@ def read_marker(marker: str | Path) -> dict:
 
 
 def follow_store(settings: TrackingSettings, marker: str | Path) -> dict | None:
-    """At a real workflow start: when the store marker ``marker`` (:func:`write_marker`) is missing,
-    or names another tracking URI or experiment, create the store and experiment now and write the
-    marker (jobs take it as an ancient input, so nothing reruns: finished results stay finished
-    when the store or its marker was deleted or moved); return the new marker content, or None
-    when nothing changed. (tracking_init then only runs with tracking disabled.)"""
+    """At a real workflow start, while the Snakefile is read: when the store marker ``marker`` is
+    missing, or names another tracking URI or experiment, write it anew (``{enabled, uri,
+    experiment}``; jobs take it as an ancient input, so nothing reruns: finished results stay
+    finished when the store or its marker was deleted or moved); return the new content, or None
+    when nothing changed. The store itself is not touched here: a run refused later (a target
+    outside the configuration, an unknown rule) creates none; :func:`ensure_store` creates it when
+    jobs are about to run. (tracking_init then only runs with tracking disabled.)"""
     if not settings.enabled:
         return None
     old = read_marker(marker)
     if old.get("uri") == settings.uri and old.get("experiment") == settings.experiment:
         return None
-    return write_marker(settings, marker)
+    from madpinn.atomic import atomic_write
+
+    info = {"enabled": True, "uri": settings.uri, "experiment": settings.experiment}
+    atomic_write(marker, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
+    return info
+
+
+def _experiment_exists(settings: TrackingSettings) -> bool:
+    """Whether the store holds the configuration's experiment (active); never creates a SQLite file."""
+    db = _sqlite_path(settings.uri)
+    if db is not None and not db.is_file():
+        return False
+    try:
+        exp = client(settings).get_experiment_by_name(settings.experiment)
+    except Exception:  # noqa: BLE001 - unreadable: init_store says why
+        return False
+    return exp is not None and exp.lifecycle_stage != "deleted"
+
+
+def ensure_store(settings: TrackingSettings, marker: str | Path) -> bool:
+    """When jobs are about to run (the workflow's ``onstart``, under its run lock, before the
+    fan-out: parallel first writers race while creating a SQLite schema): create the store and the
+    configuration's experiment when missing and write the marker with the experiment's id; True
+    when this created the store or the experiment (an existing one is not announced as created)."""
+    if not settings.enabled:
+        return False
+    old = read_marker(marker)
+    db = _sqlite_path(settings.uri)
+    if (old.get("experiment_id") and old.get("uri") == settings.uri and old.get("experiment") == settings.experiment
+            and (db is None or db.is_file())):
+        return False
+    existed = _experiment_exists(settings)
+    write_marker(settings, marker)
+    return not existed

@@ -9,11 +9,21 @@ from madpinn.config import ConfigError, method_config, study_backend, study_patt
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.marl_hash import is_marl_model, marl_training_hash
+from madpinn.output_cache import cache_layers, install as install_output_cache
 from madpinn.provenance import plugin_module, registry
 from madpinn.commands import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 from snakemake_interface_executor_plugins.settings import ExecMode
+
+def cpu_flags():
+    """The CPU's feature flags (Linux: /proc/cpuinfo), empty elsewhere."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next((set(line.split(":", 1)[1].split()) for line in f if line.startswith("flags")), set())
+    except OSError:
+        return set()
+
 
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
 # where the job's snakemake parses this file again); `conda:` envs, when used, come first.
@@ -25,6 +35,21 @@ os.environ.setdefault("SOURCE_DATE_EPOCH", "0")
 # (madpinn/commands/seed_guard.py); an environment variable keeps the rules' text, and so the
 # output cache's provenance hashes, unchanged.
 os.environ["MADPINN_WORKFLOW_JOB"] = "1"
+# What follows the machine and not the job is pinned for every job (issue 66 item 2; a user's own
+# setting of a variable wins). Thread pools: one thread in BLAS and OpenMP unless the job sets its
+# own (torch.set_num_threads from its --threads, madpinn/device.py); they otherwise start one per
+# core. SIMD level: on a machine with AVX-512 (e.g. some EPYC generations) numpy's dispatched
+# loops, OpenBLAS's kernels, torch's kernels and MKL take AVX-512 paths that round differently
+# from their AVX2 (x86-64-v3) ones, and a cell's contacts amplify a last-bit difference; all four
+# are held at AVX2 where the CPU has it. On an AVX2 machine none of this changes a bit
+# (scripts/cell_recompute.py: main/nominal and main/mppi n3 seed 0 recomputed with and without
+# these, bit-equal; docs/reference/reliability.md).
+JOB_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+if {"avx2", "fma"} <= cpu_flags():
+    JOB_ENV.update(NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR", OPENBLAS_CORETYPE="Haswell",
+                   ATEN_CPU_CAPABILITY="avx2", MKL_ENABLE_INSTRUCTIONS="AVX2")
+for _var, _value in JOB_ENV.items():
+    os.environ.setdefault(_var, _value)
 CONDA_ENV = "../envs/madpinn.yaml"  # relative to workflow/rules/
 RESULTS = config["paths"]["results"]
 FIGURES = config["paths"]["figures"]
@@ -44,26 +69,46 @@ TRACKING = f"{RESULTS}/tracking/store.json"
 # Snakemake's between-workflow output cache (`--cache`; on in profiles/shipped): evaluation cells
 # and oracle bounds are stored under their provenance hash (rule code, params, the bytes of source
 # inputs such as the shipped models, recursively the producing jobs) and restored from there when
-# the same job comes again, on any machine that has the directory (docs/reference/reliability.md). Only read
-# when --cache is given; $SNAKEMAKE_OUTPUT_CACHE, when set, wins over paths.output_cache.
-OUTPUT_CACHE = os.environ.setdefault(
-    "SNAKEMAKE_OUTPUT_CACHE", os.path.abspath(config["paths"]["output_cache"] or f"{RESULTS}/output_cache")
-)
-def check_output_cache(directory):
-    """Stop before any job when an entry of the output cache cannot be read (madpinn/output_cache.py)."""
+# the same job comes again, on any machine that has the directory (docs/reference/reliability.md).
+# Two layers (madpinn/output_cache.py): the committed paths.output_cache is only read; cells
+# computed anew go to the run's own layer, paths.results/output_cache, never onto an existing
+# entry (`python -m madpinn publish` copies them into the committed one). $SNAKEMAKE_OUTPUT_CACHE,
+# when set, is the one layer instead. Only used when --cache is given.
+COMMITTED_CACHE, OUTPUT_CACHE = cache_layers(config["paths"]["output_cache"], RESULTS,
+                                             os.environ.get("SNAKEMAKE_OUTPUT_CACHE"))
+if workflow.workflow_settings.cache is not None:
+    install_output_cache(OUTPUT_CACHE, COMMITTED_CACHE)
+
+
+def check_output_cache():
+    """Stop before any job (dry runs too) when an entry of the output cache is incomplete, a
+    symlink, unreadable or, committed, not its committed version: one line naming the entry and
+    its fix (madpinn/output_cache.py; issues 50 and 66). Snakemake restores an entry by a symlink
+    and checks nothing."""
     from madpinn.commands.errors import stop_workflow
-    from madpinn.output_cache import check_entries
+    from madpinn.output_cache import KINDS, check_entries
 
     try:
-        check_entries(directory)
+        if COMMITTED_CACHE is not None and COMMITTED_CACHE.is_dir():
+            check_entries(COMMITTED_CACHE, KINDS)
+        if OUTPUT_CACHE.is_dir():   # where another run may be storing an entry file by file
+            check_entries(OUTPUT_CACHE, KINDS, complete=False, git=False)
     except Exception as exc:
         stop_workflow(exc)
 
 
-# Snakemake restores an entry by a symlink and checks nothing: every entry is read before any job,
-# dry runs included, and an unreadable one stops the run with one line (issue 50 item 1).
-if workflow.workflow_settings.cache is not None and workflow.exec_mode == ExecMode.DEFAULT and os.path.isdir(OUTPUT_CACHE):
-    check_output_cache(OUTPUT_CACHE)
+def check_cache_kinds():
+    """The files of one entry of each cached rule are :data:`madpinn.output_cache.KINDS` (what the
+    check above and `python -m madpinn publish` take for one entry); called once the rules exist."""
+    from madpinn.output_cache import KINDS, member_suffixes
+
+    kinds = [member_suffixes(workflow.get_rule(r)) for r in workflow.workflow_settings.cache if workflow.is_rule(r)]
+    if not set(kinds) <= set(KINDS):
+        raise RuntimeError(f"the cached rules write {kinds}: update madpinn.output_cache.KINDS ({KINDS})")
+
+
+if workflow.workflow_settings.cache is not None and workflow.exec_mode == ExecMode.DEFAULT:
+    check_output_cache()
 
 
 def kept(path):
@@ -310,8 +355,9 @@ onstart:
         raise SystemExit(1)
     _RUN_LOCK.append(fh)
     if workflow.workflow_settings.cache is not None:
-        os.makedirs(OUTPUT_CACHE, exist_ok=True)   # a cache entry is written after each cached job
+        os.makedirs(OUTPUT_CACHE, exist_ok=True)   # the run's own layer: a new entry after each computed cell
     write_if_changed(RESOLVED, yaml.safe_dump(config, sort_keys=False))
+    open_store(TRACKING_SETTINGS, TRACKING_STORE)
 
 
 # A run that ran jobs ends with where its outputs are, one line each (Snakemake skips this hook when
@@ -325,7 +371,9 @@ onsuccess:
 
 def start_tracking(settings, marker):
     """At a real start, under the run lock (skipped when another run holds it: this start then
-    stops in `onstart`): the store follows a changed URI, and pending runs are logged once."""
+    stops in `onstart`): the store marker follows a changed URI, and pending runs are logged once.
+    The store itself is created by `onstart` (open_store), once the DAG is built: a refused target
+    creates none."""
     from madpinn.tracking import flush_pending, follow_store
 
     if not settings.enabled:
@@ -334,10 +382,23 @@ def start_tracking(settings, marker):
     if fh is None:
         return
     with fh:
-        if follow_store(settings, marker):
-            sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
+        follow_store(settings, marker)
         if settings.pending_dir.is_dir():
             sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
+
+
+def open_store(settings, marker):
+    """In `onstart` (jobs are about to run; under the run lock): the store and the experiment,
+    created when missing and announced only then."""
+    from madpinn.commands.errors import stop_workflow
+    from madpinn.tracking import ensure_store
+
+    try:
+        created = ensure_store(settings, marker)
+    except Exception as exc:
+        stop_workflow(exc)
+    if created:
+        sys.stderr.write(f"madpinn: MLflow store {settings.uri} (experiment {settings.experiment}) created\n")
 
 
 def print_where_outputs(settings):
