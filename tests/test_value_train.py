@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from madpinn.dynamics.pair import PairSystem
+from madpinn.value_functions.model import CheckpointError
 from madpinn.value_functions.problems import PairProblem
 from madpinn.value_functions.train import (
     TrainingDiverged, TrainSettings, curriculum_alpha, learning_rate, train, train_step, training_batch,
@@ -35,9 +36,11 @@ def test_resume_after_interruption_gives_the_uninterrupted_model(tmp_path):
     assert info2["history"] == pytest.approx(info_full["history"], rel=1e-6)
     for p, q in zip(full.parameters(), resumed.parameters()):
         assert torch.allclose(p, q, rtol=1e-6, atol=1e-7)
-    # a checkpoint of another configuration is ignored, not resumed
-    other, info3 = train(problem, settings(iterations=6), tmp_path / "b.ckpt", "other-hash", progress=False)
-    assert len(info3["history"]) == 6
+    # a checkpoint of another configuration is refused and kept (it used to be overwritten from iteration 0)
+    before = (tmp_path / "b.ckpt").read_bytes()
+    with pytest.raises(CheckpointError, match="another training configuration"):
+        train(problem, settings(iterations=6), tmp_path / "b.ckpt", "other-hash", progress=False)
+    assert (tmp_path / "b.ckpt").read_bytes() == before
 
 
 def test_deterministic_and_learns():
