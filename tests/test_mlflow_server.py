@@ -1,16 +1,21 @@
 """A real ``mlflow server`` on 127.0.0.1 (free port, started and stopped here) used by smoke jobs
 of the real workflow: live runs with real durations and step curves (issue 17); a server that
 goes away mid-job loses no result and its run is logged exactly once by the next workflow start
-(issue 18.3); a workflow start against a stopped server stops, dry runs included, writing nothing."""
+(issue 18.3); a workflow start against a stopped server stops, dry runs included, writing nothing;
+a server backed by a throw-away PostgreSQL cluster (Debian's package) takes two jobs' runs at once
+(issue 64; the embedded SQLite store stays the workflow's default)."""
 
 from __future__ import annotations
 
 import json
 import os
+import pwd
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.request
 from pathlib import Path
@@ -31,17 +36,56 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-class Server:
-    """``mlflow server`` with a SQLite backend and proxied artifacts under ``root``."""
+class Postgres:
+    """A throw-away PostgreSQL cluster (``initdb``/``pg_ctl`` of Debian's postgresql package) in a
+    temporary directory, on 127.0.0.1 and a free port, trust authentication for user ``madpinn``.
+    As root the server runs as the ``postgres`` user (PostgreSQL refuses root), so its directory
+    lies outside pytest's root-only tmp_path."""
 
-    def __init__(self, root: Path):
+    def __init__(self):
+        bins = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"))
+        if not bins:
+            raise RuntimeError("PostgreSQL is not installed: apt-get install -y postgresql (.ci/run does)")
+        self.bin, self.port = bins[-1].parent, _free_port()
+        self.dir = Path(tempfile.mkdtemp(prefix="madpinn-pg-"))
+        self.user = "postgres" if os.geteuid() == 0 else None
+        if self.user:
+            pw = pwd.getpwnam(self.user)
+            os.chown(self.dir, pw.pw_uid, pw.pw_gid)
+        self.uri = f"postgresql://madpinn@127.0.0.1:{self.port}/postgres"
+
+    def _run(self, *cmd: str) -> None:
+        prefix = ["runuser", "-u", self.user, "--"] if self.user else []
+        proc = subprocess.run([*prefix, *cmd], capture_output=True, text=True, timeout=120, cwd=self.dir)
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+
+    def start(self) -> "Postgres":
+        data = self.dir / "data"
+        self._run(str(self.bin / "initdb"), "-D", str(data), "-U", "madpinn", "--auth=trust", "-E", "UTF8",
+                  "--locale=C.UTF-8")
+        self._run(str(self.bin / "pg_ctl"), "-D", str(data), "-l", str(self.dir / "server.log"), "-w", "-t", "120",
+                  "-o", f"-p {self.port} -k {self.dir} -c listen_addresses=127.0.0.1", "start")
+        return self
+
+    def stop(self) -> None:
+        if (self.dir / "data" / "postmaster.pid").exists():
+            self._run(str(self.bin / "pg_ctl"), "-D", str(self.dir / "data"), "-m", "fast", "-w", "stop")
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+
+class Server:
+    """``mlflow server`` with a SQLite backend (or ``backend``, e.g. PostgreSQL) and proxied
+    artifacts under ``root``."""
+
+    def __init__(self, root: Path, backend: str | None = None):
         self.root, self.port, self.proc = root, _free_port(), None
         self.uri = f"http://127.0.0.1:{self.port}"
+        self.backend = backend or f"sqlite:///{root / 'mlflow.db'}"
 
     def start(self) -> "Server":
         self.root.mkdir(parents=True, exist_ok=True)
         cmd = [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(self.port),
-               "--workers", "1", "--backend-store-uri", f"sqlite:///{self.root / 'mlflow.db'}",
+               "--workers", "1", "--backend-store-uri", self.backend,
                "--artifacts-destination", str(self.root / "artifacts")]
         self.proc = subprocess.Popen(cmd, cwd=self.root, stdout=open(self.root / "server.log", "ab"),
                                      stderr=subprocess.STDOUT, start_new_session=True,
@@ -184,3 +228,40 @@ def test_server_lost_mid_job_keeps_results_and_the_next_start_logs_the_run_once(
     c2 = MlflowClient(f"sqlite:///{other}")
     exp = c2.get_experiment_by_name("madpinn-smoke")
     assert [r.data.tags["madpinn.job"] for r in c2.search_runs([exp.experiment_id])] == ["train/vhat"]
+
+
+def test_a_postgresql_backed_server_takes_two_jobs_at_once(tmp_path):
+    """PostgreSQL (a throw-away cluster) behind ``mlflow server`` with a local artifact root; the
+    two smoke trainings log to it at once (-j2, MLFLOW_TRACKING_URI): each job is one finished
+    run read back from the server, with its loss curve and its model, and the rows are in PostgreSQL."""
+    import psycopg2
+
+    pg = Postgres()
+    try:
+        pg.start()
+        srv = Server(tmp_path / "server", backend=pg.uri).start()
+        try:
+            work = tmp_path / "work"
+            run_snakemake(work, "-j2", "results/smoke/models/vs.pt", "results/smoke/models/vhat.pt",
+                          env={"MLFLOW_TRACKING_URI": srv.uri})
+            c = MlflowClient(srv.uri)
+            exp = c.get_experiment_by_name("madpinn-smoke")
+            runs = c.search_runs([exp.experiment_id], run_view_type=ViewType.ALL)
+            by_job = {r.data.tags["madpinn.job"]: r for r in runs}
+            assert sorted(by_job) == ["train/vhat", "train/vs"] and len(runs) == 2      # one run per job
+            assert {r.info.status for r in runs} == {"FINISHED"}
+            vs, vhat = by_job["train/vs"].info, by_job["train/vhat"].info
+            assert vs.start_time < vhat.end_time and vhat.start_time < vs.end_time     # they ran at once
+            for kind, run in (("vs", vs), ("vhat", vhat)):
+                assert c.get_metric_history(run.run_id, "loss")
+                assert {f"{kind}.pt", f"{kind}_network"} <= {a.path for a in c.list_artifacts(run.run_id)}
+                assert c.get_registered_model(f"madpinn-smoke.{kind}").latest_versions
+            assert (srv.root / "artifacts").is_dir()
+            with psycopg2.connect(pg.uri) as conn, conn.cursor() as cur:
+                cur.execute("SELECT status FROM runs")
+                assert sorted(row[0] for row in cur.fetchall()) == ["FINISHED", "FINISHED"]
+        finally:
+            srv.stop()
+    finally:
+        pg.stop()
+    assert not pg.dir.exists()
