@@ -1,9 +1,10 @@
 """A real ``mlflow server`` on 127.0.0.1 (free port, started and stopped here) used by smoke jobs
 of the real workflow: live runs with real durations and step curves (issue 17); a server that
 goes away mid-job loses no result and its run is logged exactly once by the next workflow start
-(issue 18.3); a workflow start against a stopped server stops, dry runs included, writing nothing;
-a server backed by a throw-away PostgreSQL cluster (Debian's package) takes two jobs' runs at once
-(issue 64; the embedded SQLite store stays the workflow's default)."""
+(issue 18.3); a workflow start against a stopped server stops, dry runs included, writing nothing.
+The server's backend store is a throw-away PostgreSQL cluster (Debian's package; one database per
+test), as a lab's shared server would have; two jobs log to it at once (issue 64). The workflow's
+default stays the embedded SQLite store."""
 
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ class Postgres:
         if self.user:
             pw = pwd.getpwnam(self.user)
             os.chown(self.dir, pw.pw_uid, pw.pw_gid)
-        self.uri = f"postgresql://madpinn@127.0.0.1:{self.port}/postgres"
+        self.databases = 0
 
     def _run(self, *cmd: str) -> None:
         prefix = ["runuser", "-u", self.user, "--"] if self.user else []
@@ -66,6 +67,22 @@ class Postgres:
         self._run(str(self.bin / "pg_ctl"), "-D", str(data), "-l", str(self.dir / "server.log"), "-w", "-t", "120",
                   "-o", f"-p {self.port} -k {self.dir} -c listen_addresses=127.0.0.1", "start")
         return self
+
+    def new_database(self) -> str:
+        """The SQLAlchemy URI of a new, empty database."""
+        import psycopg2
+
+        self.databases += 1
+        name = f"mlflow{self.databases}"
+        conn = psycopg2.connect(self.uri("postgres"))
+        conn.autocommit = True
+        with conn.cursor() as cur:
+            cur.execute(f"CREATE DATABASE {name}")
+        conn.close()
+        return self.uri(name)
+
+    def uri(self, database: str) -> str:
+        return f"postgresql://madpinn@127.0.0.1:{self.port}/{database}"
 
     def stop(self) -> None:
         if (self.dir / "data" / "postmaster.pid").exists():
@@ -114,9 +131,19 @@ class Server:
             self.proc.wait(timeout=30)
 
 
+@pytest.fixture(scope="module")
+def postgres():
+    pg = Postgres()
+    try:
+        yield pg.start()
+    finally:
+        pg.stop()
+    assert not pg.dir.exists()
+
+
 @pytest.fixture
-def server(tmp_path):
-    srv = Server(tmp_path / "server").start()
+def server(tmp_path, postgres):
+    srv = Server(tmp_path / "server", backend=postgres.new_database()).start()
     yield srv
     srv.stop()
 
@@ -137,15 +164,33 @@ def _job_runs(uri: str, job: str):
 
 
 def test_live_runs_on_a_tracking_server_show_real_durations_curves_and_models(server, tmp_path):
+    """The two trainings at once (-j2) on a PostgreSQL-backed server: each job one finished run
+    read back from the server, spanning its training, with a live loss curve and its model; the
+    rows are in PostgreSQL and the artifacts under the server's local artifact root."""
+    import psycopg2
+
     work = tmp_path / "work"
     target = "results/smoke/models/vs.pt"
     t0 = time.monotonic()
-    run_snakemake(work, "-j1", target, configfiles=(SMOKE, _overlay(tmp_path, 300)), env={"MLFLOW_TRACKING_URI": server.uri})
+    run_snakemake(work, "-j2", target, "results/smoke/models/vhat.pt", configfiles=(SMOKE, _overlay(tmp_path, 300)),
+                  env={"MLFLOW_TRACKING_URI": server.uri})
     workflow_wall_ms = 1000 * (time.monotonic() - t0)
-    c, runs = _job_runs(server.uri, "train/vs")
-    (run,) = runs
-    info = run.info
-    assert info.status == "FINISHED" and run.data.tags["madpinn.source"] == "workflow"
+    c = MlflowClient(server.uri)
+    runs = c.search_runs([c.get_experiment_by_name("madpinn-smoke").experiment_id], run_view_type=ViewType.ALL)
+    assert sorted(r.data.tags["madpinn.job"] for r in runs) == ["train/vhat", "train/vs"]     # one run per job
+    assert {r.info.status for r in runs} == {"FINISHED"}                                        # nothing RUNNING
+    vs, vhat = sorted(runs, key=lambda r: r.data.tags["madpinn.job"], reverse=True)
+    assert vs.info.start_time < vhat.info.end_time and vhat.info.start_time < vs.info.end_time  # at once
+    with psycopg2.connect(server.backend) as conn, conn.cursor() as cur:
+        cur.execute("SELECT status FROM runs")
+        assert sorted(row[0] for row in cur.fetchall()) == ["FINISHED", "FINISHED"]
+    assert (server.root / "artifacts").is_dir()
+    for kind, run in (("vhat", vhat), ("vs", vs)):
+        assert c.get_metric_history(run.info.run_id, "loss")
+        assert {f"{kind}.pt", f"{kind}_loss.csv"} <= {a.path for a in c.list_artifacts(run.info.run_id)}
+        assert c.get_registered_model(f"madpinn-smoke.{kind}").latest_versions
+    info = vs.info
+    assert vs.data.tags["madpinn.source"] == "workflow"
     train_ms = 1000 * json.loads((work / "results/smoke/models/vs_train.json").read_text())["wall_s"]
     duration = info.end_time - info.start_time
     assert train_ms <= duration <= workflow_wall_ms      # the run spans the training, not a post-hoc moment
@@ -160,7 +205,6 @@ def test_live_runs_on_a_tracking_server_show_real_durations_curves_and_models(se
     net = mlflow.pytorch.load_model(f"runs:/{info.run_id}/vs_network")
     saved = torch.load(work / target, weights_only=True)["state_dict"]
     assert all(torch.equal(v, saved[k]) for k, v in net.state_dict().items())
-    assert {"vs.pt", "vs_loss.csv"} <= {a.path for a in c.list_artifacts(info.run_id)}
 
 
 def _popen_snakemake(work: Path, *args, configfiles, env):
@@ -229,39 +273,3 @@ def test_server_lost_mid_job_keeps_results_and_the_next_start_logs_the_run_once(
     exp = c2.get_experiment_by_name("madpinn-smoke")
     assert [r.data.tags["madpinn.job"] for r in c2.search_runs([exp.experiment_id])] == ["train/vhat"]
 
-
-def test_a_postgresql_backed_server_takes_two_jobs_at_once(tmp_path):
-    """PostgreSQL (a throw-away cluster) behind ``mlflow server`` with a local artifact root; the
-    two smoke trainings log to it at once (-j2, MLFLOW_TRACKING_URI): each job is one finished
-    run read back from the server, with its loss curve and its model, and the rows are in PostgreSQL."""
-    import psycopg2
-
-    pg = Postgres()
-    try:
-        pg.start()
-        srv = Server(tmp_path / "server", backend=pg.uri).start()
-        try:
-            work = tmp_path / "work"
-            run_snakemake(work, "-j2", "results/smoke/models/vs.pt", "results/smoke/models/vhat.pt",
-                          env={"MLFLOW_TRACKING_URI": srv.uri})
-            c = MlflowClient(srv.uri)
-            exp = c.get_experiment_by_name("madpinn-smoke")
-            runs = c.search_runs([exp.experiment_id], run_view_type=ViewType.ALL)
-            by_job = {r.data.tags["madpinn.job"]: r for r in runs}
-            assert sorted(by_job) == ["train/vhat", "train/vs"] and len(runs) == 2      # one run per job
-            assert {r.info.status for r in runs} == {"FINISHED"}
-            vs, vhat = by_job["train/vs"].info, by_job["train/vhat"].info
-            assert vs.start_time < vhat.end_time and vhat.start_time < vs.end_time     # they ran at once
-            for kind, run in (("vs", vs), ("vhat", vhat)):
-                assert c.get_metric_history(run.run_id, "loss")
-                assert {f"{kind}.pt", f"{kind}_network"} <= {a.path for a in c.list_artifacts(run.run_id)}
-                assert c.get_registered_model(f"madpinn-smoke.{kind}").latest_versions
-            assert (srv.root / "artifacts").is_dir()
-            with psycopg2.connect(pg.uri) as conn, conn.cursor() as cur:
-                cur.execute("SELECT status FROM runs")
-                assert sorted(row[0] for row in cur.fetchall()) == ["FINISHED", "FINISHED"]
-        finally:
-            srv.stop()
-    finally:
-        pg.stop()
-    assert not pg.dir.exists()
