@@ -6,6 +6,7 @@
 # Needs root (slurmd) and `apt-get install -y slurm-wlm munge`. State, logs and the munge key live
 # under STATE_DIR; the config goes to /etc/slurm/slurm.conf (refused if one exists that is not ours).
 set -euo pipefail
+export PATH="$PATH:/usr/sbin:/sbin"   # the daemons live in sbin, not on every user's PATH
 cmd=${1:?start|stop}; state=$(realpath -m "${2:?state dir}")
 conf=/etc/slurm/slurm.conf   # where Debian's sbatch/srun (also srun inside jobs) look for it
 marker="# written by madpinn scripts/local_slurm.sh"

@@ -120,7 +120,8 @@ class LocalSlurm:
 
     @classmethod
     def unavailable(cls) -> str | None:
-        missing = [b for b in cls.BINARIES if not shutil.which(b)]
+        path = os.environ.get("PATH", "") + ":/usr/sbin:/sbin"       # the daemons live in sbin
+        missing = [b for b in cls.BINARIES if not shutil.which(b, path=path)]
         if missing:
             return f"{', '.join(missing)} missing: apt-get install -y slurm-wlm munge (.ci/run does)"
         if os.geteuid() != 0:
