@@ -1,17 +1,27 @@
 #!/usr/bin/env bash
 # A single-node Slurm "cluster" on localhost (Debian's slurm-wlm + munge) to test profiles/slurm:
 #   scripts/local_slurm.sh start STATE_DIR    # munged + slurmctld + slurmd, partition "local"
-#   scripts/local_slurm.sh stop STATE_DIR     # stops the daemons it started (by their pid files)
+#   scripts/local_slurm.sh stop STATE_DIR     # cancels its jobs, stops the daemons it started (by their
+#                                             # pid files) and waits until they are gone
 # Needs root (slurmd) and `apt-get install -y slurm-wlm munge`. State, logs and the munge key live
 # under STATE_DIR; the config goes to /etc/slurm/slurm.conf (refused if one exists that is not ours).
 set -euo pipefail
+export PATH="$PATH:/usr/sbin:/sbin"   # the daemons live in sbin, not on every user's PATH
 cmd=${1:?start|stop}; state=$(realpath -m "${2:?state dir}")
 conf=/etc/slurm/slurm.conf   # where Debian's sbatch/srun (also srun inside jobs) look for it
 marker="# written by madpinn scripts/local_slurm.sh"
 
 stop() {
+  if [[ -f $conf ]] && head -1 "$conf" | grep -qF "$marker" && [[ -f $state/slurmctld.pid ]]; then
+    scancel --partition=local 2>/dev/null || true      # this cluster's jobs only (the config is ours)
+    for _ in $(seq 30); do [[ -z $(squeue -h -t R,CG,PD 2>/dev/null) ]] && break; sleep 1; done
+  fi
+  local pids=()
   for d in slurmd slurmctld munged; do
-    if [[ -f $state/$d.pid ]]; then kill "$(cat "$state/$d.pid")" 2>/dev/null || true; rm -f "$state/$d.pid"; fi
+    if [[ -f $state/$d.pid ]]; then pids+=("$(cat "$state/$d.pid")"); kill "${pids[-1]}" 2>/dev/null || true; rm -f "$state/$d.pid"; fi
+  done
+  for p in "${pids[@]}"; do
+    for _ in $(seq 30); do kill -0 "$p" 2>/dev/null || break; sleep 1; done
   done
   if [[ -f $conf ]] && head -1 "$conf" | grep -qF "$marker"; then rm -f "$conf"; fi
 }

@@ -190,6 +190,23 @@ def test_store_failure_mid_job_keeps_results_and_is_logged_exactly_once_later(pa
     assert [r.info.run_id for r in _all_runs(good, "train/y")] == [newer]
 
 
+def test_runs_are_named_by_what_tells_them_apart(paper_cfg, tmp_path, monkeypatch):
+    """The runs table's name leads with run, N, seed and study (a live run and one replayed from a
+    pending record alike); the job key stays the ``madpinn.job`` tag."""
+    good = _settings(paper_cfg, tmp_path, monkeypatch)
+    cell, oracle = "evaluate/mujoco/scaling/madpinn/n64/seed0", "oracle/small/circle/n4/seed0/s1"
+    (tmp_path / "mlflow").write_text("")    # the store is down (a file where its directory goes): a pending record
+    with job_run(good, job_key=oracle, rule="oracle_pattern"):
+        pass
+    (tmp_path / "mlflow").unlink()
+    init_store(good)
+    assert flush_pending(good)["logged"] == 1
+    log_job(good, cell, "evaluate", {})                      # a live run
+    names = {r.data.tags["madpinn.job"]: r.info.run_name for r in _all_runs(good, None)}
+    assert names == {cell: "madpinn · N=64 · seed 0 · scaling · mujoco",
+                     oracle: "oracle · N=4 · seed 0 · small/circle · 1 scenario"}
+
+
 def test_check_store_is_read_only(paper_cfg, tmp_path, monkeypatch):
     from madpinn.tracking import check_store
 

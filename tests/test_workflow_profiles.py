@@ -1,20 +1,17 @@
 """Profiles and hygiene of the workflow: the default profile is loaded by the README command, the
-Slurm profile submits real sbatch jobs with the rules' resources, `snakemake --lint` is clean,
+Slurm profile requests the rules' resources (real sbatch jobs on a single-node cluster:
+tests/test_workflow_reruns.py), `snakemake --lint` is clean,
 and config strings never reach a shell (paths with spaces: tests/test_workflow_reruns.py)."""
 
-import os
-import shutil
 import subprocess
 import sys
 import tomllib
-from pathlib import Path
 
 import pytest
 import yaml
 
 from conftest import REPO, subprocess_env
 from madpinn.config import ConfigError, deep_merge, validate_config
-from workflow_helpers import copy_repo, run_in
 
 
 def _snakemake(*args, cwd=REPO, check=True):
@@ -64,30 +61,6 @@ def test_slurm_profile_requests_the_rules_resources(tmp_path):
     big = prio["results/eval/mujoco/scaling/madpinn/n256_seed0.parquet"]
     small = prio["results/eval/mujoco/main/madpinn/n3_seed0.parquet"]
     assert small < big < 50, (small, big)
-
-
-def _have_local_slurm() -> bool:
-    return all(shutil.which(b) for b in ("slurmctld", "slurmd", "munged", "sbatch")) and os.geteuid() == 0 \
-        and not Path("/etc/slurm/slurm.conf").exists()
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(not _have_local_slurm(), reason="needs root and Debian's slurm-wlm + munge (apt-get install -y slurm-wlm munge)")
-def test_slurm_profile_on_a_local_single_node_cluster(tmp_path):
-    """scripts/local_slurm.sh starts munged + slurmctld + slurmd on localhost; a small target runs
-    through the Slurm profile as real sbatch jobs; the daemons are stopped afterwards."""
-    script = REPO / "scripts" / "local_slurm.sh"
-    state = tmp_path / "slurm"
-    subprocess.run([str(script), "start", str(state)], check=True, timeout=120)
-    try:
-        copy = copy_repo(tmp_path / "clone")
-        proc = run_in(copy, "--profile", "profiles/slurm", "--slurm-no-account", "--slurm-status-command", "squeue",
-                      "results/smoke/models/vs.pt", timeout=1200)
-        assert "has been submitted with SLURM jobid" in proc.stdout + proc.stderr
-        assert (copy / "results" / "smoke" / "models" / "vs.pt").is_file()
-        assert list((copy / ".snakemake" / "slurm_logs" / "rule_train_vs").glob("*.log"))
-    finally:
-        subprocess.run([str(script), "stop", str(state)], timeout=60)
 
 
 @pytest.mark.parametrize("bad", ["r$(touch pwned)", "r`touch pwned`", "r; touch pwned", "-rf", "a'b", 'a"b', "a|b"])

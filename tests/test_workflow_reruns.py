@@ -1,16 +1,25 @@
 """Reruns follow exactly what a change affects; dry runs write nothing; the report holds every
 table and figure; paths with spaces work. One real tiny run of the whole DAG in a copy of the
 repository whose directory and results paths contain spaces, then ``snakemake -n`` / ``--report``
-against it."""
+against it; the same DAG through ``profiles/slurm`` on a single-node Slurm cluster gives the same
+tables (issue 64)."""
 
+import os
 import re
+import sqlite3
+import subprocess
+import time
 import zipfile
+from collections import Counter
 from pathlib import Path
 
 import pytest
 import yaml
+from mlflow.entities import ViewType
+from mlflow.tracking import MlflowClient
 
-from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in, tree_state, write_overlay
+from workflow_helpers import (NO_TRACKING, TINY, LocalSlurm, copy_repo, env_for, planned_jobs, run_in, snakemake_cmd,
+                              tree_state, write_overlay)
 
 TRAININGS = {"train_vhat", "train_vs"}
 TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation",
@@ -173,3 +182,107 @@ def test_shell_lines_quote_every_config_derived_field():
             for field in re.findall(r"(?<!\{)\{([^{}]+)\}(?!\})", block):
                 name, _, spec = field.partition(":")
                 assert spec == "q" or name in numeric, (smk.name, field)
+
+
+SUBMITTED = re.compile(r"^Job \d+ has been submitted with SLURM jobid (\d+) \(log: (.+)\)\.$", re.M)
+
+
+def _running_rules(db: Path) -> set[str]:
+    """Rules of the jobs whose MLflow run is open (RUNNING) in the SQLite store ``db``, read-only."""
+    try:
+        with sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5) as con:
+            return {r for (r,) in con.execute("SELECT t.value FROM runs r JOIN tags t ON t.run_uuid = r.run_uuid "
+                                              "WHERE r.status = 'RUNNING' AND t.key = 'madpinn.rule'")}
+    except sqlite3.Error:           # not created yet, or a writer holds it
+        return set()
+
+
+def _cancel_one_job_mid_run(proc, db: Path) -> tuple[str, str]:
+    """While the workflow runs: ``scancel`` a Slurm job whose MLflow run is open (a job running
+    madpinn, not just queued); returns (rule, Slurm job id) of one whose first attempt ended
+    CANCELLED (a job that finished before the cancel reached it is passed over)."""
+    tried = set()
+    while proc.poll() is None:
+        running = {c.removeprefix("rule_"): i for i, c in LocalSlurm.squeue("-t", "R", "-o", "%i|%k")}
+        for rule in sorted(_running_rules(db) & set(running) - tried):   # single-job rules: comment rule_<rule>
+            tried.add(rule)
+            subprocess.run(["scancel", running[rule]], check=True, timeout=60)
+            for _ in range(120):
+                state = LocalSlurm.squeue("--states=all", "-j", running[rule], "-o", "%T")
+                if state and state[0][0] not in ("RUNNING", "COMPLETING", "PENDING"):
+                    break
+                time.sleep(0.5)
+            if state[0][0] == "CANCELLED":
+                return rule, running[rule]
+        time.sleep(0.2)
+    pytest.fail(f"the workflow ended before a job could be cancelled mid-run (tried {sorted(tried)})")
+
+
+def test_the_dag_on_a_single_node_slurm_cluster_gives_the_same_tables(done, tmp_path):
+    """``scripts/local_slurm.sh`` starts munged, slurmctld and slurmd (Debian's packages); the tiny
+    DAG of ``all`` runs through ``profiles/slurm`` (job states from ``squeue``: no slurmdbd), every
+    job an sbatch job with its Slurm log; one job is cancelled (``scancel``) mid-run and retried
+    (the profile's ``retries: 1``). Then: every output of the local run exists, the tables equal
+    its tables byte for byte, every job is one finished MLflow run; the daemons are gone and no
+    system file is left behind. Not skipped in CI (CI=true): .ci/run installs the packages."""
+    why = LocalSlurm.unavailable()
+    if why:
+        (pytest.fail if os.environ.get("CI") == "true" else pytest.skip)(f"single-node Slurm: {why}")
+    system_before = LocalSlurm.system_files()
+    slurm = LocalSlurm(tmp_path / "slurm").start()
+    try:
+        copy = copy_repo(tmp_path / "clone")
+        write_overlay(copy / "tiny.yaml", TINY)
+        files = ("smoke.yaml", "tiny.yaml")
+        planned = planned_jobs(run_in(copy, "-n", "all", configfiles=files))
+        out = tmp_path / "snakemake.out"
+        cmd = snakemake_cmd("--profile", "profiles/slurm", "--slurm-no-account", "--slurm-status-command", "squeue",
+                            "--slurm-init-seconds-before-status-checks", "1", "all",
+                            "--configfile", "config.yaml", *files)
+        with open(out, "w") as fh:
+            proc = subprocess.Popen(cmd, cwd=copy, stdout=fh, stderr=subprocess.STDOUT,
+                                    env=env_for(copy, {"MADPINN_LOG": "full"}))
+            try:
+                rule, cancelled = _cancel_one_job_mid_run(proc, copy / "mlflow" / "mlflow.db")
+                assert proc.wait(timeout=2400) == 0, out.read_text()[-6000:]
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+    finally:
+        slurm.stop()
+    text = out.read_text()
+
+    # every job went through sbatch, with its Slurm log; the cancelled one twice
+    submitted = SUBMITTED.findall(text)
+    logs = Counter(Path(log).parent for _, log in submitted)
+    jobs = sum(n for r, n in planned.items() if r not in ("all", "tracking_init"))   # the start creates the store
+    assert len(logs) == jobs and all(Path(log).is_file() for _, log in submitted), text[-4000:]
+    assert {d.name if d.name.startswith("rule_") else d.parent.name for d in logs} == \
+        {f"rule_{r}" for r in planned if r not in ("all", "tracking_init")}
+    retried = [d for d, n in logs.items() if n == 2]
+    assert [d.name for d in retried] == [f"rule_{rule}"] and sum(logs.values()) == jobs + 1
+    assert cancelled in {i for i, _ in submitted}
+
+    # the local run's outputs all exist; its tables equal these byte for byte
+    local, here = done / "my results", copy / "results" / "smoke"
+    def outputs(root: Path, figs: str) -> set[str]:
+        return {str(p.relative_to(root)).replace(figs, "FIGS", 1) for p in root.rglob("*") if p.is_file()
+                and not p.relative_to(root).parts[0] in ("logs", "tracking")}
+    assert outputs(local, "fig s") <= outputs(here, "paper_figures")
+    tables = sorted((local / "fig s").glob("table_*.*"))
+    assert len(tables) >= 3 * 8
+    for t in tables:
+        assert (here / "paper_figures" / t.name).read_bytes() == t.read_bytes(), t.name
+
+    # every job one finished MLflow run (the cancelled job's first run replaced)
+    c = MlflowClient(f"sqlite:///{copy / 'mlflow' / 'mlflow.db'}")
+    runs = c.search_runs([c.get_experiment_by_name("madpinn-smoke").experiment_id], run_view_type=ViewType.ALL,
+                         max_results=1000)
+    per_job = Counter(r.data.tags["madpinn.job"] for r in runs)
+    assert set(per_job.values()) == {1} and {r.info.status for r in runs} == {"FINISHED"}
+    assert Counter(r.data.tags["madpinn.rule"] for r in runs)["evaluate"] == planned["evaluate"]
+    assert rule in {r.data.tags["madpinn.rule"] for r in runs}
+
+    # the daemons are gone, and no system file is left behind
+    assert not [p for p in slurm.pids if Path(f"/proc/{p}").exists()]
+    assert LocalSlurm.system_files() == system_before

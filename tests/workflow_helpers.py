@@ -1,4 +1,5 @@
-"""A throw-away copy of the repository (a fresh clone's layout) and real snakemake runs in it.
+"""A throw-away copy of the repository (a fresh clone's layout) and real snakemake runs in it; a
+single-node Slurm cluster to run them on.
 
 Tests that edit sources or kill runs work on such a copy, never on the repository itself."""
 
@@ -103,3 +104,52 @@ def tree_state(root: Path, skip=(".snakemake",)) -> dict[str, tuple[int, int]]:
         st = p.stat()
         state[str(rel)] = (st.st_size if p.is_file() else -1, st.st_mtime_ns)
     return state
+
+
+class LocalSlurm:
+    """A single-node Slurm cluster on localhost (``scripts/local_slurm.sh``: Debian's slurm-wlm and
+    munge, partition ``local``), its state under ``state``; :meth:`unavailable` says why it cannot
+    start here (``None``: it can)."""
+
+    BINARIES = ("slurmctld", "slurmd", "munged", "sbatch", "squeue", "scancel")
+    CONF = Path("/etc/slurm/slurm.conf")
+
+    def __init__(self, state: Path):
+        self.state, self.script = state, REPO / "scripts" / "local_slurm.sh"
+        self.pids: list[int] = []
+
+    @classmethod
+    def unavailable(cls) -> str | None:
+        path = os.environ.get("PATH", "") + ":/usr/sbin:/sbin"       # the daemons live in sbin
+        missing = [b for b in cls.BINARIES if not shutil.which(b, path=path)]
+        if missing:
+            return f"{', '.join(missing)} missing: apt-get install -y slurm-wlm munge (.ci/run does)"
+        if os.geteuid() != 0:
+            return "slurmd needs root"
+        if cls.CONF.exists() and "madpinn scripts/local_slurm.sh" not in cls.CONF.read_text().split("\n", 1)[0]:
+            return f"{cls.CONF} belongs to a real Slurm installation"
+        return None
+
+    @staticmethod
+    def system_files() -> set[str]:
+        """Every Slurm or munge path under /etc, /var, /run and /dev/shm (what a cluster could leave behind)."""
+        found = set()
+        for top in ("/etc", "/var", "/run", "/dev/shm"):
+            for dirpath, dirnames, filenames in os.walk(top):
+                for name in dirnames + filenames:
+                    if re.search("slurm|munge", name, re.I) or re.search("slurm|munge", dirpath, re.I):
+                        found.add(os.path.join(dirpath, name))
+        return found
+
+    def start(self) -> "LocalSlurm":
+        subprocess.run([str(self.script), "start", str(self.state)], check=True, timeout=120, capture_output=True)
+        self.pids = [int((self.state / f"{d}.pid").read_text()) for d in ("munged", "slurmctld", "slurmd")]
+        return self
+
+    def stop(self) -> None:
+        subprocess.run([str(self.script), "stop", str(self.state)], timeout=180, capture_output=True)
+
+    @staticmethod
+    def squeue(*args: str) -> list[list[str]]:
+        out = subprocess.run(["squeue", "-h", *args], capture_output=True, text=True, timeout=60).stdout
+        return [line.split("|") for line in out.splitlines() if line.strip()]

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from madpinn.tracking.mlflow_store import (JOB_TAG, RESULTS_TAG, SOURCE_TAG, client, experiment_id, git_commit, job_runs,
-                                           purge_runs)
+                                           purge_runs, run_name)
 from madpinn.tracking.record import (RunRecord, log_files, log_metric_rows, log_params, now_ms, remove_pending,
                                      write_pending)
 from madpinn.tracking.settings import TrackingSettings
@@ -73,7 +73,7 @@ class JobRun:
         tags = {
             JOB_TAG: job_key, SOURCE_TAG: settings.source, RESULTS_TAG: settings.results, "madpinn.rule": rule,
             "madpinn.config_hash": settings.config_hash, "madpinn.experiment_config": settings.experiment,
-            "mlflow.source.git.commit": git_commit() if self.enabled else "", "mlflow.runName": job_key,
+            "mlflow.source.git.commit": git_commit() if self.enabled else "", "mlflow.runName": run_name(job_key),
             **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, **(tags or {}),
         }
         self.record = RunRecord(job_key=job_key, source=settings.source, tags=tags, start_ms=now_ms(),
@@ -115,7 +115,7 @@ class JobRun:
         c = self._client = client(self.settings)
         exp = experiment_id(c, self.settings)
         self.record.run_id = c.create_run(exp, start_time=self.record.start_ms, tags=self.record.tags,
-                                          run_name=self.record.job_key).info.run_id
+                                          run_name=run_name(self.record.job_key)).info.run_id
         log_params(c, self.record.run_id, self.record.params)
 
     def _flush(self) -> None:

@@ -30,6 +30,22 @@ os.environ.setdefault("MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR", "1")   # an int in M
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", "15")
 
 
+def run_name(job_key: str) -> str:
+    """The run's name in MLflow's runs table: what tells it from its neighbours first (an evaluation
+    cell "madpinn · N=64 · seed 0 · scaling · mujoco", an oracle bound "oracle · N=16 · seed 0 ·
+    small · 2 scenarios"); other jobs keep their short key ("train/vhat"). The key stays the
+    ``madpinn.job`` tag."""
+    parts = job_key.split("/")
+    if parts[0] == "evaluate" and len(parts) == 6:
+        _, backend, study, run, n, seed = parts
+        return f"{run} · N={n.removeprefix('n')} · seed {seed.removeprefix('seed')} · {study} · {backend}"
+    if parts[0] == "oracle" and len(parts) >= 5:
+        *where, n, seed, scenarios = parts[1:]
+        return (f"oracle · N={n.removeprefix('n')} · seed {seed.removeprefix('seed')} · {'/'.join(where)} · "
+                f"{scenarios.removeprefix('s')} scenario{'' if scenarios == 's1' else 's'}")
+    return job_key
+
+
 class TrackingError(RuntimeError):
     """The tracking store cannot be used (e.g. unreachable server)."""
 

@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from madpinn.tracking.mlflow_store import (RESULTS_TAG, TrackingError, check_store, client, experiment_id, job_runs,
-                                           purge_runs)
+                                           purge_runs, run_name)
 from madpinn.tracking.settings import TrackingSettings
 
 PARAMS_PER_BATCH = 100     # MLflow's log_batch limits
@@ -164,7 +164,7 @@ def replay(settings: TrackingSettings, record: RunRecord) -> str | None:
     others = job_runs(c, exp, record.job_key, record.source, record.tags.get(RESULTS_TAG))
     if any(r.info.run_id != record.run_id and (r.info.start_time or 0) > record.start_ms for r in others):
         return None
-    run_id = c.create_run(exp, start_time=record.start_ms, tags=record.tags, run_name=record.job_key).info.run_id
+    run_id = c.create_run(exp, start_time=record.start_ms, tags=record.tags, run_name=run_name(record.job_key)).info.run_id
     try:
         log_params(c, run_id, record.params)
         log_metric_rows(c, run_id, record.metrics)
