@@ -33,3 +33,32 @@ def seed_everything(seed: int, threads: int | None = None) -> None:
     torch.manual_seed(seed)
     if threads is not None:
         torch.set_num_threads(max(1, int(threads)))
+
+
+CPU_INFO = "/proc/cpuinfo"
+"""where Linux lists the CPU's feature flags"""
+
+
+def cpu_flags() -> set[str]:
+    """The CPU's feature flags (Linux: :data:`CPU_INFO`), empty elsewhere."""
+    try:
+        with open(CPU_INFO) as f:
+            return next((set(line.split(":", 1)[1].split()) for line in f if line.startswith("flags")), set())
+    except OSError:
+        return set()
+
+
+def pinned_job_environment() -> dict[str, str]:
+    """What follows the machine and not the job, pinned for every workflow job (issue 66 item 2; the
+    workflow sets each only where the user has not). Thread pools: one thread in BLAS and OpenMP
+    unless the job sets its own (:func:`seed_everything`'s ``threads``); they otherwise start one per
+    core. SIMD level: on a machine with AVX-512 numpy's dispatched loops, OpenBLAS's kernels, torch's
+    kernels and MKL take AVX-512 paths that round differently from their AVX2 (x86-64-v3) ones, and
+    a cell's contacts amplify a last-bit difference; all four are held at AVX2 where the CPU has it.
+    On an AVX2 machine none of this changes a bit (scripts/cell_recompute.py,
+    docs/reference/reliability.md)."""
+    env = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    if {"avx2", "fma"} <= cpu_flags():
+        env.update(NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR", OPENBLAS_CORETYPE="Haswell",
+                   ATEN_CPU_CAPABILITY="avx2", MKL_ENABLE_INSTRUCTIONS="AVX2")
+    return env

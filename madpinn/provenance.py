@@ -134,7 +134,7 @@ def _scan(nodes: Iterable[ast.AST], module: str) -> tuple[set[str], set[str], se
                 names = [node.module if a.name == "*" else f"{node.module}.{a.name}"
                          if module_path(f"{node.module}.{a.name}") else f"{node.module}:{a.name}" for a in node.names]
             elif isinstance(node, ast.Constant) and isinstance(node.value, str):
-                names = [node.value]
+                names = [node.value] if module_path(node.value) else []   # a module's whole name, not "madpinn: …" text
                 strings.add(node.value)
             else:
                 continue

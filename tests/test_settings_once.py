@@ -105,6 +105,9 @@ NOT_CONFIG = {
     "stats": "a policy's episode counters",
     "s": "a cell's JSON summary",
     "r": "a row of a result table",
+    "values": "the paper's values (madpinn/evaluation/paper_values.yaml), not the config",
+    "values.get(k[0], {})": "the paper's values of one table (paper_values.yaml)",
+    "values.get(table, {})": "the paper's values of one table (paper_values.yaml)",
     "prov": "a report's provenance record",
     "next(iter(cells.values()), {})": "a cell's JSON summary",
     "next(iter(table.get(ref, {}).values()), {})": "a row of a result table",
@@ -214,10 +217,10 @@ def test_a_cell_hash_reads_no_workflow_key(paper_cfg):
     ("studies.main.collision_events", True, "evaluate", {"study": "main", "run": "madpinn"}),
 ])
 def test_a_changed_schema_default_reruns_what_reads_it(key, value, command, job):
-    """config.yaml without ``key``, filled under the schema and under the schema with another default
-    for it: the jobs that read the key get another settings hash (they used to keep theirs, when
-    hashes read the config as written)."""
-    from madpinn.config.schema import fill_defaults
+    """config.yaml without ``key``, filled under the schema and under a copy of the schema's text with
+    another default for it: the jobs that read the key get another settings hash (they used to keep
+    theirs, when hashes read the config as written)."""
+    from madpinn.config.schema import SCHEMA_PATH, fill_defaults
 
     written = yaml.safe_load((REPO / "config.yaml").read_text())
     parent, leaf = key.rsplit(".", 1)
@@ -225,13 +228,26 @@ def test_a_changed_schema_default_reruns_what_reads_it(key, value, command, job)
     for part in parent.split("."):
         section = section[part]
     section.pop(leaf, None)   # the default decides
-    node = node_at(key)   # the loaded schema's own node
-    default = node["default"]
-    assert default != value
+    altered_schema = yaml.safe_load(SCHEMA_PATH.read_text())
+    nodes, todo = [], [altered_schema]
+    while todo:   # every schema node declaring `leaf` with a default
+        node = todo.pop()
+        if isinstance(node, dict):
+            props = node.get("properties")
+            if isinstance(props, dict) and isinstance(props.get(leaf), dict) and "default" in props[leaf]:
+                nodes.append(props[leaf])
+            todo += list(node.values())
+        elif isinstance(node, list):
+            todo += node
+    assert len(nodes) == 1 and nodes[0]["default"] != value, (leaf, nodes)
+    nodes[0]["default"] = value
     base = fill_defaults(copy.deepcopy(written))
-    try:
-        node["default"] = value
-        altered = fill_defaults(copy.deepcopy(written))
-    finally:
-        node["default"] = default
+    altered = fill_defaults(copy.deepcopy(written), altered_schema)
+    assert lookup(base, key) != lookup(altered, key) == value
     assert settings_hash(base, command, **job) != settings_hash(altered, command, **job)
+
+
+def lookup(cfg, key):
+    from madpinn.config.hashing import lookup_key
+
+    return lookup_key(cfg, key)

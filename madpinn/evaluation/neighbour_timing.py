@@ -97,7 +97,7 @@ def measure(cfg: Mapping, vs, count: int = 2, repeats: int = 3) -> dict:
 def write_timing(cfg: Mapping, vs_path: str | Path, out: str | Path, count: int = 2, repeats: int = 3) -> list[Path]:
     from madpinn.value_functions import load_vs
 
-    band = bool(cfg["methods"]["madpinn"].get("vs_band", False))
+    band = bool(cfg["methods"]["madpinn"]["vs_band"])   # required in the schema
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(measure(cfg, load_vs(vs_path, band=band), count, repeats), indent=2))

@@ -8,6 +8,8 @@ import yaml
 from madpinn.config import ConfigError, method_config, study_backend, study_pattern, vf_model_name, write_if_changed
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
+from madpinn.commands.seed_guard import WORKFLOW_ENV
+from madpinn.device import pinned_job_environment
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.output_cache import cache_layers, install as install_output_cache
 from madpinn.provenance import plugin_module, registry
@@ -16,15 +18,6 @@ from madpinn.provenance import source_hash as package_source_hash
 from madpinn.scenarios import UNIFORM
 from snakemake_interface_executor_plugins.settings import ExecMode
 
-def cpu_flags():
-    """The CPU's feature flags (Linux: /proc/cpuinfo), empty elsewhere."""
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next((set(line.split(":", 1)[1].split()) for line in f if line.startswith("flags")), set())
-    except OSError:
-        return set()
-
-
 # Jobs run `python -m madpinn` with the interpreter that runs this workflow (also on cluster nodes,
 # where the job's snakemake parses this file again); `conda:` envs, when used, come first.
 os.environ.update(PATH=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))
@@ -32,23 +25,11 @@ os.environ.update(PATH=os.pathsep.join([os.path.dirname(sys.executable), os.envi
 # leaves the committed paper_figures/ byte-identical when the numbers are.
 os.environ.setdefault("SOURCE_DATE_EPOCH", "0")
 # Marks the workflow's own jobs: `evaluate` run by hand refuses protocol seeds without a reason
-# (madpinn/commands/seed_guard.py); an environment variable keeps the rules' text, and so the
-# output cache's provenance hashes, unchanged.
-os.environ["MADPINN_WORKFLOW_JOB"] = "1"
-# What follows the machine and not the job is pinned for every job (issue 66 item 2; a user's own
-# setting of a variable wins). Thread pools: one thread in BLAS and OpenMP unless the job sets its
-# own (torch.set_num_threads from its --threads, madpinn/device.py); they otherwise start one per
-# core. SIMD level: on a machine with AVX-512 (e.g. some EPYC generations) numpy's dispatched
-# loops, OpenBLAS's kernels, torch's kernels and MKL take AVX-512 paths that round differently
-# from their AVX2 (x86-64-v3) ones, and a cell's contacts amplify a last-bit difference; all four
-# are held at AVX2 where the CPU has it. On an AVX2 machine none of this changes a bit
-# (scripts/cell_recompute.py: main/nominal and main/mppi n3 seed 0 recomputed with and without
-# these, bit-equal; docs/reference/reliability.md).
-JOB_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-if {"avx2", "fma"} <= cpu_flags():
-    JOB_ENV.update(NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR", OPENBLAS_CORETYPE="Haswell",
-                   ATEN_CPU_CAPABILITY="avx2", MKL_ENABLE_INSTRUCTIONS="AVX2")
-for _var, _value in JOB_ENV.items():
+# (madpinn/commands/seed_guard.py); an environment variable keeps the rules' text unchanged.
+os.environ[WORKFLOW_ENV] = "1"
+# What follows the machine and not the job is pinned for every job (madpinn/device.py); a user's
+# own setting of a variable wins.
+for _var, _value in pinned_job_environment().items():
     os.environ.setdefault(_var, _value)
 CONDA_ENV = "../envs/madpinn.yaml"  # relative to workflow/rules/
 RESULTS = config["paths"]["results"]
@@ -98,7 +79,7 @@ def check_output_cache():
 
 
 def check_cache_kinds():
-    """The files of one entry of each cached rule are :data:`madpinn.output_cache.KINDS` (what the
+    """The files of one entry of each cached job are madpinn.output_cache.KINDS (what the
     check above and `python -m madpinn publish` take for one entry); called once the rules exist."""
     from madpinn.output_cache import KINDS, member_suffixes
 

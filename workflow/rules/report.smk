@@ -52,7 +52,7 @@ NEIGHBOUR_TIMING = f"{FIGURES}/neighbour_timing.json"
 rule neighbour_timing:
     input:
         tracking=TRACKING,
-        vs=str(rules.train_vs.output.model),  # str(): see run_models (shipped overlay)
+        vs=f"{RESULTS}/models/vs.pt",   # rules.train_vs (or the shipped model); a path, so the rule files may come in any order
     output:
         json=kept(NEIGHBOUR_TIMING),
     params:
@@ -77,7 +77,7 @@ rule claims_table:
         tracking=TRACKING,
         report=rules.reproduction_report.output.json,
         timing=NEIGHBOUR_TIMING,
-        heatmap=rules.fig_value_heatmap.output.json,
+        heatmap=f"{FIGURES}/fig_value_heatmap.json",   # rules.fig_value_heatmap (train.smk); a path, so the rule files may come in any order
     output:
         md=kept(CLAIMS_OUTPUTS[0]),   # kept: a failed job never deletes the committed claims (common.smk)
         json=kept(CLAIMS_OUTPUTS[1]),
