@@ -124,10 +124,11 @@ def fig2_scalability(rep: Mapping) -> list[Check]:
     return out
 
 
-def safemarl_costlier(rep: Mapping) -> list[Check]:
-    """Per SafeMARL run and N: not significantly less safe than Ours, and significantly costlier."""
+def _against_ours(rep: Mapping, row: str, safety_test, safety_text: str, safety_part: str,
+                  cost_text: str, cost_part: str) -> list[Check]:
+    """Per run of ``row`` and N, two paired checks against Ours: ``safety_test(Δsafety, 0)``
+    (:func:`reaches` or :func:`below`) and Δcost significantly above 0."""
     out = []
-    row = "safemarl"
     for run, stated in readings(rep, T1, row):
         lab = label(rep, T1, run)
         for n in ns(rep, T1, run):
@@ -135,39 +136,30 @@ def safemarl_costlier(rep: Mapping) -> list[Check]:
             d_s, d_c = diff(c, "safety"), diff(c, "cost_time_avg")
             cells = (name(T1, run, n), name(T1, "madpinn", n))
             if d_s:
-                ok, m = reaches(d_s, 0.0)
-                out.append(Check(f"N = {n}: high safety: {lab} not significantly less safe than Ours",
+                ok, m = safety_test(d_s, 0.0)
+                out.append(Check(f"N = {n}: {safety_text.format(lab=lab)}",
                                  f"{lab} {direction(d_s, 'safer', 'less safe')}: Δsafety {dpp(d_s)}", cells, ok,
-                                 "high safety", "safety", margin=m, **_reading(rep, T1, run, stated, row)))
+                                 safety_part, "safety", margin=m, **_reading(rep, T1, run, stated, row)))
             if d_c:
                 ok, m = above(d_c, 0.0)
-                out.append(Check(f"N = {n}: substantially higher cost: {lab} significantly costlier than Ours",
+                out.append(Check(f"N = {n}: {cost_text.format(lab=lab)}",
                                  f"{lab} {direction(d_c, 'costlier', 'cheaper')}: Δcost {dcost(d_c)}", cells, ok,
-                                 "substantially higher costs", "cost", margin=m, **_reading(rep, T1, run, stated, row)))
+                                 cost_part, "cost", margin=m, **_reading(rep, T1, run, stated, row)))
     return out
+
+
+def safemarl_costlier(rep: Mapping) -> list[Check]:
+    """Per SafeMARL run and N: not significantly less safe than Ours, and significantly costlier."""
+    return _against_ours(rep, "safemarl", reaches, "high safety: {lab} not significantly less safe than Ours",
+                         "high safety", "substantially higher cost: {lab} significantly costlier than Ours",
+                         "substantially higher costs")
 
 
 def mppi_poor(rep: Mapping) -> list[Check]:
     """Per MPPI run and N: significantly less safe than Ours; significantly costlier than Ours."""
-    out = []
-    row = "mppi"
-    for run, stated in readings(rep, T1, row):
-        lab = label(rep, T1, run)
-        for n in ns(rep, T1, run):
-            c = cell(rep, T1, run, n)
-            d_s, d_c = diff(c, "safety"), diff(c, "cost_time_avg")
-            cells = (name(T1, run, n), name(T1, "madpinn", n))
-            if d_s:
-                ok, m = below(d_s, 0.0)
-                out.append(Check(f"N = {n}: poor safety: {lab} significantly less safe than Ours",
-                                 f"{lab} {direction(d_s, 'safer', 'less safe')}: Δsafety {dpp(d_s)}", cells, ok,
-                                 "poor on both metrics", "safety", margin=m, **_reading(rep, T1, run, stated, row)))
-            if d_c:
-                ok, m = above(d_c, 0.0)
-                out.append(Check(f"N = {n}: poor cost: {lab} significantly costlier than Ours",
-                                 f"{lab} {direction(d_c, 'costlier', 'cheaper')}: Δcost {dcost(d_c)}", cells, ok,
-                                 "poor on both metrics", "cost", margin=m, **_reading(rep, T1, run, stated, row)))
-    return out
+    return _against_ours(rep, "mppi", below, "poor safety: {lab} significantly less safe than Ours",
+                         "poor on both metrics", "poor cost: {lab} significantly costlier than Ours",
+                         "poor on both metrics")
 
 
 def degrade(rep: Mapping) -> list[Check]:
