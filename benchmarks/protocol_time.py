@@ -15,7 +15,8 @@ wall time these jobs need on that many cores, not a measured wall time. Job time
 other work shared the cores are inflated accordingly. The last line is JSON.
 
 ``--cells DIR`` reads the evaluation cells' summaries instead (``*_summary.json`` of the output
-cache, or the ``n*_seed*.json`` files under ``results/eval``): each cell's ``elapsed_s``, measured
+cache, or the ``n*_seed*.json`` files under ``results/eval``): each cell's process CPU time
+``cpu_s`` (cells computed since issue 65; older ones: their wall time ``elapsed_s``), measured
 inside the job on the machine that computed it, without the job's start-up (≈ 5 s). The protocol's
 cells may come from several machines' runs (profiles/shipped keeps them in ``output_cache/``); this
 totals them all, per study and run.
@@ -73,9 +74,15 @@ def cell_summaries(directory: Path) -> list[dict]:
     return cells
 
 
+def cell_seconds(summary: dict) -> float:
+    """A cell's job time (s): its process CPU time ``cpu_s`` where recorded (cells since issue 65;
+    a loaded machine inflates it far less than wall time), else its wall time ``elapsed_s``."""
+    return float(summary.get("cpu_s", summary["elapsed_s"]))
+
+
 def cell_jobs(directory: Path) -> list[dict]:
     """``[{rule, job, seconds}]`` of the evaluation cells summarised under ``directory``."""
-    return [{"rule": f"evaluate {s['study']}/{s['run']}", "seconds": float(s["elapsed_s"]),
+    return [{"rule": f"evaluate {s['study']}/{s['run']}", "seconds": cell_seconds(s),
              "job": f"evaluate/{s['backend']}/{s['study']}/{s['run']}/n{s['n_agents']}_seed{s['seed']}"}
             for s in cell_summaries(directory)]
 

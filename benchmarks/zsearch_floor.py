@@ -30,7 +30,9 @@ issue 48); this makes the floor lower, so it stays a bound.
 under ``results/eval``, or ``*_summary.json`` in ``output_cache/``): agent-steps, share of
 infeasible agent-steps, and the search
 actually run (cells whose V̂ rows per agent-step are not the cold bisection's, i.e. warm starts, are
-left out: :func:`ran_cold_bisection`). For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
+left out: :func:`ran_cold_bisection`). A cell's job time is its process CPU time where recorded
+(:func:`protocol_time.cell_seconds`; the floor is process CPU time too), else its wall time.
+For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
 and its share. The last lines are ``cold_bisection_cells_core_h`` (the measured time of those
 MAD-PINN cells and its ratio to their floor), ``cold_bisection_floor_core_h: X`` (the floor summed
 over the protocol's cells; studies named by ``--skip`` are left out), ``protocol_cells_core_h: Y``
@@ -50,7 +52,7 @@ import torch
 
 from madpinn.value_functions import load_vhat
 from madpinn.value_functions.z_search import bisection_steps
-from protocol_time import cell_summaries   # benchmarks/protocol_time.py
+from protocol_time import cell_seconds, cell_summaries   # benchmarks/protocol_time.py
 from zsearch_reference import reference_cold_search   # benchmarks/zsearch_reference.py
 
 DEFAULT_SKIP = ("large_arena_frontier",)   # validation-seed study, not part of the protocol's tables
@@ -159,7 +161,7 @@ def main() -> None:
     total_h = floor_h = 0.0
     left_out = 0
     for c in cells:
-        total_h += c["elapsed_s"] / 3600.0
+        total_h += cell_seconds(c) / 3600.0
         stats = c.get("policy_stats") or {}
         if stats.get("vhat_evals_per_agent_step") is None:
             continue
@@ -172,7 +174,7 @@ def main() -> None:
         f = 1e-6 * agent_steps * floor_us_per_agent_step(v, g, steps, float(stats["infeasible_fraction"])) / 3600.0
         key = f"{c['study']}/{c['run']}"
         groups[key][0] += 1
-        groups[key][1] += c["elapsed_s"] / 3600.0
+        groups[key][1] += cell_seconds(c) / 3600.0
         groups[key][2] += f
         floor_h += f
     print(f"\n{'cells (cold bisection)':42s} {'n':>4s} {'job h':>7s} {'floor h':>8s} {'floor share':>11s}")

@@ -30,16 +30,38 @@ _MAX_TRIES_PER_POINT = 20_000
 
 @dataclass(frozen=True)
 class Arena:
-    """Square arena ``[-half_width, half_width]²`` (m) and its episode length (s)."""
+    """Square arena ``[-half_width, half_width]²`` (m), its episode length (s) and the earlier
+    horizons (s) at which cells also read cost and safety from the same episodes."""
 
     name: str
     half_width: float
     episode_s: float
+    cost_horizons_s: tuple[float, ...] = ()
 
     @classmethod
     def from_config(cls, cfg: dict, name: str) -> "Arena":
         a = cfg["arenas"][name]
-        return cls(name=name, half_width=float(a["half_width"]), episode_s=float(a["episode_s"]))
+        return cls(name=name, half_width=float(a["half_width"]), episode_s=float(a["episode_s"]),
+                   cost_horizons_s=tuple(sorted(float(h) for h in a.get("cost_horizons_s") or ())))
+
+    def horizon_steps(self, dt: float) -> tuple[int, ...]:
+        """Simulation steps of :attr:`cost_horizons_s` at step ``dt`` (s); each must be a whole
+        number of steps shorter than the episode (:func:`horizon_problem`)."""
+        for h in self.cost_horizons_s:
+            problem = horizon_problem(h, self.episode_s, dt)
+            if problem:
+                raise ValueError(f"arena '{self.name}': {problem}")
+        return tuple(int(round(h / dt)) for h in self.cost_horizons_s)
+
+
+def horizon_problem(horizon_s: float, episode_s: float, dt: float) -> str | None:
+    """Why ``horizon_s`` cannot be read from an episode of ``episode_s`` at step ``dt`` (all s), or None."""
+    if not 0.0 < horizon_s < episode_s:
+        return f"cost horizon {horizon_s:g} s must lie inside the episode (0, {episode_s:g}) s"
+    steps = horizon_s / dt
+    if abs(steps - round(steps)) > 1e-6:
+        return f"cost horizon {horizon_s:g} s is not a whole number of {dt:g} s steps"
+    return None
 
 
 def _coverage(n: int, half_width: float, min_sep: float) -> float:

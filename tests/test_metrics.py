@@ -127,3 +127,41 @@ def test_single_seed_tables_show_bootstrap_intervals_and_multi_seed_tables_the_s
     two = pd.concat([rows, rows.assign(seed=101)])
     agg = across_seeds(per_seed(two), ["run", "n_agents"]).assign(label="MAD-PINN")
     assert "±" in format_table(agg, "summary")["Safety Rate"].iloc[0] and np.isnan(agg.iloc[0]["safety_rate_ci_lo"])
+
+
+def _passing_pair(offset_y: float):
+    """1 scenario x 2 agents meeting head-on at 1 m/s each (dt = 0.1 s, 21 samples), lateral offset ``offset_y`` (m)."""
+    K, dt = 20, 0.1
+    t = torch.arange(K + 1, dtype=torch.float64) * dt
+    pos = torch.zeros(K + 1, 1, 2, 2, dtype=torch.float64)
+    pos[:, 0, 0, 0] = -1.0 + t
+    pos[:, 0, 1, 0] = 1.0 - t
+    pos[:, 0, 1, 1] = offset_y
+    vel = torch.zeros_like(pos)
+    vel[:, 0, 0, 0], vel[:, 0, 1, 0] = 1.0, -1.0
+    goals = pos[-1].clone()
+    return pos, vel, goals, dt
+
+
+def test_encounter_speed_is_the_relative_speed_at_the_closest_approach_or_first_collision():
+    for offset, collides in ((0.5, False), (0.05, True)):
+        pos, vel, goals, dt = _passing_pair(offset)
+        res = record_trajectory(pos, goals, dt, collision_radius=0.1, velocities=vel)
+        assert res.collided.all() == collides
+        np.testing.assert_allclose(res.encounter_speed, 2.0, atol=1e-12)   # head-on at 1 m/s each
+        assert scenario_metrics(res)["encounter_speed_mean"].iloc[0] == pytest.approx(2.0)
+    res = record_trajectory(pos, goals, dt, collision_radius=0.1)   # no velocities: not measured
+    assert np.isnan(res.encounter_speed).all()
+
+
+def test_cost_and_safety_at_an_earlier_horizon_equal_the_cut_episode():
+    pos, vel, goals, dt = _passing_pair(0.05)   # the pair collides at t = 1 s (step 10)
+    full = record_trajectory(pos, goals, dt, collision_radius=0.1, velocities=vel, horizon_steps=(5, 15))
+    for k in (5, 15):
+        cut = record_trajectory(pos[: k + 1], goals, dt, collision_radius=0.1)
+        np.testing.assert_allclose(full.cost_at[k], cut.cost, rtol=0, atol=1e-12)
+    row = scenario_metrics(full).iloc[0]
+    assert row["safety_rate_at_0.5s"] == 1.0 and row["safety_rate_at_1.5s"] == 0.0 and row["safety_rate"] == 0.0
+    summary = seed_summary(scenario_metrics(full))
+    assert summary["safe_scenarios_at_0.5s"] == 1.0 and summary["safe_scenarios_at_1.5s"] == 0.0
+    assert summary["cost_all_time_avg_at_0.5s"] == pytest.approx(float(full.cost_at[5].mean()) / 0.5)

@@ -131,6 +131,7 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
     lines += _gap_errors(cfg)
     lines += _variant_errors(cfg)
     lines += _stop_at_errors(cfg)
+    lines += _horizon_errors(cfg)
     traj = cfg["figures"]["trajectories"]
     study = cfg["studies"].get(traj["study"])
     if study is None:
@@ -140,6 +141,24 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
             lines.append(f"  - 'figures.trajectories.n_agents': {traj['n_agents']} is not among studies.{traj['study']}.agent_counts")
         if traj["seed"] not in study["seeds"]:
             lines.append(f"  - 'figures.trajectories.seed': {traj['seed']} is not among studies.{traj['study']}.seeds")
+    return lines
+
+
+def _horizon_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """``arenas.<name>.cost_horizons_s`` lie inside the episode, a whole number of steps of every
+    study's ``sim.dt`` on that arena."""
+    from madpinn.scenarios import horizon_problem
+
+    lines = []
+    for name, arena in cfg["arenas"].items():
+        dts = {float(cfg["sim"]["dt"])} | {float((st.get("sim") or {}).get("dt", cfg["sim"]["dt"]))
+                                          for st in cfg["studies"].values() if st["arena"] == name}
+        for h in arena.get("cost_horizons_s") or ():
+            for dt in sorted(dts):
+                problem = horizon_problem(float(h), float(arena["episode_s"]), dt)
+                if problem:
+                    lines.append(f"  - 'arenas.{name}.cost_horizons_s': {problem}")
+                    break
     return lines
 
 

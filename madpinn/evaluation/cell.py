@@ -160,6 +160,7 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
             sim, policy, starts, goals, cs.episode_steps, cs.limits.collision_radius, policy_period=cs.policy_period,
             record_every=cs.sim.record_every if record and first == 0 else 0,
             progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
+            horizon_steps=cs.arena.horizon_steps(cs.sim.dt),
         )
         stats["encounters"] = encounters   # [S, N]: the layout's straight-line encounters per agent
         yield first, policy, result, stats
@@ -186,7 +187,7 @@ def run_cell(
 
     frames, traj, timing, policy_stats, events = [], None, {"wall_s": 0.0, "policy_s": 0.0}, {}, []
     total = cs.scenarios
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     for first, policy, result, stats in cell_batches(cs, n_agents, seed, backend, device, dtype, models,
                                                      wrap=_collision_probe(r) if cs.collision_events else None,
                                                      record=True, progress=progress):
@@ -214,6 +215,7 @@ def run_cell(
         "n_steps": n_steps,
         "dt": cs.sim.dt,
         "elapsed_s": time.perf_counter() - t0,
+        "cpu_s": time.process_time() - cpu0,   # process CPU time (s, all threads): what a loaded machine inflates least
         "sim_wall_s": timing["wall_s"],
         "policy_s": timing["policy_s"],
         "policy_us_per_agent_step": 1e6 * timing["policy_s"] / max(1, total * n_agents * (n_steps // period)),

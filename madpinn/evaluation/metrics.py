@@ -38,34 +38,59 @@ COST_COLUMNS = {"cost": "cost_safe_mean", "cost_time_avg": "cost_safe_time_avg",
                 "cost_all": "cost_all_mean", "cost_all_time_avg": "cost_all_time_avg"}
 
 
-def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFrame:
-    """One row per scenario of a batched episode."""
-    collided = result.collided
-    S, N = collided.shape
+def horizon_suffix(horizon_s: float) -> str:
+    """Column suffix of the figures read at an earlier horizon (``_at_6s`` for 6 s)."""
+    return f"_at_{horizon_s:g}s"
+
+
+def _safety_and_cost(collided: np.ndarray, cost: np.ndarray, horizon_s: float, suffix: str = "") -> dict:
+    """Per-scenario safety and costs ``[S]`` of agents ``collided [S, N]`` with costs ``[S, N]`` over ``horizon_s``."""
     safe_agents = ~collided
     n_safe = safe_agents.sum(axis=1)
-    cost_safe = np.where(safe_agents, result.cost, 0.0).sum(axis=1) / np.maximum(n_safe, 1)
+    cost_safe = np.where(safe_agents, cost, 0.0).sum(axis=1) / np.maximum(n_safe, 1)
     cost_safe = np.where(n_safe > 0, cost_safe, np.nan)
+    return {f"safety_rate{suffix}": n_safe / collided.shape[1], f"safe{suffix}": ~collided.any(axis=1),
+            f"cost_safe_mean{suffix}": cost_safe, f"cost_all_mean{suffix}": cost.mean(axis=1),
+            f"cost_safe_time_avg{suffix}": cost_safe / horizon_s, f"cost_all_time_avg{suffix}": cost.mean(axis=1) / horizon_s}
+
+
+def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFrame:
+    """One row per scenario of a batched episode; with ``result.cost_at``, the same safety and cost
+    figures at each earlier horizon H (columns suffixed :func:`horizon_suffix`), from the same episode:
+    an agent counts as collided at H when its first collision came at or before H."""
+    collided = result.collided
+    S, N = collided.shape
     episode_s = result.n_steps * result.dt   # T (s)
+    end = _safety_and_cost(collided, result.cost, episode_s)
     safe_2r = result.safe_at(DISC_FACTOR * result.collision_radius)
+    at_horizons = {}
+    for k, cost in sorted(result.cost_at.items()):
+        first = result.first_collision_step
+        at_horizons.update(_safety_and_cost((first >= 0) & (first <= k), cost, k * result.dt, horizon_suffix(k * result.dt)))
+    speed = result.encounter_speed if result.encounter_speed is not None else np.full((S, N), np.nan)
+    with np.errstate(invalid="ignore"):
+        speed_mean = np.array([np.nanmean(row) if np.isfinite(row).any() else np.nan for row in speed])
     return pd.DataFrame(
         {
             "scenario": np.arange(first_index, first_index + S),
             "n_agents": N,
             "n_collided": collided.sum(axis=1).astype(int),
-            "safety_rate": n_safe / N,
-            "safe": ~collided.any(axis=1),
-            "cost_safe_mean": cost_safe,
-            "cost_all_mean": result.cost.mean(axis=1),
+            "safety_rate": end["safety_rate"],
+            "safe": end["safe"],
+            "cost_safe_mean": end["cost_safe_mean"],
+            "cost_all_mean": end["cost_all_mean"],
             "episode_s": episode_s,
-            "cost_safe_time_avg": cost_safe / episode_s,
-            "cost_all_time_avg": result.cost.mean(axis=1) / episode_s,
+            "cost_safe_time_avg": end["cost_safe_time_avg"],
+            "cost_all_time_avg": end["cost_all_time_avg"],
             "final_distance_mean": result.final_distance.mean(axis=1),
             "min_separation": result.min_separation.min(axis=1),
             "safety_rate_2r": safe_2r.sum(axis=1) / N,
             "safe_2r": safe_2r.all(axis=1),
             "agent_min_separation": list(result.min_separation),
             "agent_cost": list(result.cost),
+            "encounter_speed_mean": speed_mean,
+            "agent_encounter_speed": list(speed),
+            **at_horizons,
         }
     )
 
@@ -91,8 +116,20 @@ def seed_summary(df: pd.DataFrame) -> dict:
     for name, col in COST_COLUMNS.items():
         vals = df[col].to_numpy(dtype=float) if col in df else np.full(len(df), np.nan)
         out[name] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+    for col in df.columns:   # figures at earlier horizons (scenario_metrics): safety, safe scenarios, costs
+        base, _, horizon = col.partition("_at_")
+        if horizon.endswith("s") and base in _HORIZON_FIGURES:
+            vals = df[col].to_numpy(dtype=float)
+            out[_HORIZON_FIGURES[base] + "_at_" + horizon] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+    if "encounter_speed_mean" in df:
+        vals = df["encounter_speed_mean"].to_numpy(dtype=float)
+        out["encounter_speed_mean"] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
     out["n_scenarios"] = int(len(df))
     return out
+
+
+_HORIZON_FIGURES = {"safety_rate": "safety_rate", "safe": "safe_scenarios", **{v: k for k, v in COST_COLUMNS.items()}}
+"""per-scenario column (before its ``_at_<H>s`` suffix) -> the seed figure it gives at that horizon"""
 
 
 CI_METRICS = ("safety_rate", "safe_scenarios", "cost_time_avg", "safety_rate_2r")

@@ -5,7 +5,7 @@ Shared by the simulator and by tests that feed hand-built trajectories.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -28,6 +28,14 @@ class EpisodeResult:
     collision_radius: r (m) of ``collided``, or one per agent (a pair collides within the mean of its two).
     final_distance: ``[S, N]`` distance to goal at the final time (m).
     times: ``[T']`` (s) and positions ``[T', S, N, 2]`` (m) of the decimated trajectory.
+    encounter_speed: ``[S, N]`` relative speed ‖v_i − v_j‖ (m/s) to the nearest agent j at agent i's
+    first collision, or, for an agent that never collides, at its closest approach (the speed of
+    its hardest encounter; the *closing* speed −d‖p_i − p_j‖/dt is zero at a smooth closest
+    approach, so the relative speed is the one that tells encounters apart). NaN where the episode
+    gave no velocities, or where the closest approach was the start (the agent never approached
+    anyone).
+    cost_at: ``{step: [S, N]}`` the cost of the episode cut at each horizon step (same definition as
+    ``cost`` with ``T`` = that step), read from the same episode.
     """
 
     cost: np.ndarray
@@ -41,6 +49,8 @@ class EpisodeResult:
     n_steps: int
     dt: float
     collision_radius: float | tuple = float("nan")
+    encounter_speed: np.ndarray | None = None
+    cost_at: dict[int, np.ndarray] = field(default_factory=dict)
 
     def safe_at(self, radius: float) -> np.ndarray:
         """``[S, N]`` bool: agents that never came within ``radius`` (m) of another agent."""
@@ -48,10 +58,12 @@ class EpisodeResult:
 
 
 class EpisodeRecorder:
-    """Feed the positions ``[S, N, d]`` at steps 0..K with :meth:`update`, then :meth:`finish`."""
+    """Feed the positions ``[S, N, d]`` (and velocities, m/s) at steps 0..K with :meth:`update`, then :meth:`finish`."""
 
-    def __init__(self, goals: torch.Tensor, dt: float, collision_radius: Bound, record_every: int = 0):
-        """``collision_radius``: r (m), or one radius per agent (a pair collides within the mean of its two)."""
+    def __init__(self, goals: torch.Tensor, dt: float, collision_radius: Bound, record_every: int = 0,
+                 horizon_steps: tuple[int, ...] = ()):
+        """``collision_radius``: r (m), or one radius per agent (a pair collides within the mean of its two);
+        ``horizon_steps``: steps at which the cost so far is kept (:attr:`EpisodeResult.cost_at`)."""
         self.goals = goals
         self.dt = float(dt)
         self.r = float(collision_radius) if isinstance(collision_radius, (int, float)) else tuple(map(float, collision_radius))
@@ -62,24 +74,34 @@ class EpisodeRecorder:
         self.collided = torch.zeros(S, N, dtype=torch.bool, device=dev)
         self.first_collision = torch.full((S, N), -1, dtype=torch.long, device=dev)
         self.min_sep = torch.full((S, N), float("inf"), dtype=goals.dtype, device=dev)
+        self.encounter_speed = torch.full((S, N), float("nan"), dtype=goals.dtype, device=dev)
+        self.horizon_steps = frozenset(int(k) for k in horizon_steps)
+        self._cost_at: dict[int, np.ndarray] = {}
         self._last_dist: torch.Tensor | None = None
         self._step = -1
         self._times: list[float] = []
         self._positions: list[np.ndarray] = []
 
-    def update(self, positions: torch.Tensor) -> None:
+    def update(self, positions: torch.Tensor, velocities: torch.Tensor | None = None) -> None:
+        """Step ``k`` (0, 1, …): positions ``[S, N, d]`` (m), velocities ``[S, N, d]`` (m/s) or None."""
         self._step += 1
         k = self._step
         dist = torch.linalg.vector_norm(positions - self.goals, dim=-1).to(torch.float64)
         if self._last_dist is not None:
             self.integral += 0.5 * self.dt * (self._last_dist + dist)
         self._last_dist = dist
+        if k in self.horizon_steps:
+            self._cost_at[k] = (self.integral + dist).cpu().numpy()
         if positions.shape[1] > 1:
             d = pairwise_distances(positions)
-            sep = d.amin(dim=-1)
-            self.min_sep = torch.minimum(self.min_sep, sep)
+            sep, nearest = d.min(dim=-1)
             hit = sep <= self.r if isinstance(self.r, float) else (d <= pair_threshold(self.r, d)).any(dim=-1)
             new = hit & ~self.collided
+            if velocities is not None and k > 0:   # the hardest encounter so far (EpisodeResult.encounter_speed)
+                rel = velocities - torch.gather(velocities, 1, nearest.unsqueeze(-1).expand_as(velocities))
+                keep = new | ((sep < self.min_sep) & ~self.collided)
+                self.encounter_speed = torch.where(keep, torch.linalg.vector_norm(rel, dim=-1), self.encounter_speed)
+            self.min_sep = torch.minimum(self.min_sep, sep)
             self.first_collision = torch.where(new, torch.full_like(self.first_collision, k), self.first_collision)
             self.collided |= hit
         if self.record_every and k % self.record_every == 0:
@@ -107,12 +129,15 @@ class EpisodeRecorder:
             n_steps=self._step,
             dt=self.dt,
             collision_radius=self.r,
+            encounter_speed=self.encounter_speed.cpu().numpy(),
+            cost_at=dict(self._cost_at),
         )
 
 
-def record_trajectory(positions: torch.Tensor, goals: torch.Tensor, dt: float, collision_radius: float) -> EpisodeResult:
-    """Evaluate a full trajectory ``[K+1, S, N, 2]`` (hand-built or logged)."""
-    rec = EpisodeRecorder(goals, dt, collision_radius)
-    for p in positions:
-        rec.update(p)
+def record_trajectory(positions: torch.Tensor, goals: torch.Tensor, dt: float, collision_radius: float,
+                      velocities: torch.Tensor | None = None, horizon_steps: tuple[int, ...] = ()) -> EpisodeResult:
+    """Evaluate a full trajectory ``[K+1, S, N, d]`` (hand-built or logged; velocities of the same shape, or None)."""
+    rec = EpisodeRecorder(goals, dt, collision_radius, horizon_steps=horizon_steps)
+    for k, p in enumerate(positions):
+        rec.update(p, None if velocities is None else velocities[k])
     return rec.finish()

@@ -24,11 +24,13 @@ def run_episode(
     record_every: int = 0,
     progress: bool = True,
     desc: str = "episode",
+    horizon_steps: tuple[int, ...] = (),
 ) -> tuple[EpisodeResult, dict]:
     """Simulate ``n_steps`` steps of ``backend.dt`` from rest at ``starts`` ``[S, N, d]``.
 
     The policy (``reset(state, goals)``, ``act(state, goals, t) -> accel [S, N, m]``) is queried
-    every ``policy_period`` simulation steps. ``collision_radius``: r (m) or one per agent.
+    every ``policy_period`` simulation steps. ``collision_radius``: r (m) or one per agent;
+    ``horizon_steps``: steps at which the cost so far is also kept (``EpisodeResult.cost_at``).
     Returns the episode result and timing statistics.
     """
     d = AGENT.position_dim
@@ -39,8 +41,8 @@ def run_episode(
     dt = backend.dt
     state = backend.reset(starts, torch.zeros_like(starts))
     policy.reset(state, goals)
-    rec = EpisodeRecorder(goals, dt, collision_radius, record_every)
-    rec.update(AGENT.position(state))
+    rec = EpisodeRecorder(goals, dt, collision_radius, record_every, horizon_steps)
+    rec.update(AGENT.position(state), AGENT.velocity(state))
     policy_time = 0.0
     t0 = time.perf_counter()
     with torch.no_grad():
@@ -51,7 +53,7 @@ def run_episode(
                 policy_time += time.perf_counter() - tp
                 backend.command(accel, policy_period * dt)
             state = backend.step()
-            rec.update(AGENT.position(state))
+            rec.update(AGENT.position(state), AGENT.velocity(state))
     wall = time.perf_counter() - t0
     result = rec.finish(AGENT.position(state))
     S, N, _ = starts.shape
