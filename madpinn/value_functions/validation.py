@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.observation import build_observation
 from madpinn.value_functions.z_search import min_feasible_z
 
@@ -88,7 +87,10 @@ def heatmap_observations(spec, half_width: float = 1.0, points: int = 101, cfg: 
     ego_v, nb_v = torch.tensor(cfg["ego_velocity"]), torch.tensor(cfg["neighbour_velocity"])
     positions = torch.cat([ego_p[:, None], nb_p.expand(P, -1, -1)], dim=1)                  # [P, 3, d]
     velocities = torch.cat([ego_v.expand(P, 1, -1), nb_v.expand(P, len(nb_p), -1)], dim=1)
-    state = AGENT.join(positions, velocities)
+    if positions.shape[-1] != spec.layout.d:
+        raise ValueError(f"the V̂ heatmap is the paper's planar figure; observations of {spec.model} "
+                         f"({spec.layout.d} position axes) have no such view")
+    state = spec.agent.join(positions, velocities)
     goals = torch.cat([torch.tensor(cfg["ego_goal"]).expand(P, 1, -1), torch.tensor(cfg["neighbour_goals"]).expand(P, -1, -1)], dim=1)
     neighbours = torch.tensor([[1, 2], [0, 2], [0, 1]]).expand(P, -1, -1)
     obs = build_observation(state, goals, neighbours, spec)[:, 0]
