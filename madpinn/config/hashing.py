@@ -24,8 +24,8 @@ def hashed_agents(agents: Mapping[str, Any] | None) -> Any:
     """``agents`` as every hash reads it: without :data:`AGENT_MODEL_KEYS` when the model is the paper's
     planar one (which ignores the altitude band), so every hash written before the keys existed
     holds; any other model hashes with both keys."""
-    if not isinstance(agents, Mapping) or agents.get("model", PAPER_AGENT_MODEL) != PAPER_AGENT_MODEL:
-        return agents
+    if not isinstance(agents, Mapping) or "model" not in agents or agents["model"] != PAPER_AGENT_MODEL:
+        return agents   # another model, or agents written without the keys (as every hash before them read it)
     return {k: v for k, v in agents.items() if k not in AGENT_MODEL_KEYS}
 
 
