@@ -160,6 +160,21 @@ def test_two_kinds_of_3d_agents_under_madpinn():
     assert res.collided.tolist() == [[False, False, True, True]]   # the slow pair starts inside its 0.3 m radius
 
 
+def test_the_validation_figures_slice_the_3d_models_in_the_horizontal_plane():
+    """The V̂ heatmap and the V_s slices of a 3-D model: its agents at one altitude, no vertical
+    motion; the same numbers as the planar layout would give those agents."""
+    from madpinn.value_functions.validation import HEATMAP, heatmap_observations, vs_slices
+
+    vhat, vs = tiny_models(torch.float64, three_d=True)
+    axis, obs = heatmap_observations(vhat.obs_spec, points=11)
+    assert obs.shape == (121, vhat.obs_spec.dim)
+    pos, vel, goal = (a.reshape(121, -1, 3) for a in __import__("madpinn.observation", fromlist=["x"]).split_observation(obs, 2))
+    assert (pos[..., 2] == 0).all() and (vel[..., 2] == 0).all() and (goal[..., 2] == 0).all()
+    assert torch.equal(vel[:, 0, :2], torch.tensor(HEATMAP["ego_velocity"]).expand(121, -1))
+    axis, values = vs_slices(vs, [(1.0, 0.0)], points=9)
+    assert values.shape == (1, 9, 9) and torch.isfinite(values).all()
+
+
 def test_the_planar_policies_refuse_the_3d_model_with_one_clear_line():
     from madpinn.marl.features import local_observation
     from madpinn.policies.mppi import MPPIPlanner
