@@ -15,7 +15,7 @@ def config_hash(obj: Any, length: int = 12) -> str:
 
 PAPER_AGENT_MODEL = "double_integrator"
 """``agents.model``'s schema default, the paper's planar model (= ``madpinn.dynamics.PAPER_MODEL``;
-``tests/test_agent_model_config.py`` ties the three)"""
+``tests/test_agent_model_3d.py`` ties the three)"""
 AGENT_MODEL_KEYS = ("model", "altitude_band")
 """the keys of ``agents`` that choose and shape the agent model (issue 63 item 2)"""
 
