@@ -59,6 +59,8 @@ class CBVFFilter:
 
     def __init__(self, vs, u_max: float, gamma: float, critical: int, candidates: int, threshold: float, sensing_radius: float,
                  neighbour_control: str = "zero", coordination_range: float | None = None):
+        if not isinstance(u_max, (int, float)):   # its QP and fallback hold one box; V_s is trained for one u_max
+            raise ValueError(f"the CBVF filter needs one u_max for all agents, got {u_max}")
         if critical > candidates:
             raise ValueError(f"critical_neighbours ({critical}) must not exceed candidates ({candidates})")
         if neighbour_control not in self.NEIGHBOUR_CONTROLS:
