@@ -18,7 +18,7 @@ from madpinn.config.hashing import PAPER_AGENT_MODEL
 from madpinn.config.schema import node_at
 from madpinn.dynamics import PAPER_MODEL, DoubleIntegrator, DoubleIntegrator3D
 from madpinn.evaluation.cell import CellSettings, run_cell
-from madpinn.observation import ObservationSettings
+from madpinn.observation import ObservationSettings, split_observation
 from madpinn.policies.nominal import NominalPD
 from madpinn.settings import AgentSettings
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
@@ -168,7 +168,7 @@ def test_the_validation_figures_slice_the_3d_models_in_the_horizontal_plane():
     vhat, vs = tiny_models(torch.float64, three_d=True)
     axis, obs = heatmap_observations(vhat.obs_spec, points=11)
     assert obs.shape == (121, vhat.obs_spec.dim)
-    pos, vel, goal = (a.reshape(121, -1, 3) for a in __import__("madpinn.observation", fromlist=["x"]).split_observation(obs, 2))
+    pos, vel, goal = split_observation(obs, 2)                          # [121, 3, 3] each
     assert (pos[..., 2] == 0).all() and (vel[..., 2] == 0).all() and (goal[..., 2] == 0).all()
     assert torch.equal(vel[:, 0, :2], torch.tensor(HEATMAP["ego_velocity"]).expand(121, -1))
     axis, values = vs_slices(vs, [(1.0, 0.0)], points=9)
