@@ -152,6 +152,8 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
         encounters = np.stack([straight_line_encounters(s_, g_, cs.limits.v_max, 2 * cs.limits.collision_radius,
                                                         cs.episode_steps * cs.sim.dt)
                                for s_, g_ in zip(starts.cpu().double().numpy(), goals.cpu().double().numpy())])
+        model = cs.limits.dynamics()
+        starts, goals = model.place(starts), model.place(goals)   # the planar layout in the agents' space
         policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
         if wrap is not None:
             policy = wrap(policy, first)
