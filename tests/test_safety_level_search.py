@@ -1,6 +1,7 @@
-"""Issue 62: the z* search at a level δ. δ = 0 gives bitwise today's answers (the search it replaced
-in issue 48, benchmarks/zsearch_reference.py); δ > 0 gives the least grid budget with V̂ ≤ −δ,
-infeasible where V̂(z_max) > −δ; a per-row level is each row's own search; the warm search agrees."""
+"""Issue 62: the z* search at a level δ (the one search run on V̂ + δ, safety_level.LeveledVHat).
+δ = 0 gives bitwise today's answers (the search it replaced in issue 48,
+benchmarks/zsearch_reference.py); δ > 0 gives the least grid budget with V̂ ≤ −δ, infeasible where
+V̂(z_max) > −δ; a per-bin level is each row's own search; the warm search agrees."""
 
 import sys
 
@@ -10,7 +11,7 @@ import torch
 from conftest import REPO
 from madpinn.observation import join_observation, split_observation
 from madpinn.policies.z_search import warm_search
-from madpinn.value_functions.safety_level import SafetyLevel, closing_speed, speed_bin
+from madpinn.value_functions.safety_level import LeveledVHat, SafetyLevel, at_level, closing_speed, speed_bin
 from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search, grid_value
 from policy_models import tiny_models
 from test_zsearch_exact import assert_same_search, bitwise, crowded_observations
@@ -20,37 +21,45 @@ from zsearch_reference import reference_cold_search  # noqa: E402
 
 GAP = 1e-5
 """rows whose V̂ lies within this of −δ at a checked grid point are not judged (rounding)"""
+EDGES = (1.0, 3.0)
+"""closing-speed bins of the per-bin tests (m/s)"""
 
 
 def _grid(vhat):
     return ZGrid(vhat.z_max, bisection_steps(1e-3))
 
 
+def _one(delta: float, n: int) -> SafetyLevel:
+    return SafetyLevel((), (float(delta),), n)
+
+
 @pytest.mark.parametrize("B", [7, 45, 200])
 @bitwise
 def test_level_zero_is_bitwise_the_reference(B):
-    """δ = 0 as a float and as a per-row zero tensor: indices, budgets, flags and gradients bit for
-    bit those of the search before issue 62 (and of the default call)."""
+    """δ = 0: ``at_level`` returns V̂ itself, and even the wrapper forced at δ = 0 (single and
+    per-bin) gives indices, budgets, flags and gradients bit for bit those of the search before
+    issue 62."""
     vhat, _ = tiny_models()
+    n = vhat.system.spec.n_neighbours
     grid, obs = _grid(vhat), crowded_observations(B, seed=B)
     ref = reference_cold_search(vhat, obs, grid)
-    for level in (0.0, torch.zeros(B)):
-        assert_same_search(cold_search(vhat, obs, grid, level=level), ref)
-    assert_same_search(cold_search(vhat, obs, grid), ref)
+    assert at_level(vhat, _one(0.0, n)) is vhat and at_level(vhat, None) is vhat
+    for level in (_one(0.0, n), SafetyLevel(EDGES, (0.0, 0.0, 0.0), n)):
+        assert_same_search(cold_search(LeveledVHat(vhat, level), obs, grid), ref)
 
 
-def test_level_zero_warm_search_is_the_default_call():
+def test_level_zero_warm_search_is_the_plain_one():
     vhat, _ = tiny_models()
     grid, obs = _grid(vhat), crowded_observations(90, seed=3)
-    pred = cold_search(vhat, obs, grid).index
-    for level in (0.0, torch.zeros(90)):
-        assert_same_search(warm_search(vhat, obs, grid, pred + 3, level=level), warm_search(vhat, obs, grid, pred + 3))
+    pred = cold_search(vhat, obs, grid).index + 3
+    forced = LeveledVHat(vhat, _one(0.0, vhat.system.spec.n_neighbours))
+    assert_same_search(warm_search(forced, obs, grid, pred), warm_search(vhat, obs, grid, pred))
 
 
-def _check_crossings(vhat, obs, grid, r, level):
+def _check_crossings(vhat, obs, grid, r, lv):
     """Infeasible exactly where V̂(z_max) > −δ; a feasible answer i is a crossing of −δ:
-    V̂(z_i) ≤ −δ < V̂(z_{i−1}) (i = 1: no lower point); rows within GAP of −δ are skipped."""
-    lv = level if isinstance(level, torch.Tensor) else torch.full((obs.shape[0],), float(level))
+    V̂(z_i) ≤ −δ < V̂(z_{i−1}) (i = 1: no lower point); rows within GAP of −δ are skipped.
+    ``lv``: δ per row ``[B]``."""
     top = grid_value(vhat, obs, grid, torch.full_like(r.index, grid.cells)) + lv
     clear = top.abs() > GAP
     assert torch.equal(r.feasible[clear], (top <= 0)[clear])
@@ -64,53 +73,57 @@ def _check_crossings(vhat, obs, grid, r, level):
 
 @pytest.mark.parametrize("delta", [0.05, 0.2])
 def test_positive_level_is_the_crossing_of_minus_delta(delta):
-    """A positive level: fewer feasible rows, each budget a crossing of −δ, never below δ = 0's
-    on rows where V̂ is monotone in z (the budget of a tighter level is at least as large)."""
+    """A positive level: a subset of δ = 0's feasible rows, each budget a crossing of −δ; the
+    control gradient is V̂'s own at that budget."""
     vhat, _ = tiny_models()
+    n = vhat.system.spec.n_neighbours
     grid, obs = _grid(vhat), crowded_observations(300, seed=11)
-    r0, r = cold_search(vhat, obs, grid), cold_search(vhat, obs, grid, level=delta)
-    _check_crossings(vhat, obs, grid, r, delta)
+    r0, r = cold_search(vhat, obs, grid), cold_search(at_level(vhat, _one(delta, n)), obs, grid)
+    _check_crossings(vhat, obs, grid, r, torch.full((300,), delta))
     assert bool((r.feasible <= r0.feasible).all())          # accepted at δ ⇒ accepted at 0
     assert int(r.feasible.sum()) < int(r0.feasible.sum())   # the tiny V̂ has rows with V̂(z_max) in (−δ, 0]
+    _, g, _ = vhat.value_and_grad(obs, r.z, 0.0)
+    assert torch.equal(g, r.grad)
 
 
-def test_per_row_level_is_each_rows_own_search():
-    """A per-row level tensor gives each row the answer of a search at its own δ (flags and indices)."""
+def test_per_bin_level_is_each_rows_own_search():
+    """A per-bin level gives each row the answer of a search at its own bin's δ (flags, indices);
+    an uncertified bin (δ = +∞) accepts nothing."""
     vhat, _ = tiny_models()
-    grid, obs = _grid(vhat), crowded_observations(120, seed=5)
-    deltas = torch.tensor([0.0, 0.05, 0.2])
-    lv = deltas[torch.arange(120) % 3]
-    r = cold_search(vhat, obs, grid, level=lv)
+    n = vhat.system.spec.n_neighbours
+    grid, obs = _grid(vhat), crowded_observations(240, seed=5)
+    deltas = (0.0, 0.05, 0.2)
+    bins = speed_bin(closing_speed(obs, n), EDGES)
+    assert len(set(bins.tolist())) == 3
+    lv = torch.tensor(deltas)[bins]
+    r = cold_search(LeveledVHat(vhat, SafetyLevel(EDGES, deltas, n)), obs, grid)
     _check_crossings(vhat, obs, grid, r, lv)
-    for d in deltas:
-        rows = (lv == d).nonzero(as_tuple=True)[0]
-        alone = cold_search(vhat, obs[rows], grid, level=float(d))
+    for b, d in enumerate(deltas):
+        rows = (bins == b).nonzero(as_tuple=True)[0]
+        alone = cold_search(LeveledVHat(vhat, _one(d, n)), obs[rows], grid)
         assert torch.equal(alone.feasible, r.feasible[rows])
-    inf = cold_search(vhat, obs, grid, level=torch.full((120,), float("inf")))
-    assert not bool(inf.feasible.any()) and bool((inf.index == grid.cells).all())
+    inf = cold_search(LeveledVHat(vhat, SafetyLevel(EDGES, (0.0, float("inf"), 0.0), n)), obs, grid)
+    assert not bool(inf.feasible[bins == 1].any()) and bool((inf.index[bins == 1] == grid.cells).all())
 
 
 def test_warm_search_at_a_level_keeps_the_cold_feasibility():
     vhat, _ = tiny_models()
+    n = vhat.system.spec.n_neighbours
     grid, obs = _grid(vhat), crowded_observations(150, seed=9)
-    lv = torch.tensor([0.0, 0.1])[torch.arange(150) % 2]
-    cold = cold_search(vhat, obs, grid, level=lv)
-    warm = warm_search(vhat, obs, grid, cold.index + 5, level=lv)
+    leveled = LeveledVHat(vhat, SafetyLevel(EDGES, (0.0, 0.1, 0.1), n))
+    cold = cold_search(leveled, obs, grid)
+    warm = warm_search(leveled, obs, grid, cold.index + 5)
     assert torch.equal(warm.feasible, cold.feasible)
-    _check_crossings(vhat, obs, grid, warm, lv)
+    _check_crossings(vhat, obs, grid, warm, torch.tensor([0.0, 0.1, 0.1])[speed_bin(closing_speed(obs, n), EDGES)])
 
 
 def test_bad_levels_fail_early():
-    vhat, _ = tiny_models()
-    grid, obs = _grid(vhat), crowded_observations(8, seed=1)
-    with pytest.raises(ValueError, match="NaN"):
-        cold_search(vhat, obs, grid, level=float("nan"))
-    with pytest.raises(ValueError, match=r"\[8\]"):
-        cold_search(vhat, obs, grid, level=torch.zeros(5))
     with pytest.raises(ValueError, match="one per bin"):
         SafetyLevel((1.0, 2.0), (0.1, 0.2), 2)
     with pytest.raises(ValueError, match="ascend"):
         SafetyLevel((2.0, 1.0), (0.1, 0.2, 0.3), 2)
+    with pytest.raises(ValueError, match="δ ≥ 0"):
+        SafetyLevel((), (-0.1,), 2)
 
 
 def test_closing_speed_and_bins():

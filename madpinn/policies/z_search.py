@@ -25,37 +25,31 @@ it is still a budget V̂ itself certifies. ``benchmarks/bench_zsearch.py --verif
 differences in closed-loop episodes. ``check_top=False`` drops the ``V̂(z_max)`` row (one row
 less per step); then a row whose V̂ is positive at ``z_max`` but dips below 0 lower down returns
 that feasible crossing where the cold search falls back to ``z_max`` (not used by the policy).
-
-``level`` δ (issue 62): every test ``V̂ ≤ 0`` reads ``V̂ ≤ −δ``, as in the cold search (float, or
-one δ per row ``[B]``; 0.0: the paper's rule, bitwise the same comparisons).
 """
 
 from __future__ import annotations
 
 import torch
 
-from madpinn.value_functions.z_search import ZGrid, ZSearchResult, at_level, bisect, check_level, grid_value, search_result
+from madpinn.value_functions.z_search import ZGrid, ZSearchResult, bisect, grid_value, search_result
 
 
-def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, check_top: bool = True,
-                level=0.0) -> ZSearchResult:
+def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, check_top: bool = True) -> ZSearchResult:
     """Bracketed search around ``predicted [B]`` (long grid indices; see module docstring).
     ``check_top``: also evaluate ``V̂(z_max)`` on every row predicted below ``z_max`` (one value
-    row), so the feasibility flag and the ``z_max`` fallback are always the cold search's.
-    ``level``: δ of the tests ``V̂ ≤ −δ`` (float or ``[B]``)."""
+    row), so the feasibility flag and the ``z_max`` fallback are always the cold search's."""
     B, cells = obs.shape[0], grid.cells
-    check_level(level, B)
     k = predicted.to(device=obs.device, dtype=torch.long).clamp(1, cells)
     v_k, grad, _ = vhat.value_and_grad(obs, grid.z(k, obs.dtype), 0.0)
     value_rows, grad_rows = 0, B
-    ok_k = at_level(v_k, level)
+    ok_k = v_k <= 0
     below = torch.zeros(B, dtype=torch.bool, device=obs.device)  # V̂(z_{k−1}) ≤ 0: the crossing is lower
     top_ok = ok_k & (k == cells)                                    # V̂(z_max) ≤ 0 measured
     chk = (ok_k & (k > 1)).nonzero(as_tuple=True)[0]
     top = (k < cells).nonzero(as_tuple=True)[0] if check_top else chk[:0]
     if chk.numel() or top.numel():  # one network call: V̂(z_{k−1}) where V̂(z_k) ≤ 0, V̂(z_max) where k < cells
         rows = torch.cat([chk, top])
-        ok = at_level(grid_value(vhat, obs[rows], grid, torch.cat([k[chk] - 1, torch.full_like(top, cells)])), level, rows)
+        ok = grid_value(vhat, obs[rows], grid, torch.cat([k[chk] - 1, torch.full_like(top, cells)])) <= 0
         below[chk] = ok[: chk.numel()]
         top_ok[top] = ok[chk.numel():]
         value_rows += int(rows.numel())
@@ -94,7 +88,7 @@ def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, c
         ev = (~at_zero & ~known_top).nonzero(as_tuple=True)[0]
         ok = known_top.clone()
         if ev.numel():
-            ok[ev] = at_level(grid_value(vhat, o[act[ev]], grid, probe[ev]), level, miss[act[ev]])
+            ok[ev] = grid_value(vhat, o[act[ev]], grid, probe[ev]) <= 0
             value_rows += int(ev.numel())
         # up rows: ok -> hi = probe (bracketed); else lo = probe, unsafe at the top
         # down rows: ok -> hi = probe (keep going down); else lo = probe (bracketed)
@@ -106,8 +100,7 @@ def warm_search(vhat, obs: torch.Tensor, grid: ZGrid, predicted: torch.Tensor, c
     bracketed = ~unsafe
     rows = bracketed.nonzero(as_tuple=True)[0]
     if rows.numel():
-        sub = level[miss[rows]] if isinstance(level, torch.Tensor) else level
-        h_ans, r = bisect(vhat, o[rows], grid, lo[rows].clone(), hi[rows].clone(), sub)
+        h_ans, r = bisect(vhat, o[rows], grid, lo[rows].clone(), hi[rows].clone())
         value_rows += r
         idx[miss[rows]] = h_ans
     idx[miss[unsafe]] = cells

@@ -5,7 +5,8 @@ calibration set and a held-out test set are drawn from two generator streams of 
 seed (:func:`stream_seeds`; the sets are checked disjoint row by row,
 :func:`~madpinn.value_functions.conformal.assert_disjoint`). Every state is searched at each
 candidate level δ_k with the deployed search (:func:`~madpinn.value_functions.z_search.cold_search`
-on the grid of ``methods.madpinn.z_tolerance``, ``level=δ_k``): *accepted* when feasible, and then
+on the grid of ``methods.madpinn.z_tolerance``, on V̂ at level δ_k: :func:`.safety_level.at_level`):
+*accepted* when feasible, and then
 rolled out from its budget ``z*_{δ_k}`` under V̂'s own policy in V̂'s model
 (:func:`~madpinn.value_functions.verification.rollout`, the verification's exact zero-order-hold
 rollout, its ``dt`` and ``substeps``); it *violates* when a pair comes closer than the collision
@@ -24,8 +25,9 @@ from dataclasses import dataclass
 import torch
 
 from madpinn.value_functions.conformal import assert_disjoint, certify, check_levels, check_risk, fingerprint, held_out
-from madpinn.value_functions.safety_level import bin_labels, check_edges, closing_speed, speed_bin
-from madpinn.value_functions.verification import ScenarioSettings, draw_states, rollout, scenario_distribution
+from madpinn.value_functions.safety_level import SafetyLevel, at_level, bin_labels, check_edges, closing_speed, speed_bin
+from madpinn.value_functions.sampling import ConflictSamplingSettings, place_conflicts
+from madpinn.value_functions.verification import ScenarioSettings, rollout
 from madpinn.value_functions.z_search import ZGrid, cold_search
 
 DISTRIBUTIONS = ("uniform", "conflict")
@@ -85,6 +87,16 @@ class CalibrationSettings:
         return lv
 
 
+def draw_states(system, n: int, conflict: bool, radius: float, generator: torch.Generator, dtype) -> torch.Tensor:
+    """``n`` observations ``[n, D]`` of the verification's distributions (``verify`` in
+    :mod:`.verification` draws the same ones before its rejection step): uniform over V̂'s domain,
+    or (``conflict``) every state with one pair on a near-collision course reaching the disk of
+    ``radius`` (m) within the horizon."""
+    sampling = ConflictSamplingSettings(fraction=1.0 if conflict else 0.0, radius=radius, tau=(0.0, 1.0), closing_speed=None)
+    obs, _ = system.sample(n, generator, dtype=dtype)
+    return place_conflicts(obs, system.spec.n_neighbours, system.horizon, system.spec.offset_range, sampling, generator)
+
+
 def stream_seeds(seed: int, distribution: str) -> dict[str, int]:
     """Generator seed of each set (:data:`STREAMS`) of ``distribution``: distinct by construction."""
     d = DISTRIBUTIONS.index(distribution)
@@ -102,13 +114,14 @@ def level_outcomes(vhat, obs: torch.Tensor, levels: torch.Tensor, z_tolerance: f
     the collision radius (False where not accepted)."""
     grid = ZGrid.of(vhat.z_max, z_tolerance)
     r_col = vhat.system.spec.collision_radius
+    n = vhat.system.spec.n_neighbours
     K, M = levels.numel(), obs.shape[0]
     accepted = torch.zeros(K, M, dtype=torch.bool)
     violated = torch.zeros(K, M, dtype=torch.bool)
     for k, delta in enumerate(levels.tolist()):
         for i in range(0, M, chunk):
             o = obs[i:i + chunk]
-            res = cold_search(vhat, o, grid, with_grad=False, level=float(delta))
+            res = cold_search(at_level(vhat, SafetyLevel((), (float(delta),), n)), o, grid, with_grad=False)
             acc = res.feasible.cpu()
             accepted[k, i:i + o.shape[0]] = acc
             rows = acc.nonzero(as_tuple=True)[0]
@@ -154,8 +167,8 @@ def calibrate_distribution(vhat, settings: CalibrationSettings, scenario: Scenar
     p = next(vhat.net.parameters())
     n = vhat.system.spec.n_neighbours
     seeds = stream_seeds(settings.seed, distribution)
-    sampling = scenario_distribution(distribution == "conflict", scenario.conflict_radius)
-    sets = {name: draw_states(vhat.system, size, sampling, torch.Generator().manual_seed(seeds[name]), p.dtype).to(p.device)
+    sets = {name: draw_states(vhat.system, size, distribution == "conflict", scenario.conflict_radius,
+                              torch.Generator().manual_seed(seeds[name]), p.dtype).to(p.device)
             for name, size in (("calibration", settings.samples), ("test", settings.test_samples))}
     assert_disjoint(sets["calibration"].cpu(), sets["test"].cpu())
     levels = settings.levels()

@@ -1,6 +1,15 @@
 """The safety level δ the deployed z* search uses (issue 62, not in the paper): a state is
-feasible when ``V̂(0, o, z_max) ≤ −δ`` and its budget is the least grid z with ``V̂(0, o, z) ≤ −δ``
-(:func:`madpinn.value_functions.z_search.cold_search`, ``level``). δ = 0 is the paper's rule.
+feasible when ``V̂(0, o, z_max) ≤ −δ`` and its budget is the least grid z with ``V̂(0, o, z) ≤ −δ``.
+δ = 0 is the paper's rule.
+
+The search is the one z* search (:mod:`madpinn.value_functions.z_search`, cold and warm) run on
+:class:`LeveledVHat`, V̂ + δ: its every test ``V̂ + δ ≤ 0`` decides exactly ``V̂ ≤ −δ`` (a rounded
+IEEE sum has the sign of the exact sum, and −δ is exact), so the budget is the least grid z with
+``V̂ ≤ −δ`` and a state is infeasible where ``V̂(0, o, z_max) > −δ``; the control gradient is V̂'s
+own (δ is constant in z and piecewise constant in o). :func:`at_level` returns V̂ itself where
+every δ is 0, so a level-0 deployment is today's, bit for bit. Keeping the search's module as it
+is keeps the code hash of every job that does not deploy a level (verify-vhat, the trainings,
+SafeMARL's cells) unchanged.
 
 A level is one δ for every state, or one per *closing-speed bin* (a Mondrian split): the closing
 speed of a 3-agent observation is the largest rate at which any of its pairs approach,
@@ -84,6 +93,38 @@ class SafetyLevel:
             return float(self.deltas[0])
         b = speed_bin(closing_speed(obs, self.n_neighbours), self.edges)
         return torch.tensor(self.deltas, dtype=obs.dtype, device=obs.device)[b]
+
+
+class LeveledVHat:
+    """V̂ + δ(o) with V̂'s ``value`` / ``value_and_grad`` interface (δ from a :class:`SafetyLevel`);
+    every other attribute (``system``, ``z_max``, ``net``, …) is the base model's."""
+
+    def __init__(self, base, level: SafetyLevel):
+        self.base = base
+        self.level = level
+
+    def __getattr__(self, name):
+        return getattr(self.base, name)
+
+    def _delta(self, obs: torch.Tensor, like: torch.Tensor):
+        d = self.level.of(obs)
+        return d.to(like.dtype) if isinstance(d, torch.Tensor) else d
+
+    def value(self, obs: torch.Tensor, z: torch.Tensor, t=0.0) -> torch.Tensor:
+        """``V̂(t, o, z) + δ(o)`` ``[B]``; obs ``[B, D]``, z ``[B]``."""
+        v = self.base.value(obs, z, t)
+        return v + self._delta(obs, v)
+
+    def value_and_grad(self, obs: torch.Tensor, z: torch.Tensor, t=0.0):
+        """``(V̂ + δ [B], ∂V̂/∂obs [B, D], ∂V̂/∂z [B])``."""
+        v, go, gz = self.base.value_and_grad(obs, z, t)
+        return v + self._delta(obs, v), go, gz
+
+
+def at_level(vhat, level: SafetyLevel | None):
+    """``vhat`` itself when ``level`` is None or every δ is 0 (the paper's rule), else
+    :class:`LeveledVHat`."""
+    return vhat if level is None or level.is_zero else LeveledVHat(vhat, level)
 
 
 def read_level(path: str | Path, distribution: str, epsilon: float, beta: float, binned: bool,

@@ -1,6 +1,6 @@
 """The epigraph budget search of SPEC §6 on a dyadic z grid: the one z* search of the package.
 
-``z* = min{z ∈ [0, z_max] : V̂(0, o, z) ≤ −δ}`` to a tolerance of one grid cell
+``z* = min{z ∈ [0, z_max] : V̂(0, o, z) ≤ 0}`` to a tolerance of one grid cell
 ``h = z_max / 2^steps``: every V̂ evaluation is at a grid point ``z_i = i·h``, ``i = 1 … 2^steps``
 (indices are integers, so every search evaluates V̂ at bitwise identical z). The deployed policy
 (:mod:`madpinn.policies.madpinn`), ``verify-vhat`` (:mod:`.verification`) and the V̂ heatmap
@@ -19,12 +19,6 @@ halving on every agent (``benchmarks/zsearch_reference.py``, ``tests/test_zsearc
 ``V̂(z_i) ≤ 0`` and ``V̂(z_{i−1}) > 0`` (``i = 1``: ``z_0 = 0`` is never evaluated). It also
 returns the control gradient ``∂V̂/∂o`` at ``(t = 0, o, z*)``, so a search's cost is counted in
 network rows: ``value_rows`` (V̂ only) and ``grad_rows`` (V̂ and its gradient).
-
-Level δ (issue 62, not in the paper; :mod:`.safety_level`): every test ``V̂ ≤ 0`` above reads
-``V̂ ≤ −δ`` (:func:`at_level`), so the budget is the least grid z with ``V̂(0, o, z) ≤ −δ`` and a
-row is infeasible where ``V̂(0, o, z_max) > −δ``. ``level`` is a float (one δ) or a tensor ``[B]``
-(one per row, a closing-speed bin's); the default 0.0 is the paper's rule, with bitwise the same
-comparisons (``v ≤ −0.0`` is ``v ≤ 0`` for every float ``v``).
 """
 
 from __future__ import annotations
@@ -80,24 +74,6 @@ class ZSearchResult:
     grad_rows: int
 
 
-def at_level(values: torch.Tensor, level, rows: torch.Tensor | None = None) -> torch.Tensor:
-    """``values ≤ −δ`` ``[M]`` (bool): ``level`` a float δ, or a tensor ``[B]`` of which ``rows``
-    (indices ``[M]``; None: all) are the rows of ``values``."""
-    if isinstance(level, torch.Tensor):
-        return values <= -(level if rows is None else level[rows])
-    return values <= -level
-
-
-def check_level(level, rows: int):
-    """A search's ``level``: a float, or a tensor ``[rows]``; never NaN (+∞: no budget at all)."""
-    if isinstance(level, torch.Tensor):
-        if level.shape != (rows,) or bool(torch.isnan(level).any()):
-            raise ValueError(f"a per-row level must be a [{rows}] tensor without NaN, got shape {tuple(level.shape)}")
-    elif math.isnan(float(level)):
-        raise ValueError("a level must not be NaN")
-    return level
-
-
 def grid_value(vhat, obs: torch.Tensor, grid: ZGrid, idx: torch.Tensor) -> torch.Tensor:
     """``V̂(0, o, z_idx)`` ``[B]`` for observations ``[B, D]`` and grid indices ``[B]``."""
     return vhat.value(obs, grid.z(idx, obs.dtype), 0.0)
@@ -117,15 +93,14 @@ def search_result(vhat, obs, grid: ZGrid, idx, feasible, hit, value_rows, grad_r
     return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, grad, hit, value_rows, grad_rows)
 
 
-def bisect(vhat, obs, grid: ZGrid, lo, hi, level=0.0):
-    """Halve brackets ``(lo, hi]`` (V̂(lo) > −δ or lo = 0, V̂(hi) ≤ −δ) to one cell; returns
-    ``(hi, value rows)``; each round evaluates the rows whose bracket is still wider than a cell.
-    ``level``: δ (float, or ``[B]`` for the rows of ``obs``)."""
+def bisect(vhat, obs, grid: ZGrid, lo, hi):
+    """Halve brackets ``(lo, hi]`` (V̂(lo) > 0 or lo = 0, V̂(hi) ≤ 0) to one cell; returns
+    ``(hi, value rows)``; each round evaluates the rows whose bracket is still wider than a cell."""
     rows = 0
     while bool((hi - lo > 1).any()):
         act = (hi - lo > 1).nonzero(as_tuple=True)[0]
         mid = (lo[act] + hi[act]) // 2
-        ok = at_level(grid_value(vhat, obs[act], grid, mid), level, act)
+        ok = grid_value(vhat, obs[act], grid, mid) <= 0
         rows += int(act.numel())
         hi[act] = torch.where(ok, mid, hi[act])
         lo[act] = torch.where(ok, lo[act], mid)
@@ -178,19 +153,17 @@ def observation_values(vhat, obs: torch.Tensor):
     return vhat.at_observations(obs, 0.0) if isinstance(vhat, VHat) else _Values(vhat, obs)
 
 
-def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True, level=0.0) -> ZSearchResult:
+def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True) -> ZSearchResult:
     """The paper's bisection (see module docstring); ``obs [B, D]``. ``V̂(z_max)`` on every row,
     then the ``steps`` halvings on the feasible rows only (:func:`padded_rows`): an infeasible
     row's answer is ``z_max`` whatever its halvings give. ``with_grad=False``: no gradient row
-    (``grad`` is None; the budgets alone, as the verification and the heatmap need them).
-    ``level``: δ of the tests ``V̂ ≤ −δ`` (float, or ``[B]``; 0: the paper's rule)."""
+    (``grad`` is None; the budgets alone, as the verification and the heatmap need them)."""
     B = obs.shape[0]
-    check_level(level, B)
     values = observation_values(vhat, obs)
     z_of = grid.z(torch.arange(grid.cells + 1, device=obs.device), obs.dtype)   # z of every grid index
     input_of = values.z_input(z_of)                                               # and its network input
     top = torch.full((B,), grid.cells, dtype=torch.long, device=obs.device)
-    feasible = at_level(values(z_of[top], input_of[top]), level)
+    feasible = values(z_of[top], input_of[top]) <= 0
     rows = padded_rows(feasible)
     halve = values.rows(rows)
     lo = torch.zeros_like(rows)   # bracket (lo, lo + width], V̂(z_lo) > 0 or lo = 0
@@ -198,7 +171,7 @@ def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True, le
     for _ in range(grid.steps):
         width //= 2
         mid = lo + width
-        lo = torch.where(at_level(halve(z_of[mid], input_of[mid]), level, rows), lo, mid)
+        lo = torch.where(halve(z_of[mid], input_of[mid]) <= 0, lo, mid)
     idx = top.clone()
     idx[rows] = torch.where(feasible[rows], lo + 1, top[rows])
     value_rows = B + grid.steps * rows.numel()
@@ -208,9 +181,8 @@ def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True, le
     return search_result(vhat, obs, grid, idx, feasible, hit, value_rows, 0)
 
 
-def min_feasible_z(vhat, obs: torch.Tensor, z_tolerance: float, level=0.0):
+def min_feasible_z(vhat, obs: torch.Tensor, z_tolerance: float):
     """``(z* [B], feasible [B] bool)`` of :func:`cold_search` on the grid of ``z_tolerance``
-    (the deployed ``methods.madpinn.z_tolerance``) at ``level`` δ; ``z* = z_max`` where
-    ``V̂(0, o, z_max) > −δ``."""
-    r = cold_search(vhat, obs, ZGrid.of(vhat.z_max, z_tolerance), with_grad=False, level=level)
+    (the deployed ``methods.madpinn.z_tolerance``); ``z* = z_max`` where ``V̂(0, o, z_max) > 0``."""
+    r = cold_search(vhat, obs, ZGrid.of(vhat.z_max, z_tolerance), with_grad=False)
     return r.z, r.feasible
