@@ -122,3 +122,40 @@ def test_smoke_calibration_through_the_command_path(tmp_path):
     assert all(d >= 0.0 or math.isinf(d) for d in binned.deltas)
     with pytest.raises(ValueError, match="no pooled level for ε = 0.02"):
         read_level(path, "conflict", 0.02, 0.05, False, n)
+
+
+def test_calibrate_vhat_command_at_smoke_size(tmp_path):
+    """`calibrate-vhat` with the smoke overlay's sizes on the tiny V̂: the JSON report (its
+    calibration and held-out sets disjoint, named by seed and fingerprint) and the three tables."""
+    from conftest import REPO, SMOKE
+    from madpinn.commands import main
+    from policy_models import tiny_model_dir
+
+    out = {k: tmp_path / f"cal.{k}" for k in ("json", "csv", "md", "html")}
+    assert main(["calibrate-vhat", "--config", str(REPO / "config.yaml"), str(SMOKE), "--model",
+                 f"vhat={tiny_model_dir() / 'vhat.pt'}", "--out", str(out["json"]), "--table-csv", str(out["csv"]),
+                 "--table-md", str(out["md"]), "--table-html", str(out["html"]), "--no-track"]) == 0
+    report = json.loads(out["json"].read_text())
+    for block in report["distributions"].values():
+        assert block["samples"] == {"calibration": 48, "test": 48}
+        assert block["seeds"]["calibration"] != block["seeds"]["test"]
+        assert block["fingerprints"]["calibration"] != block["fingerprints"]["test"]
+    assert all(p.stat().st_size > 0 for p in out.values())
+
+
+@pytest.mark.parametrize("bad,key", [({"value_functions": {"vhat": {"validation": {"calibration": {"epsilons": [0.0]}}}}},
+                                      "calibration.epsilons"),
+                                     ({"value_functions": {"vhat": {"validation": {"calibration": {"betas": [1.5]}}}}},
+                                      "calibration.betas"),
+                                     ({"value_functions": {"vhat": {"validation": {"calibration": {"seed": 3}}}}},
+                                      "calibration.seed"),
+                                     ({"methods": {"madpinn": {"variants": {"cp": {"label": "x", "conformal": {
+                                         "distribution": "conflict", "epsilon": 1.0, "beta": 1e-3, "binned": False}}}}}},
+                                      "conformal.epsilon")])
+def test_bad_settings_fail_at_config_validation(bad, key):
+    """Bad ε, β or seed stop the config check (every job's first step), naming the key."""
+    from conftest import REPO
+    from madpinn.config import ConfigError, deep_merge, load_yaml, validate_config
+
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate_config(deep_merge(load_yaml(REPO / "config.yaml"), bad))

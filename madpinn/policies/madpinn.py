@@ -86,7 +86,7 @@ class MadPinnSettings:
     look_ahead: float
     vs_band: bool
     infeasible: str
-    conformal: dict | None = None
+    conformal: dict | None
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -97,7 +97,7 @@ class MadPinnSettings:
                    pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
                    look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]),
-                   infeasible=str(mcfg["infeasible"]), conformal=dict(mcfg["conformal"]) if mcfg.get("conformal") else None)
+                   infeasible=str(mcfg["infeasible"]), conformal=dict(mcfg["conformal"]) if mcfg["conformal"] else None)
 
 
 def check_compatible(vhat, vs, spec: ObservationSettings, u_max: float) -> None:

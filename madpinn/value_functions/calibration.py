@@ -160,6 +160,14 @@ def _rows(levels, acc, vio, bins, n_bins, test_at, test_bins, settings: Calibrat
     return out
 
 
+def _curve(acc: torch.Tensor, vio: torch.Tensor) -> dict:
+    """Per candidate level (rows of ``acc``/``vio`` ``[K, M]``): accepted states, their share of
+    the M samples, violations among them and their rate (0 where none is accepted)."""
+    m, k = acc.sum(1), (acc & vio).sum(1)
+    return {"accepted": m.tolist(), "accepted_fraction": (m / max(1, acc.shape[1])).tolist(), "violations": k.tolist(),
+            "violation_rate": torch.where(m > 0, k / m.clamp_min(1), torch.zeros(m.shape, dtype=torch.float64)).tolist()}
+
+
 def calibrate_distribution(vhat, settings: CalibrationSettings, scenario: ScenarioSettings, distribution: str,
                            z_tolerance: float) -> dict:
     """The calibration of one distribution (module docstring): seeds and fingerprints of both sets,
@@ -184,13 +192,10 @@ def calibrate_distribution(vhat, settings: CalibrationSettings, scenario: Scenar
             cache[k] = (a[0], v[0])
         return cache[k]
 
-    m = acc.sum(1)
-    curve = {"levels": levels.tolist(), "accepted_fraction": (m / acc.shape[1]).tolist(),
-             "violation_rate": torch.where(m > 0, (acc & vio).sum(1) / m.clamp_min(1), torch.zeros_like(m, dtype=torch.float)).tolist()}
     return {"seeds": seeds, "samples": {k: int(v.shape[0]) for k, v in sets.items()},
             "fingerprints": {k: fingerprint(v) for k, v in sets.items()}, "speed_edges": list(edges),
             "bin_labels": bin_labels(edges), "calibration_bin_counts": torch.bincount(bins, minlength=len(edges) + 1).tolist(),
-            "curve": curve,
+            "curve": _curve(acc, vio), "bin_curves": [_curve(acc[:, bins == b], vio[:, bins == b]) for b in range(len(edges) + 1)],
             "pooled": _rows(levels, acc, vio, bins, 1, test_at, test_bins, settings, "pooled"),
             "binned": _rows(levels, acc, vio, bins, len(edges) + 1, test_at, test_bins, settings, "binned")}
 

@@ -133,10 +133,10 @@ def read_level(path: str | Path, distribution: str, epsilon: float, beta: float,
     ``calibrate-vhat``), with its closing-speed bins when ``binned``; a clear error when the report
     lacks that combination."""
     report = json.loads(Path(path).read_text())
-    block = report.get("distributions", {}).get(distribution)
-    if block is None:
-        raise ValueError(f"{path}: no calibration on the '{distribution}' distribution "
-                         f"(have {sorted(report.get('distributions', {}))})")
+    have = report["distributions"] if "distributions" in report else {}
+    if distribution not in have:
+        raise ValueError(f"{path}: no calibration on the '{distribution}' distribution (have {sorted(have)})")
+    block = have[distribution]
     split = "binned" if binned else "pooled"
     rows = [r for r in block[split] if math.isclose(r["epsilon"], epsilon) and math.isclose(r["beta"], beta)]
     if not rows:
