@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from madpinn.value_functions.calibration import CalibrationSettings, calibrate, draw_states, stream_seeds
-from madpinn.value_functions.calibration_table import write_calibration_table
+from madpinn.evaluation.calibration_table import write_calibration_table
 from madpinn.value_functions.conformal import LeakageError, assert_disjoint, certify, coverage_met, held_out
 from madpinn.value_functions.safety_level import read_level
 from madpinn.value_functions.verification import ScenarioSettings

@@ -38,7 +38,7 @@ RUNS = {
     ("verify-vhat",): ["value_functions/verification.py", "value_functions/z_search.py", "value_functions/model.py",
                        "value_functions/epigraph.py"],
     ("calibrate-vhat",): ["value_functions/calibration.py", "value_functions/conformal.py", "value_functions/safety_level.py",
-                          "value_functions/calibration_table.py", "value_functions/verification.py",
+                          "evaluation/calibration_table.py", "value_functions/verification.py",
                           "value_functions/z_search.py", "value_functions/model.py"],
     ("solve-vs-grid",): ["value_functions/grid_reference.py", "dynamics/pair.py"],
     ("train-safemarl-nominal",): ["marl/trainer.py", "marl/env.py", "marl/ppo.py", "marl/networks.py",

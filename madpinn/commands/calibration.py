@@ -18,10 +18,12 @@ the deployed z grid, the value functions' seeding and precision"""
 
 
 def _calibrate_vhat(args) -> int:
-    from madpinn.commands.value_functions import _setup, deployed_z_tolerance
+    from madpinn.config import method_config
+    from madpinn.device import resolve_device, resolve_dtype, seed_everything
+    from madpinn.policies import policy_settings
     from madpinn.value_functions import load_vhat
     from madpinn.value_functions.calibration import CalibrationSettings, calibrate
-    from madpinn.value_functions.calibration_table import write_calibration_table
+    from madpinn.evaluation.calibration_table import write_calibration_table
     from madpinn.value_functions.verification import ScenarioSettings
 
     cfg = config_of(args)
@@ -31,11 +33,12 @@ def _calibrate_vhat(args) -> int:
     scenario = ScenarioSettings.from_config(validation["scenario"])
     record = JobRecord(job_key=f"validate/{Path(model).stem}_calibration", rule="calibrate_vhat")
     with job(cfg, record, not args.no_track) as run:
-        device, dtype = _setup(cfg, args.threads, int(cfg["value_functions"]["seed"]))
-        vhat = load_vhat(model, device=device, dtype=dtype)
+        # the value-function jobs' seeding and device (no import of their module: it registers this one)
+        seed_everything(int(cfg["value_functions"]["seed"]), args.threads or int(cfg["value_functions"]["threads"]))
+        vhat = load_vhat(model, device=resolve_device(cfg["device"]), dtype=resolve_dtype(cfg["dtype"]))
+        z_tolerance = policy_settings(*method_config(cfg, "madpinn")).z_tolerance   # the deployed z grid
         report = {"model": str(model), "model_iterations": vhat.meta.get("iterations"),
-                  "model_config_hash": vhat.meta.get("config_hash"),
-                  **calibrate(vhat, settings, scenario, deployed_z_tolerance(cfg))}
+                  "model_config_hash": vhat.meta.get("config_hash"), **calibrate(vhat, settings, scenario, z_tolerance)}
         table = write_calibration_table(report, args.table_csv, args.table_md, args.table_html)
         record.artifacts = [write_json(args.out, report), *table]
         record.metrics = {f"{d}_eps{r['epsilon']:g}_beta{r['beta']:g}_delta": -1.0 if r["delta"] is None else r["delta"]

@@ -1,6 +1,6 @@
-"""The calibration report (``calibrate-vhat``, :mod:`.calibration`) as a table: one row per
-(distribution, split, closing-speed bin, ε, β) with the calibrated δ, the accepted fractions and
-the held-out coverage (issue 62, not in the paper). Written as CSV, Markdown and an HTML page
+"""The calibration report (``calibrate-vhat``, :mod:`madpinn.value_functions.calibration`) as a
+table: one row per (distribution, split, closing-speed bin, ε, β) with the calibrated δ, the
+accepted fractions and the held-out coverage (issue 62, not in the paper). Written as CSV, Markdown and an HTML page
 (the Snakemake report's item)."""
 
 from __future__ import annotations
