@@ -38,6 +38,7 @@ from madpinn.observation import ObservationSettings
 from madpinn.policies import policy_settings
 from madpinn.policies.defmarl import DefMarlSettings
 from madpinn.policies.madpinn import MadPinnSettings
+from madpinn.value_functions.calibration import CalibrationSettings
 from madpinn.policies.mppi import MPPISettings
 from madpinn.policies.nominal import NominalSettings
 from madpinn.policies.safemarl import SafeMarlSettings
@@ -115,6 +116,9 @@ SETTINGS = [
     Entry(ScenarioSettings, "value_functions.vhat.validation.scenario",
           lambda c: ScenarioSettings.from_config(_at(c, "value_functions.vhat.validation.scenario")),
           not_config=("max_draws_factor",)),
+    Entry(CalibrationSettings, "value_functions.vhat.validation.calibration",
+          lambda c: CalibrationSettings.from_config(_at(c, "value_functions.vhat.validation.calibration")),
+          keys={"level_max": "levels.max", "level_count": "levels.count"}),
     Entry(OracleSettings, "agents", lambda c: OracleSettings.from_config(c, "small"),
           not_config=("horizon_s", "dt")),        # the arena's episode length and episode / oracle.steps
     Entry(TrackingSettings, "tracking", TrackingSettings.from_config, keys={"experiment": "/experiment"},

@@ -24,6 +24,15 @@ Extension, not in the paper: ``safety_filter`` passes the MAD-PINN control throu
 V_s (:mod:`madpinn.policies.safety_filter`, the filter SafeMARL uses), which changes it only
 where a pair's V_s would fall too fast. Off by default; run ``madpinn-filtered`` in config.yaml.
 
+Extension, not in the paper (issue 62): ``conformal`` deploys a calibrated safety level δ of V̂
+(:mod:`madpinn.value_functions.safety_level`): step 3 runs on V̂ + δ, so z* is the least grid z
+with ``V̂(0, o, z) ≤ −δ`` and an agent is infeasible where ``V̂(0, o, z_max) > −δ``; δ is read
+from the ``calibrate-vhat`` report of the loaded V̂ (``--model calibration=PATH``), one δ or one
+per closing-speed bin. The ``value`` neighbour ranking uses the same level: with one δ the order
+of the scores ``V_s − δ`` is the order of ``V_s`` (the plain ranking, exactly); per bin each pair
+is ranked by ``V_s − δ`` of its own closing-speed bin (:mod:`madpinn.policies.leveled_neighbours`).
+Absent (the default): δ = 0, this policy bit for bit.
+
 Deployment adaptation, not in the paper: ``look_ahead`` τ > 0 builds step 2's observation from
 the states predicted τ ahead (own state under the agent's last command, the others' at constant
 velocity; :mod:`madpinn.policies.look_ahead`), which compensates the drones' actuator lag.
@@ -63,7 +72,8 @@ class MadPinnSettings:
     τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
     the measured state); vs_band: V_s clamped into its exact band [free-drift bound, ψ]
     (:meth:`madpinn.value_functions.PairValue.banded`, issue 37); infeasible: the control where no
-    budget is feasible (:data:`INFEASIBLE`)."""
+    budget is feasible (:data:`INFEASIBLE`); conformal: the calibrated safety level to deploy,
+    ``{distribution, epsilon, beta, binned}`` (None: δ = 0, the paper's rule)."""
 
     strategy: str
     update_every: int | None
@@ -75,6 +85,7 @@ class MadPinnSettings:
     look_ahead: float
     vs_band: bool
     infeasible: str
+    conformal: dict | None
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -85,7 +96,7 @@ class MadPinnSettings:
                    pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
                    look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]),
-                   infeasible=str(mcfg["infeasible"]))
+                   infeasible=str(mcfg["infeasible"]), conformal=dict(mcfg["conformal"]) if mcfg["conformal"] else None)
 
 
 def check_compatible(vhat, vs, spec: ObservationSettings, u_max: float) -> None:
@@ -224,6 +235,11 @@ def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy | FilteredMadPinnPolicy:
     gen = torch.Generator(device=ctx.device).manual_seed(int(ctx.seed))
     selector = make_selector(settings.strategy, ctx.obs_spec.n_neighbours, vs=vs, radius=ctx.obs_spec.sensing_radius,
                              generator=gen, chunk=settings.pair_batch, agent=ctx.obs_spec.agent)
+    if settings.conformal is not None:   # issue 62: the calibrated level (module docstring)
+        from madpinn.policies.leveled_neighbours import deploy_level
+
+        vhat, selector = deploy_level(vhat, selector, settings.strategy, vs, ctx.model("calibration", "madpinn"),
+                                      settings.conformal, ctx.obs_spec, settings.pair_batch)
     policy = MadPinnPolicy(vhat, selector, ctx.obs_spec, settings, ctx.sim_dt)
     if settings.safety_filter is None:
         return policy
