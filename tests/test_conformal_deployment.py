@@ -90,7 +90,7 @@ def test_binned_ranking_puts_an_uncertified_bins_partners_first():
     state = torch.cat([1.6 * torch.rand(3, 8, 2, generator=g) - 0.8, 4 * torch.rand(3, 8, 2, generator=g) - 2], -1)
     level = SafetyLevel(EDGES, (0.0, float("inf")), n)
     sel = leveled_value_selector(vs, n, level, radius=1.0)(state)
-    ok = in_domain(state, vs.system.p_range, vs.system.v_range, 1.0)
+    ok = in_domain(state, vs.system.p_range, vs.system.v_range, DoubleIntegrator, 1.0)
     fast = (pair_closing_speed(state, DoubleIntegrator) >= 1.0) & ok
     checked = 0
     for s in range(3):
