@@ -93,7 +93,7 @@ def main(argv=None) -> int:
         loop_clock["t"] += cfg["sim"]["dt"]
         for planner, (s, a) in zip(planners, rows):
             st, gl = state[s : s + 1], goals[s : s + 1]
-            nbr = nearest_neighbours(st, n, radius=spec.sensing_radius)
+            nbr = nearest_neighbours(spec.agent.position(st), n, radius=spec.sensing_radius)
             pos, vel, gr = split_observation(build_observation(st, gl, nbr, spec)[:, a], n)
             planner.plan(vel[:, 0], gr[:, 0], pos[:, 1:], vel[:, 1:], nbr[:, a] >= 0, loop_clock["t"])
 

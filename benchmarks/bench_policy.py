@@ -149,7 +149,7 @@ def main() -> None:
         batched, speedup = {}, {}
         for N in args.counts:
             state, goals, hw = layout(N)
-            cand = int(in_domain(state, vs.system.p_range, vs.system.v_range).sum()) / N
+            cand = int(in_domain(state, vs.system.p_range, vs.system.v_range, vs.system.agent).sum()) / N
             tb = batched_step_time(vhat, vs, state, goals, True, True, args.repeats)
             tp = batched_step_time(vhat, vs, state, goals, False, False, args.repeats)
             la = rollout_step_time(vhat, vs, state, goals, 0.075, args.repeats) / rollout_step_time(vhat, vs, state, goals, 0.0, args.repeats)

@@ -79,7 +79,7 @@ def old_selector(vs, n: int, chunk: int = 65536):
 
     def select(state):
         S, N, _ = state.shape
-        mask = in_domain(state, vs.system.p_range, vs.system.v_range)
+        mask = in_domain(state, vs.system.p_range, vs.system.v_range, vs.system.agent)
         s_idx, i_idx, j_idx = mask.nonzero(as_tuple=True)
         x = state[s_idx, i_idx] - state[s_idx, j_idx]
         scores = torch.full((S, N, N), float("inf"), dtype=state.dtype, device=state.device)

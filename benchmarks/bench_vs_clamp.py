@@ -41,7 +41,7 @@ def main() -> None:
     psi = (x[:, 0:2].norm(dim=-1) - vs.collision_radius).numpy()
     print(f"grid {args.nodes}^4 ({sol.wall_s:.0f} s), {int(mask.sum())} interior nodes, V_s {args.vs}")
     for i, t in enumerate(sol.times):
-        lower = free_drift_lower_bound(x, vs.horizon - float(t), vs.collision_radius).numpy()
+        lower = free_drift_lower_bound(x, vs.horizon - float(t), vs.collision_radius, vs.system.agent).numpy()
         clamped = np.clip(pred[i], lower, psi)
         ref = sol.values[i][mask]
         for name, p in (("raw", pred[i]), ("clamped", clamped)):

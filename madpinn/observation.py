@@ -29,15 +29,60 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from madpinn.dynamics import AGENT
+from madpinn.dynamics import AgentModel, model_class
 
-_D = AGENT.position_dim
-EGO_VELOCITY, EGO_GOAL = slice(0, _D), slice(_D, 2 * _D)
-"""where the ego's velocity and goal offset sit in the observation"""
-NEIGHBOUR_POSITION, NEIGHBOUR_VELOCITY, NEIGHBOUR_GOAL = slice(0, _D), slice(_D, 2 * _D), slice(2 * _D, 3 * _D)
-"""where a neighbour's position offset, velocity and goal offset sit in its block"""
-EGO_DIM = 2 * _D
-NEIGHBOUR_DIM = 3 * _D
+
+@dataclass(frozen=True)
+class ObservationLayout:
+    """Where the ego's and each neighbour's parts sit in the observation of agents with ``d``-axis
+    positions (module docstring): ego block ``[v (d), g − p (d)]``, neighbour block
+    ``[p_j − p (d), v_j (d), g_j − p (d)]``."""
+
+    d: int
+
+    @property
+    def ego_velocity(self) -> slice:
+        return slice(0, self.d)
+
+    @property
+    def ego_goal(self) -> slice:
+        return slice(self.d, 2 * self.d)
+
+    @property
+    def neighbour_position(self) -> slice:
+        return slice(0, self.d)
+
+    @property
+    def neighbour_velocity(self) -> slice:
+        return slice(self.d, 2 * self.d)
+
+    @property
+    def neighbour_goal(self) -> slice:
+        return slice(2 * self.d, 3 * self.d)
+
+    @property
+    def ego_dim(self) -> int:
+        return 2 * self.d
+
+    @property
+    def neighbour_dim(self) -> int:
+        return 3 * self.d
+
+    def dim(self, n_neighbours: int) -> int:
+        """Observation size ``D = 2d + 3d·n``."""
+        return self.ego_dim + self.neighbour_dim * n_neighbours
+
+    @classmethod
+    def of(cls, obs_dim: int, n_neighbours: int) -> "ObservationLayout":
+        """The layout of observations with ``obs_dim`` features and ``n_neighbours`` neighbours
+        (``d = D / (2 + 3n)``; a clear error when no d fits)."""
+        d, rest = divmod(int(obs_dim), 2 + 3 * int(n_neighbours))
+        if rest or d < 1:
+            raise ValueError(f"an observation of {obs_dim} features is no layout of {n_neighbours} neighbours "
+                             f"(D = 2d + 3d·n for d-axis agents)")
+        return cls(d)
+
+
 PHANTOM = -1
 NEIGHBOUR_GOAL_MODES = ("neighbour", "ego")
 TRAINING_MAPPING = {"carrot_margin": 0.0, "neighbour_goal": "ego"}
@@ -53,6 +98,7 @@ class ObservationSettings:
     offset_range: per-coordinate bound (m) of neighbour position offsets seen in training.
     sensing_radius: observation radius (m) used by radius-limited neighbour choices.
     collision_radius: r (m).
+    model: the agents' model (``agents.model``), whose position axes d the layout has.
     carrot_margin: goal offsets are shortened into ±(goal_range − carrot_margin) (m); 0 = the
         box edge (the old mapping).
     neighbour_goal: ``"neighbour"`` shortens a neighbour's goal offset relative to the neighbour
@@ -67,10 +113,12 @@ class ObservationSettings:
     offset_range: float
     sensing_radius: float
     collision_radius: float
+    model: str
     carrot_margin: float
     neighbour_goal: str
 
     def __post_init__(self):
+        model_class(self.model)   # an unknown model fails here
         if not (math.isfinite(self.carrot_margin) and 0.0 <= self.carrot_margin < self.goal_range):
             raise ValueError(f"observation.carrot_margin must be in [0, goal_range = {self.goal_range}), got {self.carrot_margin}")
         if self.neighbour_goal not in NEIGHBOUR_GOAL_MODES:
@@ -88,8 +136,17 @@ class ObservationSettings:
         return self.goal_range - self.carrot_margin
 
     @property
+    def agent(self) -> type[AgentModel]:
+        """The agents' model class: the state layout observations are built from."""
+        return model_class(self.model)
+
+    @property
+    def layout(self) -> ObservationLayout:
+        return ObservationLayout(self.agent.position_dim)
+
+    @property
     def dim(self) -> int:
-        return EGO_DIM + NEIGHBOUR_DIM * self.n_neighbours
+        return self.layout.dim(self.n_neighbours)
 
     @property
     def n_agents(self) -> int:
@@ -104,6 +161,7 @@ class ObservationSettings:
             offset_range=float(o["offset_range"]),
             sensing_radius=float(o["sensing_radius"]),
             collision_radius=float(cfg["agents"]["collision_radius"]),
+            model=str(cfg["agents"]["model"]),
             carrot_margin=float(o["carrot_margin"]),
             neighbour_goal=str(o["neighbour_goal"]),
         )
@@ -117,7 +175,7 @@ def shrink_to_box(vec: torch.Tensor, bound: float) -> torch.Tensor:
 
 
 def clip_ray_to_box(origin: torch.Tensor, ray: torch.Tensor, bound: float) -> torch.Tensor:
-    """Largest ``s ∈ [0, 1]`` with ``origin + s·ray`` inside ``[−bound, bound]²`` (per row), times
+    """Largest ``s ∈ [0, 1]`` with ``origin + s·ray`` inside ``[−bound, bound]^d`` (per row), times
     ``ray``: the ray cut at the box, direction kept. ``origin`` outside the box gives the part of
     the ray that stays no farther out than ``origin`` (s = 0 when the ray points outward).
     Shapes ``[..., d]``."""
@@ -129,12 +187,14 @@ def clip_ray_to_box(origin: torch.Tensor, ray: torch.Tensor, bound: float) -> to
     return ray * s
 
 
-def phantom_offsets(n_neighbours: int, offset_range: float) -> torch.Tensor:
-    """Phantom position (= goal) offsets ``[n, 2]`` on the trained box boundary, one per slot."""
+def phantom_offsets(n_neighbours: int, offset_range: float, d: int) -> torch.Tensor:
+    """Phantom position (= goal) offsets ``[n, d]`` on the trained box boundary, one per slot: the
+    planar bearings in the first two axes (the horizontal plane), 0 on any further axis."""
     k = torch.arange(n_neighbours, dtype=torch.float64)
     angle = math.pi / 4 + 2 * math.pi * k / max(n_neighbours, 1)
     ray = torch.stack([torch.cos(angle), torch.sin(angle)], dim=-1) * 10.0 * offset_range
-    return shrink_to_box(ray, offset_range)
+    planar = shrink_to_box(ray, offset_range)
+    return torch.cat([planar, planar.new_zeros(n_neighbours, d - planar.shape[-1])], dim=-1)
 
 
 def gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
@@ -148,15 +208,16 @@ def gather_agents(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
 def build_observation(
     state: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSettings
 ) -> torch.Tensor:
-    """Global state ``[S, N, 2d]``, goals ``[S, N, d]``, neighbour indices ``[S, N, n]`` (−1 =
-    phantom) -> observations ``[S, N, 2d + 3d·n]``."""
-    if state.dim() != 3 or state.shape[-1] != AGENT.state_dim:
-        raise ValueError(f"state must be [S, N, {AGENT.state_dim}], got {tuple(state.shape)}")
-    if goals.shape != state.shape[:-1] + (_D,):
-        raise ValueError(f"goals must be [S, N, {_D}] matching state, got {tuple(goals.shape)}")
+    """Global state ``[S, N, 2d]`` (``spec.agent``'s layout), goals ``[S, N, d]``, neighbour indices
+    ``[S, N, n]`` (−1 = phantom) -> observations ``[S, N, 2d + 3d·n]``."""
+    agent = spec.agent
+    if state.dim() != 3 or state.shape[-1] != agent.state_dim:
+        raise ValueError(f"state must be [S, N, {agent.state_dim}] ({agent.name}), got {tuple(state.shape)}")
+    if goals.shape != state.shape[:-1] + (agent.position_dim,):
+        raise ValueError(f"goals must be [S, N, {agent.position_dim}] matching state, got {tuple(goals.shape)}")
     if neighbours.shape != state.shape[:-1] + (spec.n_neighbours,):
         raise ValueError(f"neighbours must be [S, N, {spec.n_neighbours}], got {tuple(neighbours.shape)}")
-    p, v = AGENT.position(state), AGENT.velocity(state)
+    p, v = agent.position(state), agent.velocity(state)
     phantom = neighbours < 0
     idx = neighbours.clamp_min(0)
     p_j = gather_agents(p, idx) - p.unsqueeze(2)
@@ -169,7 +230,7 @@ def build_observation(
         own = shrink_to_box(g_j - p_j, spec.carrot_range)          # the neighbour's own carrot
         p_j = shrink_to_box(p_j, spec.offset_range)
         g_j = p_j + clip_ray_to_box(p_j, own, spec.carrot_range)   # cut along its heading at the box
-    slot = phantom_offsets(spec.n_neighbours, spec.offset_range).to(p_j)
+    slot = phantom_offsets(spec.n_neighbours, spec.offset_range, agent.position_dim).to(p_j)
     mask = phantom.unsqueeze(-1)
     p_j = torch.where(mask, slot, p_j)
     g_j = torch.where(mask, slot, g_j)
@@ -182,14 +243,13 @@ def build_observation(
 def split_observation(obs: torch.Tensor, n_neighbours: int):
     """Observation ``[..., D]`` -> ``(positions, velocities, goals)`` each ``[..., n+1, d]``,
     relative to the ego position (ego first, at the origin)."""
-    if obs.shape[-1] != EGO_DIM + NEIGHBOUR_DIM * n_neighbours:
-        raise ValueError(f"observation has {obs.shape[-1]} features, expected {EGO_DIM + NEIGHBOUR_DIM * n_neighbours}")
+    lay = ObservationLayout.of(obs.shape[-1], n_neighbours)
     lead = obs.shape[:-1]
-    nbr = obs[..., EGO_DIM:].reshape(*lead, n_neighbours, NEIGHBOUR_DIM)
-    ego_p = torch.zeros(*lead, 1, _D, dtype=obs.dtype, device=obs.device)
-    positions = torch.cat([ego_p, nbr[..., NEIGHBOUR_POSITION]], dim=-2)
-    velocities = torch.cat([obs[..., None, EGO_VELOCITY], nbr[..., NEIGHBOUR_VELOCITY]], dim=-2)
-    goals = torch.cat([obs[..., None, EGO_GOAL], nbr[..., NEIGHBOUR_GOAL]], dim=-2)
+    nbr = obs[..., lay.ego_dim:].reshape(*lead, n_neighbours, lay.neighbour_dim)
+    ego_p = torch.zeros(*lead, 1, lay.d, dtype=obs.dtype, device=obs.device)
+    positions = torch.cat([ego_p, nbr[..., lay.neighbour_position]], dim=-2)
+    velocities = torch.cat([obs[..., None, lay.ego_velocity], nbr[..., lay.neighbour_velocity]], dim=-2)
+    goals = torch.cat([obs[..., None, lay.ego_goal], nbr[..., lay.neighbour_goal]], dim=-2)
     return positions, velocities, goals
 
 
@@ -236,11 +296,11 @@ def pairwise_distances(positions: torch.Tensor) -> torch.Tensor:
     return d.masked_fill(eye, float("inf"))
 
 
-def nearest_neighbours(state: torch.Tensor, n: int, radius: float | None = None) -> torch.Tensor:
-    """Indices ``[S, N, n]`` of the n nearest other agents (−1 where fewer exist or all
-    remaining are beyond ``radius``)."""
-    S, N, _ = state.shape
-    d = pairwise_distances(AGENT.position(state))
+def nearest_neighbours(positions: torch.Tensor, n: int, radius: float | None = None) -> torch.Tensor:
+    """Indices ``[S, N, n]`` of the n nearest other agents of agents at ``positions`` ``[S, N, d]``
+    (m; −1 where fewer exist or all remaining are beyond ``radius``)."""
+    S, N, _ = positions.shape
+    d = pairwise_distances(positions)
     if radius is not None:
         d = d.masked_fill(d > radius, float("inf"))
     k = min(n, N - 1)
@@ -248,8 +308,8 @@ def nearest_neighbours(state: torch.Tensor, n: int, radius: float | None = None)
         vals, idx = torch.topk(d, k, dim=-1, largest=False)
         idx = torch.where(torch.isinf(vals), torch.full_like(idx, PHANTOM), idx)
     else:
-        idx = torch.empty(S, N, 0, dtype=torch.long, device=state.device)
+        idx = torch.empty(S, N, 0, dtype=torch.long, device=positions.device)
     if k < n:
-        pad = torch.full((S, N, n - k), PHANTOM, dtype=torch.long, device=state.device)
+        pad = torch.full((S, N, n - k), PHANTOM, dtype=torch.long, device=positions.device)
         idx = torch.cat([idx, pad], dim=-1)
     return idx

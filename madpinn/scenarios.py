@@ -30,28 +30,26 @@ _MAX_TRIES_PER_POINT = 20_000
 
 @dataclass(frozen=True)
 class Arena:
-    """Square arena ``[-half_width, half_width]²`` (m), its episode length (s) and the earlier
-    horizons (s) at which cells also read cost and safety from the same episodes."""
+    """Square arena ``[-half_width, half_width]²`` (m) and its episode length (s)."""
 
     name: str
     half_width: float
     episode_s: float
-    cost_horizons_s: tuple[float, ...] = ()
 
     @classmethod
     def from_config(cls, cfg: dict, name: str) -> "Arena":
         a = cfg["arenas"][name]
-        return cls(name=name, half_width=float(a["half_width"]), episode_s=float(a["episode_s"]),
-                   cost_horizons_s=tuple(sorted(float(h) for h in a.get("cost_horizons_s") or ())))
+        return cls(name=name, half_width=float(a["half_width"]), episode_s=float(a["episode_s"]))
 
-    def horizon_steps(self, dt: float) -> tuple[int, ...]:
-        """Simulation steps of :attr:`cost_horizons_s` at step ``dt`` (s); each must be a whole
-        number of steps shorter than the episode (:func:`horizon_problem`)."""
-        for h in self.cost_horizons_s:
-            problem = horizon_problem(h, self.episode_s, dt)
-            if problem:
-                raise ValueError(f"arena '{self.name}': {problem}")
-        return tuple(int(round(h / dt)) for h in self.cost_horizons_s)
+
+def horizon_steps(horizons_s, episode_s: float, dt: float) -> tuple[int, ...]:
+    """Simulation steps ``(sorted)`` of the earlier horizons ``horizons_s`` (s) of an episode of
+    ``episode_s`` at step ``dt`` (s); a horizon outside the episode or between steps is an error."""
+    for h in horizons_s:
+        problem = horizon_problem(float(h), episode_s, dt)
+        if problem:
+            raise ValueError(problem)
+    return tuple(sorted(int(round(float(h) / dt)) for h in horizons_s))
 
 
 def horizon_problem(horizon_s: float, episode_s: float, dt: float) -> str | None:

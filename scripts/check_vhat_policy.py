@@ -35,7 +35,7 @@ class GreedyVHatPolicy:
     def act(self, state, goals, t):
         S, N, _ = state.shape
         spec = self.vhat.obs_spec
-        obs = build_observation(state, goals, nearest_neighbours(state, spec.n_neighbours), spec).reshape(S * N, -1)
+        obs = build_observation(state, goals, nearest_neighbours(spec.agent.position(state), spec.n_neighbours), spec).reshape(S * N, -1)
         z, _ = min_feasible_z(self.vhat, obs, self.z_tolerance)
         _, grad, _ = self.vhat.value_and_grad(obs, z, 0.0)
         return (-self.u_max * torch.sign(grad[:, 0:2])).reshape(S, N, 2)

@@ -17,10 +17,24 @@ from madpinn.value_functions.model import model_payload, save_atomic
 from madpinn.value_functions.train import TrainSettings, train
 
 
+MODEL_3D = {"agents": {"model": "double_integrator_3d"}}
+"""the overlay that flies the agents as the 3-D double integrator (issue 63 item 2)"""
+
+
+def smoke_config_3d() -> dict:
+    """The smoke configuration with the 3-D agent model."""
+    import yaml
+
+    overlay = Path(tempfile.mkdtemp(prefix="madpinn-3d-")) / "model_3d.yaml"
+    overlay.write_text(yaml.safe_dump(MODEL_3D))
+    return load_config([REPO / "config.yaml", SMOKE, overlay])
+
+
 @functools.lru_cache(maxsize=None)
-def tiny_model_dir() -> Path:
-    """Directory with ``models/vhat.pt`` and ``models/vs.pt`` trained on the smoke budget."""
-    cfg = load_config([REPO / "config.yaml", SMOKE])
+def tiny_model_dir(three_d: bool = False) -> Path:
+    """Directory with ``models/vhat.pt`` and ``models/vs.pt`` trained on the smoke budget (``three_d``:
+    for the 3-D agent model)."""
+    cfg = smoke_config_3d() if three_d else load_config([REPO / "config.yaml", SMOKE])
     out = Path(tempfile.mkdtemp(prefix="madpinn-policy-test-")) / "models"
     torch.set_num_threads(1)
     for kind in ("vhat", "vs"):
@@ -32,6 +46,6 @@ def tiny_model_dir() -> Path:
     return out
 
 
-def tiny_models(dtype=torch.float32):
-    d = tiny_model_dir()
+def tiny_models(dtype=torch.float32, three_d: bool = False):
+    d = tiny_model_dir(three_d)
     return load_vhat(d / "vhat.pt", dtype=dtype), load_vs(d / "vs.pt", dtype=dtype)

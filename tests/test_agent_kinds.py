@@ -65,5 +65,9 @@ def test_a_scalar_radius_is_the_old_recorder():
 def test_policies_and_backends_with_one_box_refuse_per_agent_bounds():
     from madpinn.policies.mppi import MPPIPlanner
 
+    from madpinn.policies.safety_filter import CBVFFilter
+
     with pytest.raises(ValueError, match="MPPI needs one u_max and v_max"):
         MPPIPlanner(None, MODEL, 0.1, torch.Generator())
+    with pytest.raises(ValueError, match="the CBVF filter needs one u_max"):
+        CBVFFilter(None, MODEL.u_max, 3.0, 2, 4, 0.0, sensing_radius=1.0)

@@ -11,7 +11,7 @@ def _cell(horizons):
     cfg = load_config(["config.yaml"])
     cfg["sim"]["backend"] = "double_integrator"
     cfg["studies"]["main"]["scenarios"] = 4
-    cfg["arenas"]["small"]["cost_horizons_s"] = horizons
+    cfg["studies"]["main"]["cost_horizons_s"] = horizons
     return run_cell(CellSettings.from_config(cfg, "main", "nominal"), 12, 100, progress=False)
 
 

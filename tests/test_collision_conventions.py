@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from madpinn.config import job_config, load_config, validate_config
+from madpinn.config import REPO_ROOT, job_config, load_config, validate_config
 from madpinn.evaluation.cell import CellSettings
 from madpinn.evaluation.metrics import DISC_FACTOR, safety_curve, scenario_metrics, seed_summary
 from madpinn.policies import PolicyContext, make_policy, policy_settings
@@ -95,7 +95,7 @@ def test_contacts_keep_scenarios_whole_in_each_world():
 
 
 def test_double_integrator_freezes_collided_agents_and_keeps_them_as_obstacles():
-    limits = AgentSettings(collision_radius=R, u_max=4.0, v_max=4.0)
+    limits = dataclasses.replace(AgentSettings.from_config(load_config([REPO_ROOT / "config.yaml"])), collision_radius=R, u_max=4.0, v_max=4.0)
     sim = SimSettings(backend="double_integrator", dt=DT, policy_period_steps=1, scenario_batch=1, start_separation=0.2,
                       record_every=1, contacts=True, mujoco=None)
     frozen, _ = _head_on(make_backend("double_integrator", sim, limits, "cpu", torch.float64))

@@ -21,8 +21,8 @@ from conftest import REPO, subprocess_env
         ({"studies": {"main": {"arena": "huge"}}}, "studies.main.arena"),
         ({"studies": {"main": {"runs": ["nominal-fast"]}}}, "studies.main.runs"),
         ({"studies": {"main": {"runs": ["nosuchmethod"]}}}, "studies.main.runs"),
-        ({"arenas": {"large": {"cost_horizons_s": [6.0]}}}, "arenas.large.cost_horizons_s"),      # not before T = 6 s
-        ({"arenas": {"large": {"cost_horizons_s": [1.0001]}}}, "arenas.large.cost_horizons_s"),   # not a whole step
+        ({"studies": {"scaling": {"cost_horizons_s": [6.0]}}}, "studies.scaling.cost_horizons_s"),      # not before T = 6 s
+        ({"studies": {"scaling": {"cost_horizons_s": [1.0001]}}}, "studies.scaling.cost_horizons_s"),   # not a whole step
     ],
 )
 def test_invalid_config_names_the_key(overlay, key):

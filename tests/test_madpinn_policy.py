@@ -196,7 +196,7 @@ def test_isolated_agent_with_two_phantoms_is_not_declared_unsafe():
     state = torch.zeros(1, 2, 4)
     state[0, 1, 0] = 5.0  # beyond the sensing radius
     goals = torch.zeros(1, 2, 2)
-    nbrs = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(0))(state)
+    nbrs = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(0), agent=SPEC.agent)(state)
     assert (nbrs == -1).all()
     assert (constraint(build_observation(state, goals, nbrs, SPEC), 2, 0.1) < 0).all()
 
@@ -251,7 +251,7 @@ def test_look_ahead_acts_on_the_predicted_own_state_under_the_last_command():
     moved = state.clone()
     moved[..., 0:2] += 0.01
     u1 = pol.act(moved, goals, 0.0025)
-    obs = observation_with_own_state(predict_states(moved, u0, tau), predict_states(moved, None, tau), goals,
+    obs = observation_with_own_state(predict_states(moved, u0, tau, SPEC.agent), predict_states(moved, None, tau, SPEC.agent), goals,
                                      pol.neighbours, SPEC).reshape(12, -1)
     z, _ = cold_budget_search(pol.vhat, obs, 10)
     _, grad, _ = pol.vhat.value_and_grad(obs, z, 0.0)

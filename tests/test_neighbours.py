@@ -3,6 +3,7 @@
 import pytest
 import torch
 
+from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import PHANTOM
 from madpinn.policies.neighbours import (
     DriftMargins,
@@ -43,16 +44,16 @@ def test_select_lowest_and_padding():
 def test_nearest_strategy_and_padding():
     state = torch.zeros(1, 4, 4)
     state[0, :, 0] = torch.tensor([0.0, 0.3, -0.1, 5.0])
-    idx = make_selector("nearest", 2)(state)
+    idx = make_selector("nearest", 2, agent=DoubleIntegrator)(state)
     assert idx[0].tolist() == [[2, 1], [0, 2], [0, 1], [1, 0]]  # unlimited range: the far agent still gets 2
-    single = make_selector("nearest", 2)(torch.zeros(3, 1, 4))
+    single = make_selector("nearest", 2, agent=DoubleIntegrator)(torch.zeros(3, 1, 4))
     assert (single == PHANTOM).all() and single.shape == (3, 1, 2)
 
 
 def test_random_strategy_within_radius_seeded_and_uniform():
     state = torch.zeros(1, 6, 4)
     state[0, :, 0] = torch.tensor([0.0, 0.5, -0.9, 0.1, 1.2, 3.0])  # agent 0 senses 1, 2, 3 (radius 1)
-    sel = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(3))
+    sel = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(3), agent=DoubleIntegrator)
     seen = set()
     for _ in range(60):
         idx = sel(state)[0]
@@ -61,8 +62,8 @@ def test_random_strategy_within_radius_seeded_and_uniform():
         assert idx[5].tolist() == [PHANTOM, PHANTOM]  # nobody within 1 m of agent 5
         assert idx[4].tolist() == [1, PHANTOM]  # only agent 1 (0.7 m) within range of agent 4
     assert seen == {1, 2, 3}
-    a = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(7))
-    b = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(7))
+    a = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(7), agent=DoubleIntegrator)
+    b = make_selector("random", 2, radius=1.0, generator=torch.Generator().manual_seed(7), agent=DoubleIntegrator)
     many = random_states(4, 12, 1.0, dtype=torch.float32)
     assert all(torch.equal(a(many), b(many)) for _ in range(3))
 
@@ -97,7 +98,7 @@ def test_pruned_selection_identical_to_brute_force(S, N, half_width, v_max):
     _, vs = tiny_models(torch.float64)
     state = random_states(S, N, half_width, v_max, seed=N)
     pruned, brute = pair_scores(state, vs, chunk=500), pair_scores_brute_force(state, vs)
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, DoubleIntegrator)
     assert torch.equal(torch.isinf(pruned), ~mask) and torch.equal(torch.isinf(brute), ~mask)
     assert torch.allclose(pruned[mask], brute[mask], rtol=0, atol=1e-12)
     sel_p = make_selector("value", 2, vs=vs)(state)
@@ -113,7 +114,9 @@ def test_unknown_strategy_and_missing_inputs():
     with pytest.raises(ValueError, match="needs the pairwise safety value"):
         make_selector("value", 2)
     with pytest.raises(ValueError, match="sensing radius"):
-        make_selector("random", 2)
+        make_selector("random", 2, agent=DoubleIntegrator)
+    with pytest.raises(ValueError, match="needs the agents' model"):
+        make_selector("nearest", 2)
 
 
 def test_lexicographic_selection_orders_by_score_then_index():
@@ -133,7 +136,7 @@ def test_free_drift_bound_is_the_closest_approach():
                       [1.0, 0.3, -1.0, 0.0],    # closest 0.3 m at τ = 1 s
                       [1.0, 0.0, 1.0, 0.0],     # diverging: now
                       [3.0, 0.0, -1.0, 0.0]])   # still 2 m apart at the horizon
-    lb = free_drift_lower_bound(x, 1.0, 0.1)
+    lb = free_drift_lower_bound(x, 1.0, 0.1, DoubleIntegrator)
     assert torch.allclose(lb, torch.tensor([-0.1, 0.2, 0.9, 1.9]), atol=1e-6)
     psi = x[:, :2].norm(dim=-1) - 0.1
     assert (lb <= psi + 1e-7).all()
@@ -168,10 +171,10 @@ def test_bounded_scoring_selects_exactly_what_exhaustive_scoring_selects(S, N, h
     assert torch.equal(make_selector("value", 2, vs=vs)(state), exhaustive)
     assert counts["evaluated"] < counts["in_domain"]
     # the margin covers the measured excess of the free-drift bound over V_s on these states
-    mask = in_domain(state, 2.0, 8.0)
+    mask = in_domain(state, 2.0, 8.0, DoubleIntegrator)
     s, i, j = mask.nonzero(as_tuple=True)
     x = state[s, i] - state[s, j]
-    assert (free_drift_lower_bound(x, vs.horizon, vs.collision_radius) - margins.of(x) <= vs.value(x, 0.0)).all()
+    assert (free_drift_lower_bound(x, vs.horizon, vs.collision_radius, DoubleIntegrator) - margins.of(x, DoubleIntegrator) <= vs.value(x, 0.0)).all()
 
 
 @pytest.mark.skipif(not SHIPPED_VS.is_file(), reason="shipped models/vs.pt not present")

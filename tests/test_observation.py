@@ -15,7 +15,7 @@ from madpinn.observation import (
 )
 
 SPEC = ObservationSettings(n_neighbours=2, goal_range=2.0, offset_range=2.0, sensing_radius=1.0, collision_radius=0.1,
-                           carrot_margin=0.0, neighbour_goal="ego")
+                           model="double_integrator", carrot_margin=0.0, neighbour_goal="ego")
 
 
 def _random_world(S=3, N=6, seed=0):
@@ -28,13 +28,13 @@ def _random_world(S=3, N=6, seed=0):
 
 def test_layout_and_translation_invariance():
     state, goals = _random_world()
-    nbrs = nearest_neighbours(state, 2)
+    nbrs = nearest_neighbours(SPEC.agent.position(state), 2)
     obs = build_observation(state, goals, nbrs, SPEC)
     assert obs.shape == (3, 6, SPEC.dim) == (3, 6, 16)
     shift = torch.tensor([0.37, -0.21])
     state2 = state.clone()
     state2[..., :2] += shift
-    obs2 = build_observation(state2, goals + shift, nearest_neighbours(state2, 2), SPEC)
+    obs2 = build_observation(state2, goals + shift, nearest_neighbours(SPEC.agent.position(state2), 2), SPEC)
     assert torch.allclose(obs, obs2, atol=1e-5)
     # ego block: velocity and goal offset
     assert torch.allclose(obs[0, 0, :2], state[0, 0, 2:])
@@ -49,7 +49,7 @@ def test_phantom_padding_when_too_few_neighbours():
     state = torch.zeros(1, 2, 4)
     state[0, 1, 0] = 0.5
     goals = torch.zeros(1, 2, 2)
-    nbrs = nearest_neighbours(state, 2)
+    nbrs = nearest_neighbours(SPEC.agent.position(state), 2)
     assert nbrs[0, 0].tolist() == [1, -1]
     obs = build_observation(state, goals, nbrs, SPEC)
     phantom = obs[0, 0, 10:16]
@@ -62,7 +62,7 @@ def test_phantom_padding_when_too_few_neighbours():
 def test_radius_limited_neighbours_pad_with_phantoms():
     state = torch.zeros(1, 4, 4)
     state[0, :, 0] = torch.tensor([0.0, 0.5, 3.0, -3.0])
-    nbrs = nearest_neighbours(state, 2, radius=1.0)
+    nbrs = nearest_neighbours(SPEC.agent.position(state), 2, radius=1.0)
     assert nbrs[0, 0].tolist() == [1, -1]
     assert nbrs[0, 2].tolist() == [-1, -1]
 
@@ -122,7 +122,7 @@ def test_phantoms_never_conflict_with_each_other():
     """An agent with no neighbour in range gets two phantoms that are far apart, so g_d < 0."""
     state = torch.zeros(1, 3, 4)
     state[0, 1, 0], state[0, 2, 0] = 3.0, -3.0
-    nbrs = nearest_neighbours(state, 2, radius=1.0)
+    nbrs = nearest_neighbours(SPEC.agent.position(state), 2, radius=1.0)
     assert nbrs[0, 0].tolist() == [-1, -1]
     obs = build_observation(state, torch.zeros(1, 3, 2), nbrs, SPEC)
     assert constraint(obs[0, 0], 2, 0.1).item() < -1.0
@@ -140,7 +140,7 @@ def test_carrot_strictly_inside_the_trained_box_by_the_margin():
     gen = torch.Generator().manual_seed(100)
     state = torch.cat([torch.rand(4, 6, 2, generator=gen) * 16 - 8, torch.zeros(4, 6, 2)], dim=-1)
     goals = torch.rand(4, 6, 2, generator=gen) * 16 - 8
-    nbrs = nearest_neighbours(state, 2)
+    nbrs = nearest_neighbours(SPEC.agent.position(state), 2)
     obs = build_observation(state, goals, nbrs, spec)
     ego_goal = obs[..., 2:4]
     assert ego_goal.abs().amax() <= 1.75 + 1e-6          # goal_range − margin
@@ -212,7 +212,7 @@ def test_deployment_only_keys_change_neither_the_training_spec_nor_the_training_
 
 
 def test_join_observation_inverts_split_observation():
-    from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM, join_observation, split_observation
+    from madpinn.observation import join_observation, split_observation
 
-    obs = torch.randn(5, 7, EGO_DIM + NEIGHBOUR_DIM * 3, generator=torch.Generator().manual_seed(3), dtype=torch.float64)
+    obs = torch.randn(5, 7, SPEC.layout.dim(3), generator=torch.Generator().manual_seed(3), dtype=torch.float64)
     assert torch.equal(join_observation(*split_observation(obs, 3)), obs)

@@ -24,7 +24,7 @@ from madpinn.policies.nominal import NominalPD
 from madpinn.policies.safemarl import CBVFFilter, SafetyFilteredPolicy
 from madpinn.scenarios import Arena
 from madpinn.simulation import DoubleIntegratorBackend, run_episode
-from settings_helpers import observation_settings, ppo_settings, reward_settings
+from settings_helpers import observation_settings, pair_system, ppo_settings, reward_settings
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -35,10 +35,12 @@ DYN = DoubleIntegrator(U_MAX, 4.0)
 
 
 class BrakingBarrier:
-    """Analytic pairwise barrier with the V_s API: x = [p_i − p_j, v_i − v_j] -> V (m)."""
+    """Analytic pairwise barrier with the V_s API: x = [p_i − p_j, v_i − v_j] -> V (m); ``system``
+    the pair system of the planar agents (the layout the filter reads)."""
 
     def __init__(self, r=R, decel=U_MAX):
         self.r, self.decel = r, decel
+        self.system = pair_system()
 
     def value(self, x, t=0.0):
         p, v = x[..., :2], x[..., 2:]

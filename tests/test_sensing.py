@@ -16,6 +16,7 @@ from conftest import REPO
 from madpinn.config import load_config
 from madpinn.evaluation.cell import CellSettings, policy_context
 from madpinn.policies import make_policy
+from madpinn.dynamics import DoubleIntegrator
 from madpinn.policies.neighbours import in_domain, make_selector
 from madpinn.value_functions import load_vs
 
@@ -56,7 +57,7 @@ def test_scene_puts_the_far_agents_beyond_the_radius_and_inside_the_vs_box(cfg):
         state, _ = _scene(far)
         d = torch.cdist(state[0, :, 0:2], state[0, :, 0:2])
         assert (d[:2, 2:] > radius + 0.05).all() and d[0, 1] < radius
-        assert in_domain(state, 2.0, 8.0)[0, 0, 2:].all()     # the old ranking's candidates
+        assert in_domain(state, 2.0, 8.0, DoubleIntegrator)[0, 0, 2:].all()     # the old ranking's candidates
 
 
 @pytest.mark.parametrize("run", RUNS)

@@ -38,6 +38,7 @@ from madpinn.observation import ObservationSettings
 from madpinn.policies import policy_settings
 from madpinn.policies.defmarl import DefMarlSettings
 from madpinn.policies.madpinn import MadPinnSettings
+from madpinn.value_functions.calibration import CalibrationSettings
 from madpinn.policies.mppi import MPPISettings
 from madpinn.policies.nominal import NominalSettings
 from madpinn.policies.safemarl import SafeMarlSettings
@@ -86,7 +87,7 @@ SETTINGS = [
     Entry(MujocoSettings, "sim.mujoco", lambda c: MujocoSettings.from_config(c["sim"]["mujoco"]), nested=("gains",)),
     Entry(ControllerSettings, "sim.mujoco.gains", lambda c: MujocoSettings.from_config(c["sim"]["mujoco"]).gains),
     Entry(ObservationSettings, "observation", ObservationSettings.from_config,
-          keys={"collision_radius": "/agents.collision_radius"}),
+          keys={"collision_radius": "/agents.collision_radius", "model": "/agents.model"}),
     Entry(Arena, "arenas.small", lambda c: Arena.from_config(c, "small"), not_config=("name",)),
     Entry(NominalSettings, "methods.nominal", _method("nominal")),
     Entry(MadPinnSettings, "methods.madpinn", _method("madpinn"), keys={"strategy": "neighbours"},
@@ -115,6 +116,9 @@ SETTINGS = [
     Entry(ScenarioSettings, "value_functions.vhat.validation.scenario",
           lambda c: ScenarioSettings.from_config(_at(c, "value_functions.vhat.validation.scenario")),
           not_config=("max_draws_factor",)),
+    Entry(CalibrationSettings, "value_functions.vhat.validation.calibration",
+          lambda c: CalibrationSettings.from_config(_at(c, "value_functions.vhat.validation.calibration")),
+          keys={"level_max": "levels.max", "level_count": "levels.count"}),
     Entry(OracleSettings, "agents", lambda c: OracleSettings.from_config(c, "small"),
           not_config=("horizon_s", "dt")),        # the arena's episode length and episode / oracle.steps
     Entry(TrackingSettings, "tracking", TrackingSettings.from_config, keys={"experiment": "/experiment"},
@@ -123,7 +127,7 @@ SETTINGS = [
           keys={"u_max": "/agents.u_max", "v_max": "/agents.v_max"},
           not_config=("spec", "z_max")),   # spec: ObservationSettings at the training mapping; z_max: a number or `auto` (computed)
     Entry(PairSystem, "value_functions.vs", PairSystem.from_config,
-          keys={"u_max": "/agents.u_max", "collision_radius": "/agents.collision_radius"}),
+          keys={"model": "/agents.model", "u_max": "/agents.u_max", "collision_radius": "/agents.collision_radius"}),
     Entry(CellSettings, "studies.main", lambda c: CellSettings.from_config(c, "main", "madpinn"),
           not_config=tuple(f.name for f in dataclasses.fields(CellSettings))),   # composite: study, run and parsed parts
 ]
@@ -195,13 +199,15 @@ def test_every_settings_class_is_registered_and_named_settings():
 
 
 def test_objects_built_from_settings_have_no_defaults_either():
-    """The double integrator is built from ``agents`` in one place (``AgentSettings.dynamics``); the
+    """Every agent model is built from ``agents`` in one place (``AgentSettings.dynamics``); the
     Crazyflie's thrust-to-weight ratio comes from ``sim.mujoco`` (``MujocoSettings.spec``), its
     other fields are the airframe's constants, no config keys."""
-    from madpinn.dynamics import DoubleIntegrator
+    from madpinn.dynamics import MODELS
     from madpinn.simulation.mujoco.model import CrazyflieSpec
 
-    assert all(f.default is dataclasses.MISSING for f in dataclasses.fields(DoubleIntegrator))
+    for model in MODELS.values():
+        assert all(f.default is dataclasses.MISSING for f in dataclasses.fields(model)), model.name
+        assert {f.name for f in dataclasses.fields(model)} <= set(_node("agents")["properties"]), model.name
     spec = {f.name: f for f in dataclasses.fields(CrazyflieSpec)}
     assert spec["thrust_to_weight"].default is dataclasses.MISSING
     assert not (set(spec) - {"thrust_to_weight"}) & set(_node("sim.mujoco")["properties"])

@@ -110,8 +110,8 @@ def test_pair_conflicts_put_the_relative_state_on_a_near_collision_course():
 
     system = pair_system()
     x = system.sample(4000, torch.Generator().manual_seed(101))
-    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSamplingSettings(0.0, 0.3, (0.0, 1.0), None), torch.Generator()), x)
-    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSamplingSettings(1.0, 0.3, (0.0, 1.0), None), torch.Generator().manual_seed(7))
+    assert torch.equal(place_pair_conflicts(x, 1.0, 2.0, ConflictSamplingSettings(0.0, 0.3, (0.0, 1.0), None), torch.Generator(), system.agent), x)
+    out = place_pair_conflicts(x, system.horizon, system.p_range, ConflictSamplingSettings(1.0, 0.3, (0.0, 1.0), None), torch.Generator().manual_seed(7), system.agent)
     assert torch.equal(out[:, 2:], x[:, 2:]) and out[:, :2].abs().max() <= system.p_range
     unclipped = out[:, :2].abs().amax(-1) < system.p_range
     # constant-velocity closest approach within [0, T] of the unclipped rows is inside the 0.3-m disk
@@ -138,7 +138,7 @@ def test_near_rows_fill_the_inner_box_and_leave_the_rest():
     # the other rows are the uniform + conflict batch of the same generator stream (v beyond the box)
     assert float(rest[:, 2:].abs().max()) > 7.0
     x = p.system.sample(64, torch.Generator().manual_seed(1))
-    assert torch.equal(place_near(x, 2.0, 8.0, NearSamplingSettings(0.0, 1.0, 3.0), torch.Generator()), x)
+    assert torch.equal(place_near(x, 2.0, 8.0, NearSamplingSettings(0.0, 1.0, 3.0), torch.Generator(), pair_system().agent), x)
     a = p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32)
     assert torch.equal(a, p.sample_training_states(256, torch.Generator().manual_seed(9), torch.float32))
     with pytest.raises(ValueError, match="fraction"):
@@ -155,11 +155,11 @@ def test_speed_aware_pair_conflicts_close_at_the_drawn_speed_late_in_the_horizon
 
     x = torch.rand(2000, 4, generator=torch.Generator().manual_seed(2), dtype=torch.float64) * 2 - 1
     s = ConflictSamplingSettings(1.0, 0.3, (0.5, 1.0), (4.0, 8.0))
-    out = place_pair_conflicts(x, 1.0, 10.0, s, torch.Generator().manual_seed(3), v_range=8.0)
+    out = place_pair_conflicts(x, 1.0, 10.0, s, torch.Generator().manual_seed(3), pair_system().agent, v_range=8.0)
     speed = out[:, 2:4].norm(dim=1)
     assert bool(((speed >= 4.0 - 1e-9) & (speed <= 8.0 + 1e-9)).all())
     p, v = out[:, 0:2], out[:, 2:4]
     when = -(p * v).sum(1) / (v * v).sum(1)
     assert bool((when >= 0.5 - 0.3 / 4.0 - 1e-9).all()) and bool((when <= 1.0 + 0.3 / 4.0 + 1e-9).all())
     with pytest.raises(ValueError, match="v_range"):
-        place_pair_conflicts(x, 1.0, 10.0, s, torch.Generator())
+        place_pair_conflicts(x, 1.0, 10.0, s, torch.Generator(), pair_system().agent)

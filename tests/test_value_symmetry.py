@@ -21,7 +21,7 @@ def random_obs(vhat, B=64, seed=0):
 
 @pytest.mark.parametrize("group,size", [("none", 1), ("point", 2), ("d4", 8), ("full", 16)])
 def test_transforms_are_orthogonal_group_elements(group, size):
-    g = observation_transforms(group, 2)
+    g = observation_transforms(group, 2, SPEC.layout)
     assert g.shape == (size, SPEC.dim, SPEC.dim)
     eye = torch.eye(SPEC.dim, dtype=torch.float64)
     assert torch.allclose(g @ g.transpose(1, 2), eye.expand_as(g))
@@ -39,7 +39,7 @@ def test_averaged_value_is_invariant_and_its_gradient_exact(group):
     obs, z = random_obs(vhat)
     v, grad, dz = sym.value_and_grad(obs, z, 0.0)
     assert torch.allclose(v, sym.value(obs, z, 0.0), atol=1e-12)
-    for m in observation_transforms(group, 2):
+    for m in observation_transforms(group, 2, SPEC.layout):
         assert torch.allclose(sym.value(obs @ m.T, z, 0.0), v, atol=1e-10)
     for col in (0, 3, 7):
         e = torch.zeros_like(obs)

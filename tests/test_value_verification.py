@@ -79,7 +79,7 @@ def test_verification_and_heatmap_search_the_deployed_grid():
     settings = replace(policy_settings(*method_config(cfg, "madpinn")), look_ahead=0.0)   # obs = build_observation
     tol = deployed_z_tolerance(cfg)
     assert tol == settings.z_tolerance
-    pol = MadPinnPolicy(vhat, make_selector("nearest", 2), vhat.obs_spec, settings, sim_dt=0.0025)
+    pol = MadPinnPolicy(vhat, make_selector("nearest", 2, agent=vhat.obs_spec.agent), vhat.obs_spec, settings, sim_dt=0.0025)
     g = torch.Generator().manual_seed(5)
     state = torch.cat([2 * torch.rand(4, 6, 2, generator=g) - 1, 4 * torch.rand(4, 6, 2, generator=g) - 2], -1)
     goals = 2 * torch.rand(4, 6, 2, generator=g) - 1

@@ -8,6 +8,7 @@ from pathlib import Path
 from madpinn.commands.args import add_config_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job, write_commit_record
 from madpinn.commands.reads import governors, keys, labels, study_sim_override
+from madpinn.config import hashed_agents
 
 
 def _table(args) -> int:
@@ -227,7 +228,7 @@ def register(sub) -> None:
     p.add_argument("--out", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_oracle, reads=lambda cfg, arena: {
-        "oracle": cfg["oracle"], "agents": cfg["agents"], "arena": cfg["arenas"][arena],
+        "oracle": cfg["oracle"], "agents": hashed_agents(cfg["agents"]), "arena": cfg["arenas"][arena],
         "start_separation": cfg["sim"]["start_separation"]})
 
     p = sub.add_parser("figure", help="draw a paper figure from result files")

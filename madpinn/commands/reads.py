@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from typing import Mapping
 
-from madpinn.config import lookup_key
+from madpinn.config import hashed_agents, hashed_key
 
 
 def keys(*keys: str):
     """A job that reads these config subtrees (dotted keys) and nothing else."""
-    return lambda cfg, **_: {k: lookup_key(cfg, k) for k in keys}
+    return lambda cfg, **_: {k: hashed_key(cfg, k) for k in keys}
 
 
 def labels(cfg: Mapping, *studies: str) -> dict:
@@ -44,7 +44,7 @@ def governors(cfg: Mapping, study: str) -> dict:
     from madpinn.config import RunSettings
 
     runs = (RunSettings.resolve(cfg, study, run) for run in cfg["studies"][study]["runs"])
-    return {r.run: {"vhat": r.vhat, "observation": r.observation, "agents": r.agents} for r in runs}
+    return {r.run: {"vhat": r.vhat, "observation": r.observation, "agents": hashed_agents(r.agents)} for r in runs}
 
 
 def cell(cfg: Mapping, study: str, run: str) -> dict:

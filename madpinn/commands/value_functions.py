@@ -422,3 +422,7 @@ def register(sub) -> None:
                    help="config file(s): the job is logged as an MLflow run (the workflow passes it)")
     p.add_argument("--no-track", action="store_true", help="do not log to MLflow")
     p.set_defaults(func=_install_shipped)
+
+    from madpinn.commands.calibration import register as register_calibration   # calibrate-vhat (issue 62): its own module,
+
+    register_calibration(sub)                        # so that no other job of this family changes its code hash

@@ -20,7 +20,7 @@ The names below are the package's interface; import them from ``madpinn.config``
 
 from madpinn.config.cells import check_cell
 from madpinn.config.errors import ConfigError, ConfigFileError, TargetError, WorkingDirectoryError
-from madpinn.config.hashing import config_hash, lookup_key, subtree_hash
+from madpinn.config.hashing import config_hash, hashed_agents, hashed_key, lookup_key, subtree_hash
 from madpinn.config.loading import load_config, load_yaml
 from madpinn.config.merge import deep_merge
 from madpinn.config.paths import OUTPUT_PATH_KEYS, REPO_ROOT, unwritable_reason, write_if_changed
@@ -32,7 +32,7 @@ from madpinn.config.vf_variants import VF_VARIANTS, split_vf_model, vf_model_nam
 
 
 __all__ = [
-    "ConfigError", "ConfigFileError", "TargetError", "WorkingDirectoryError", "check_cell", "config_hash", "lookup_key",
+    "ConfigError", "ConfigFileError", "TargetError", "WorkingDirectoryError", "check_cell", "config_hash", "hashed_agents", "hashed_key", "lookup_key",
     "subtree_hash", "load_config", "load_yaml", "deep_merge", "OUTPUT_PATH_KEYS", "REPO_ROOT", "unwritable_reason",
     "write_if_changed", "DEPLOYMENT_ONLY_KEYS", "FAN_OUT_KEYS", "TRAINING_ONLY_KEYS", "RunSettings", "job_config", "method_config",
     "run_agents", "run_observation", "run_vhat", "study_backend", "study_pattern", "study_sim", "SCHEMA_PATH",

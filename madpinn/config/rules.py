@@ -145,20 +145,19 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
 
 
 def _horizon_errors(cfg: Mapping[str, Any]) -> list[str]:
-    """``arenas.<name>.cost_horizons_s`` lie inside the episode, a whole number of steps of every
-    study's ``sim.dt`` on that arena."""
+    """``studies.<name>.cost_horizons_s`` lie inside the study's episode, each a whole number of its ``sim.dt``."""
     from madpinn.scenarios import horizon_problem
 
     lines = []
-    for name, arena in cfg["arenas"].items():
-        dts = {float(cfg["sim"]["dt"])} | {float((st.get("sim") or {}).get("dt", cfg["sim"]["dt"]))
-                                          for st in cfg["studies"].values() if st["arena"] == name}
-        for h in arena.get("cost_horizons_s") or ():
-            for dt in sorted(dts):
-                problem = horizon_problem(float(h), float(arena["episode_s"]), dt)
-                if problem:
-                    lines.append(f"  - 'arenas.{name}.cost_horizons_s': {problem}")
-                    break
+    for name, st in cfg["studies"].items():
+        arena = cfg["arenas"].get(st["arena"])
+        if arena is None:
+            continue   # reported as an unknown arena
+        dt = float(study_sim(cfg, name)["dt"])
+        for h in st["cost_horizons_s"]:
+            problem = horizon_problem(float(h), float(arena["episode_s"]), dt)
+            if problem:
+                lines.append(f"  - 'studies.{name}.cost_horizons_s': {problem}")
     return lines
 
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 from madpinn.config.errors import ConfigError
+from madpinn.config.hashing import hashed_agents
 from madpinn.config.merge import deep_merge
 from madpinn.config.vf_variants import vf_model_name
 
@@ -114,7 +115,7 @@ class RunSettings:
         hashed = {
             "study": {k: v for k, v in st.items() if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
             "arena": cfg["arenas"][st["arena"]],
-            "agents": cfg["agents"],
+            "agents": hashed_agents(cfg["agents"]),
             "sim": sim,
             "observation": observation,
             "method": method,

@@ -12,8 +12,9 @@ gives agent ``i`` its own bound and broadcasts over states ``[..., N, state_dim]
 (:meth:`AgentModel.per_agent`).
 
 Adding a model: one module in this package with a frozen dataclass implementing this class
-(``position_dim``, ``drift``, ``control_matrix``, ``step``, ``clip_state``) and one entry in
-:data:`madpinn.dynamics.MODELS`; docs/reference/architecture.md counts the touch points.
+(``name``, ``position_dim``, ``drift``, ``control_matrix``, ``step``, ``clip_state``, ``place``),
+listed in :data:`madpinn.dynamics.MODELS`, and its name in the schema's ``agents.model``;
+docs/reference/architecture.md counts the touch points.
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ class AgentModel(BoxControlSystem):
     of its own: ``control_mode`` is "min" (a value the agent minimises, e.g. its cost).
     """
 
+    name: ClassVar[str]
+    """the model's name in :data:`madpinn.dynamics.MODELS` and in ``agents.model``"""
     position_dim: ClassVar[int]
     """d: position coordinates (m); the velocity has d coordinates (m/s) right after them"""
     control_dim: ClassVar[int]
@@ -80,6 +83,11 @@ class AgentModel(BoxControlSystem):
     def join(cls, position: torch.Tensor, velocity: torch.Tensor) -> torch.Tensor:
         """States ``[..., n]`` from positions and velocities ``[..., d]`` each."""
         return torch.cat([position, velocity], dim=-1)
+
+    def place(self, points: torch.Tensor) -> torch.Tensor:
+        """Positions ``[..., d]`` (m) of the points ``[..., 2]`` the planar scenario generators draw
+        (starts and goals of :mod:`madpinn.scenarios`; a 3-D model lifts them into its space)."""
+        raise NotImplementedError
 
     # ---- bounds ---------------------------------------------------------------------------
     @staticmethod

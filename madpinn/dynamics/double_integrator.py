@@ -8,6 +8,7 @@ the oracle's receding-horizon check all integrate with it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 
@@ -45,9 +46,15 @@ class DoubleIntegrator(AgentModel):
     u_max: Bound
     v_max: Bound
 
-    position_dim = 2
-    control_dim = 2
-    state_dim = 4
+    name: ClassVar[str] = "double_integrator"
+    position_dim: ClassVar[int] = 2
+    control_dim: ClassVar[int] = 2
+    state_dim: ClassVar[int] = 4
+
+    def place(self, points: torch.Tensor) -> torch.Tensor:
+        """Positions ``[..., d]`` (m) of points ``[..., 2]`` drawn by the planar scenario
+        generators (:mod:`madpinn.scenarios`): the planar model takes them as they are."""
+        return points
 
     def drift(self, state: torch.Tensor) -> torch.Tensor:
         """``w(s) = [v, 0]`` ``[..., 2d]``."""

@@ -1,7 +1,8 @@
 """Relative pair system for the pairwise safety value V_s (SPEC §5).
 
-State ``x = [p_i − p_j, v_i − v_j]`` ``[..., 4]`` (m, m/s); the pair cooperates through the
-relative control ``u = u_i − u_j ∈ [−2u_max, 2u_max]²``: ``ṗ = v``, ``v̇ = u``.
+State ``x = [p_i − p_j, v_i − v_j]`` ``[..., 2d]`` (m, m/s; d the agent model's position axes, 2
+for the paper's planar model); the pair cooperates through the relative control
+``u = u_i − u_j ∈ [−2u_max, 2u_max]^d``: ``ṗ = v``, ``v̇ = u``.
 Target ``ψ(x) = ‖p‖ − r`` (m, ≤ 0 is collision). ``V_s(x, t) = sup_u min_{τ∈[t,T]} ψ(ξ(τ))``
 solves the HJB-VI ``min{∂_t V + H_s, ψ − V} = 0``, ``V(x, T) = ψ(x)``, with the closed-form
 Hamiltonian ``H_s = max_u ⟨∇V, f⟩ = ⟨∂_p V, v⟩ + 2u_max·‖∂_v V‖₁`` and the optimal relative
@@ -15,19 +16,20 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import AGENT
+from madpinn.dynamics import AgentModel, model_class
 from madpinn.dynamics.double_integrator import hold_step
 from madpinn.dynamics.system import BoxControlSystem
-
-STATE_DIM = AGENT.state_dim
 
 
 @dataclass(frozen=True)
 class PairSystem(BoxControlSystem):
-    """The relative state ``x = [p_i − p_j, v_i − v_j]`` of two agents: u_max (m/s²) per axis and
+    """The relative state ``x = [p_i − p_j, v_i − v_j]`` of two agents of ``model`` (a name of
+    :data:`~madpinn.dynamics.MODELS`; its layout, a double integrator's): u_max (m/s²) per axis and
     agent, collision_radius r (m), horizon T (s), sampled box ``|p| ≤ p_range``, ``|v| ≤ v_range``
-    (m, m/s). No defaults: :meth:`from_config` reads ``agents`` and ``value_functions.vs``."""
+    (m, m/s). No defaults: :meth:`from_config` reads ``agents`` and ``value_functions.vs``. A 3-D
+    model's altitude band is not part of the pair system (relative states; V_s ignores the band)."""
 
+    model: str
     u_max: float
     collision_radius: float
     horizon: float
@@ -36,17 +38,25 @@ class PairSystem(BoxControlSystem):
 
     control_mode = "max"   # the pair maximises its safety margin
 
+    def __post_init__(self):
+        model_class(self.model)   # an unknown model fails here
+
+    @property
+    def agent(self) -> type[AgentModel]:
+        """The agents' model class: the pair state has its layout."""
+        return model_class(self.model)
+
     @property
     def control_bound(self) -> float:
         return self.u_rel_max
 
     def control_grad(self, dv_dx: torch.Tensor) -> torch.Tensor:
-        """``∂V/∂v`` ``[..., 2]``: the relative control enters the relative velocity."""
-        return AGENT.velocity(dv_dx)
+        """``∂V/∂v`` ``[..., d]``: the relative control enters the relative velocity."""
+        return self.agent.velocity(dv_dx)
 
     @property
     def state_dim(self) -> int:
-        return STATE_DIM
+        return self.agent.state_dim
 
     @property
     def u_rel_max(self) -> float:
@@ -54,36 +64,38 @@ class PairSystem(BoxControlSystem):
         return 2.0 * self.u_max
 
     def half_widths(self) -> torch.Tensor:
-        d = AGENT.position_dim
+        d = self.agent.position_dim
         return torch.tensor([self.p_range] * d + [self.v_range] * d, dtype=torch.float64)
 
     def sample(self, batch: int, generator: torch.Generator, dtype=torch.float32, device="cpu") -> torch.Tensor:
-        u = torch.rand(batch, STATE_DIM, generator=generator, dtype=dtype)
+        u = torch.rand(batch, self.state_dim, generator=generator, dtype=dtype)
         return ((2.0 * u - 1.0) * self.half_widths().to(dtype)).to(device)
 
     def target(self, x: torch.Tensor) -> torch.Tensor:
         """ψ(x) = ‖p‖ − r ``[...]`` (m)."""
-        return torch.linalg.vector_norm(AGENT.position(x), dim=-1) - self.collision_radius
+        return torch.linalg.vector_norm(self.agent.position(x), dim=-1) - self.collision_radius
 
     def target_and_grad(self, x: torch.Tensor):
-        """ψ ``[B]`` and ∂ψ/∂x ``[B, 4]`` (exact away from p = 0)."""
-        p = AGENT.position(x)
+        """ψ ``[B]`` and ∂ψ/∂x ``[B, 2d]`` (exact away from p = 0)."""
+        p = self.agent.position(x)
         norm = torch.linalg.vector_norm(p, dim=-1, keepdim=True)
         grad_p = p / norm.clamp_min(1e-12)
         return norm[..., 0] - self.collision_radius, torch.cat([grad_p, torch.zeros_like(p)], dim=-1)
 
     def free_drift_and_grad(self, x: torch.Tensor, remaining: float | torch.Tensor):
         """:func:`free_drift_and_grad` of this system's collision radius."""
-        return free_drift_and_grad(x, remaining, self.collision_radius)
+        return free_drift_and_grad(x, remaining, self.collision_radius, self.agent)
 
     def f(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Vector field ``[..., 4]`` for the relative control ``u [..., 2]`` (clipped to ±2u_max)."""
-        return AGENT.join(AGENT.velocity(x), u.clamp(-self.u_rel_max, self.u_rel_max))
+        """Vector field ``[..., 2d]`` for the relative control ``u [..., d]`` (clipped to ±2u_max)."""
+        a = self.agent
+        return a.join(a.velocity(x), u.clamp(-self.u_rel_max, self.u_rel_max))
 
     def hamiltonian(self, x: torch.Tensor, dv_dx: torch.Tensor) -> torch.Tensor:
         """``max_u ⟨∇V, f(x, u)⟩`` ``[B]``; the maximising (safest) relative control
-        ``2u_max·sign(∂V/∂v)`` ``[B, 2]`` is :meth:`optimal_control` (from the box)."""
-        return self.hamiltonian_from((AGENT.position(dv_dx) * AGENT.velocity(x)).sum(-1), dv_dx)
+        ``2u_max·sign(∂V/∂v)`` ``[B, d]`` is :meth:`optimal_control` (from the box)."""
+        a = self.agent
+        return self.hamiltonian_from((a.position(dv_dx) * a.velocity(x)).sum(-1), dv_dx)
 
     def hjb_residual(self, x, value, dv_dt, dv_dx) -> torch.Tensor:
         """Paper eq. (HJI-VI): ``min{∂_t V + H_s, ψ − V}`` ``[B]``."""
@@ -91,23 +103,24 @@ class PairSystem(BoxControlSystem):
 
     def step(self, x: torch.Tensor, u: torch.Tensor, dt: float) -> torch.Tensor:
         """Exact zero-order-hold step of the relative double integrator (:func:`hold_step`, no saturation)."""
-        return AGENT.join(*hold_step(AGENT.position(x), AGENT.velocity(x), u.clamp(-self.u_rel_max, self.u_rel_max), dt))
+        a = self.agent
+        return a.join(*hold_step(a.position(x), a.velocity(x), u.clamp(-self.u_rel_max, self.u_rel_max), dt))
 
     @classmethod
     def from_config(cls, cfg: dict) -> "PairSystem":
         v = cfg["value_functions"]["vs"]
         return cls(
-            u_max=float(cfg["agents"]["u_max"]), collision_radius=float(cfg["agents"]["collision_radius"]),
+            model=str(cfg["agents"]["model"]), u_max=float(cfg["agents"]["u_max"]), collision_radius=float(cfg["agents"]["collision_radius"]),
             horizon=float(v["horizon"]), p_range=float(v["p_range"]), v_range=float(v["v_range"]),
         )
 
 
-def free_drift_and_grad(x: torch.Tensor, remaining: float | torch.Tensor, radius: float):
-    """``min_{τ∈[0, T']} ‖p + v·τ‖ − r`` ``[B]`` and its gradient ``[B, 4]`` for pair states
-    ``x [B, 4]`` over the remaining horizon ``T'`` (s): the safety margin with no relative
+def free_drift_and_grad(x: torch.Tensor, remaining: float | torch.Tensor, radius: float, agent: type[AgentModel]):
+    """``min_{τ∈[0, T']} ‖p + v·τ‖ − r`` ``[B]`` and its gradient ``[B, 2d]`` for pair states
+    ``x [B, 2d]`` of agents of model ``agent`` over the remaining horizon ``T'`` (s): the safety margin with no relative
     control, a lower bound of the exact V_s (which maximises over controls); ``≤ ψ`` (τ = 0).
     Gradient by the envelope theorem at the minimiser τ*: ``(u, τ*·u)``, u the unit closest offset."""
-    p, v = AGENT.position(x), AGENT.velocity(x)
+    p, v = agent.position(x), agent.velocity(x)
     tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(min=0.0)
     tau = torch.minimum(tau, torch.as_tensor(remaining, dtype=x.dtype, device=x.device).expand_as(tau))
     d = p + v * tau[..., None]

@@ -24,7 +24,7 @@ from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.encounters import straight_line_encounters
-from madpinn.scenarios import Arena, generate_scenarios
+from madpinn.scenarios import Arena, generate_scenarios, horizon_steps
 from madpinn.settings import AgentSettings
 from madpinn.simulation.settings import SimSettings
 from madpinn.simulation import EpisodeResult, make_backend, run_episode
@@ -77,6 +77,8 @@ class CellSettings:
     """``dtype`` setting"""
     job_config_hash: str
     """hash of the config part the cell depends on (:func:`madpinn.config.job_config`)"""
+    horizon_steps: tuple[int, ...]
+    """simulation steps of the study's ``cost_horizons_s``: cost and safety also read there (:func:`madpinn.evaluation.metrics.scenario_metrics`)"""
     collision_events: bool
     """the study's ``collision_events``: classify every collision onset
     (:class:`madpinn.evaluation.collisions.CollisionProbe`, MAD-PINN runs) into the cell's summary"""
@@ -99,6 +101,7 @@ class CellSettings:
             sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": r.observation}),
             policy_period=sim.policy_period_steps if mcfg["policy_period_steps"] is None else int(mcfg["policy_period_steps"]),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(r.job_config),
+            horizon_steps=horizon_steps(st["cost_horizons_s"], float(cfg["arenas"][st["arena"]]["episode_s"]), sim.dt),
             collision_events=bool(st["collision_events"]),
         )
 
@@ -152,6 +155,8 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
         encounters = np.stack([straight_line_encounters(s_, g_, cs.limits.v_max, 2 * cs.limits.collision_radius,
                                                         cs.episode_steps * cs.sim.dt)
                                for s_, g_ in zip(starts.cpu().double().numpy(), goals.cpu().double().numpy())])
+        model = cs.limits.dynamics()
+        starts, goals = model.place(starts), model.place(goals)   # the planar layout in the agents' space
         policy = make_policy(cs.method, policy_context(cs, seed, b, device, dtype, models))
         if wrap is not None:
             policy = wrap(policy, first)
@@ -160,7 +165,7 @@ def cell_batches(cs: CellSettings, n_agents: int, seed: int, backend: str, devic
             sim, policy, starts, goals, cs.episode_steps, cs.limits.collision_radius, policy_period=cs.policy_period,
             record_every=cs.sim.record_every if record and first == 0 else 0,
             progress=progress, desc=f"{cs.run} N={n_agents} seed={seed} [{first}:{first + count}]",
-            horizon_steps=cs.arena.horizon_steps(cs.sim.dt),
+            horizon_steps=cs.horizon_steps,
         )
         stats["encounters"] = encounters   # [S, N]: the layout's straight-line encounters per agent
         yield first, policy, result, stats

@@ -22,8 +22,6 @@ from collections import Counter
 import numpy as np
 import torch
 
-from madpinn.dynamics import AGENT
-
 
 class CollisionProbe:
     """Wraps a MAD-PINN policy; classifies collision onsets seen at its decision times."""
@@ -46,12 +44,13 @@ class CollisionProbe:
 
     def act(self, state, goals, t):
         u = self.policy.act(state, goals, t)
-        p, v = AGENT.position(state).detach().cpu().double(), AGENT.velocity(state).detach().cpu().double()
+        mad = getattr(self.policy, "nominal", self.policy)   # madpinn-filtered wraps the MAD-PINN policy
+        agent = mad.spec.agent
+        p, v = agent.position(state).detach().cpu().double(), agent.velocity(state).detach().cpu().double()
         rel = p[:, :, None] - p[:, None]
         d = rel.norm(dim=-1)
         S, N, _ = d.shape
         eye = torch.eye(N, dtype=torch.bool)
-        mad = getattr(self.policy, "nominal", self.policy)   # madpinn-filtered wraps the MAD-PINN policy
         infeasible = (mad.last_search.z >= mad.vhat.z_max * (1 - 1e-9)).reshape(S, N).cpu()   # z* = z_max
         self.infeasible_since = torch.where(infeasible, torch.where(self.infeasible_since < 0, t, self.infeasible_since),
                                             torch.full_like(self.infeasible_since, -1.0))

@@ -18,7 +18,10 @@ sandwich the continuous optimum J*:
   throughout), with the interval cost bounded by convexity (chord ≤ trapezoid) plus the
   quadratic's bow ``‖s(h−s)/2·u_k‖``, integrated ``h³/12·‖u_k‖``. J* ≤ UB.
 
-The scenario's bound is the mean of LB over its agents. UB − LB bounds the discretisation gap
+The bound works on offsets of any number of axes d (the offsets' last size). A 3-D model's
+scenarios are the planar ones at one altitude (:meth:`~madpinn.dynamics.AgentModel.place`), so
+their offsets have no vertical part and a lone agent's optimum stays level: the planar bound is
+theirs too. The scenario's bound is the mean of LB over its agents. UB − LB bounds the discretisation gap
 (docs/reference/evaluation.md reports it at two resolutions). Agents of a batch are independent blocks of
 one programme (cvxpy with CLARABEL), compiled once per (batch, K) and reused with parameters.
 """
@@ -34,7 +37,6 @@ import numpy as np
 import pandas as pd
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.dynamics.double_integrator import hold_step
 from madpinn.scenarios import UNIFORM, Arena, generate_scenario
 
@@ -70,10 +72,9 @@ class OracleSettings:
 
 
 @lru_cache(maxsize=8)
-def _programme(kind: str, steps: int, h: float, u_max: float, v_max: float, batch: int):
+def _programme(kind: str, steps: int, h: float, u_max: float, v_max: float, batch: int, d: int):
     import cvxpy as cp
 
-    d = AGENT.position_dim
     x0 = cp.Parameter((batch, d), name="x0")
     v0 = cp.Parameter((batch, d), name="v0")
     X = [cp.Variable((batch, steps + 1)) for _ in range(d)]   # per axis: offsets at t_k (m)
@@ -115,15 +116,16 @@ def _norm(axes: list[np.ndarray]) -> np.ndarray:
 def _solve(kind: str, offsets: np.ndarray, s: OracleSettings, velocities: np.ndarray | None = None):
     """Programme ``kind`` for ``offsets`` ``[A, 2]`` = start − goal (m) and initial ``velocities``
     ``[A, 2]`` (m/s, default rest). Returns each agent's optimum ``[A]`` and first control ``[A, 2]``."""
-    offsets = np.asarray(offsets, dtype=float).reshape(-1, AGENT.position_dim)
-    vel = np.zeros_like(offsets) if velocities is None else np.asarray(velocities, dtype=float).reshape(-1, AGENT.position_dim)
+    offsets = np.asarray(offsets, dtype=float)
+    offsets = offsets.reshape(-1, offsets.shape[-1])
+    vel = np.zeros_like(offsets) if velocities is None else np.asarray(velocities, dtype=float).reshape(-1, offsets.shape[-1])
     if not (np.isfinite(offsets).all() and np.isfinite(vel).all()) or vel.shape != offsets.shape:
         raise ValueError("oracle offsets and velocities must be finite arrays of the same shape [A, 2]")
     if (np.abs(vel) > s.v_max + 1e-9).any():
         raise ValueError(f"initial velocities exceed v_max = {s.v_max}")
     h, out, first_u = s.dt, np.empty(len(offsets)), np.empty_like(offsets)
     batch = min(BATCH, len(offsets))
-    prob, x0, v0, X, V, M = _programme(kind, s.steps, h, s.u_max, s.v_max, batch)
+    prob, x0, v0, X, V, M = _programme(kind, s.steps, h, s.u_max, s.v_max, batch, offsets.shape[-1])
     for first in range(0, len(offsets), batch):
         n = len(offsets[first:first + batch])
         pad = np.zeros((batch - n, offsets.shape[1]))
@@ -166,11 +168,11 @@ def scenario_bounds(arena: Arena, n_agents: int, seed: int, count: int, min_sepa
         raise ValueError(f"oracle horizon {settings.horizon_s} s differs from the {arena.name} episode {arena.episode_s} s")
     offsets = np.stack([np.subtract(*generate_scenario(arena, n_agents, seed, i, min_separation, pattern))
                         for i in range(count)])
-    lb = lower_bound(offsets.reshape(-1, AGENT.position_dim), settings).reshape(count, n_agents).mean(axis=1)
+    lb = lower_bound(offsets.reshape(-1, offsets.shape[-1]), settings).reshape(count, n_agents).mean(axis=1)
     df = pd.DataFrame({"arena": arena.name, "pattern": pattern, "n_agents": int(n_agents), "seed": int(seed),
                        "scenario": np.arange(count), "oracle_cost": lb, "oracle_cost_time_avg": lb / arena.episode_s})
     if with_upper:
-        df["oracle_upper"] = upper_bound(offsets.reshape(-1, AGENT.position_dim), settings).reshape(count, n_agents).mean(axis=1)
+        df["oracle_upper"] = upper_bound(offsets.reshape(-1, offsets.shape[-1]), settings).reshape(count, n_agents).mean(axis=1)
     return df
 
 
@@ -192,7 +194,8 @@ def receding_horizon_cost(offsets: np.ndarray, episode_s: float, horizon_s: floa
     (min ∫₀^H‖x‖dt + ‖x(H)‖, exact piecewise-constant programme) every ``dt`` and applies its first
     control (exact double-integrator step; cost by the trapezoid rule on ``substeps`` per step).
     What a receding horizon as short as V̂'s (0.2 s) costs without any other agent."""
-    x = np.asarray(offsets, dtype=float).reshape(-1, AGENT.position_dim).copy()
+    x = np.asarray(offsets, dtype=float)
+    x = x.reshape(-1, x.shape[-1]).copy()
     v = np.zeros_like(x)
     s = OracleSettings(horizon_s=horizon_s, u_max=u_max, v_max=v_max, dt=dt)
     steps = int(round(episode_s / dt))

@@ -22,7 +22,6 @@ import seaborn as sns
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Rectangle
 
-from madpinn.dynamics import AGENT
 from madpinn.figures import style
 
 COLLISION_COLOUR = "#d62728"    # red marks collisions only: no agent gets a red colour
@@ -41,9 +40,10 @@ def agent_colours(n: int) -> list[tuple]:
 
 
 def panel_limits(d) -> tuple[tuple[float, float], tuple[float, float]]:
-    """x and y range (m) of one scenario's panel: every position and goal plus ``MARGIN_M``."""
-    pts = np.concatenate([np.asarray(d["positions"]).reshape(-1, AGENT.position_dim),
-                          np.asarray(d["goals"]).reshape(-1, AGENT.position_dim)])
+    """x and y range (m) of one scenario's panel: every position and goal plus ``MARGIN_M`` (the
+    panel is the horizontal plane: a 3-D model's altitude is not drawn)."""
+    positions, goals = np.asarray(d["positions"]), np.asarray(d["goals"])
+    pts = np.concatenate([positions.reshape(-1, positions.shape[-1]), goals.reshape(-1, goals.shape[-1])])
     lo, hi = pts.min(0) - MARGIN_M, pts.max(0) + MARGIN_M
     return (float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1]))
 

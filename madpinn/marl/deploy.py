@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.marl.features import local_observation
 from madpinn.marl.networks import GaussianActor
 from madpinn.marl.normalize import ObsNormalizer
@@ -34,4 +33,4 @@ class ActorPolicy:
     def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
         S, N, _ = state.shape
         obs = self.obs_norm(local_observation(state, goals, self.obs_spec, self.neighbours))
-        return self.actor(obs.flatten()).view(S, N, AGENT.control_dim).clamp(-1.0, 1.0) * self.u_max
+        return self.actor(obs.flatten()).view(S, N, self.obs_spec.agent.control_dim).clamp(-1.0, 1.0) * self.u_max

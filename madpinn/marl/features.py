@@ -7,6 +7,9 @@ translation invariant and, through the set encoder, invariant to the neighbours'
 - ego ``[..., 4]``: ``v_ego`` (m/s), ``g_ego − p_ego`` (m, shortened into ±goal_range).
 - neighbours ``[..., K, 6]``: ``p_j − p_ego`` (m), ``v_j − v_ego`` (m/s), ``g_j − p_ego`` (m).
 - mask ``[..., K]``: True for a real neighbour (inside the sensing radius).
+
+The MARL baselines (SafeMARL's nominal policy, DEF-MARL) are trained on the paper's planar agents:
+their network sizes are the planar layout's, and :func:`local_observation` refuses another model.
 """
 
 from __future__ import annotations
@@ -15,20 +18,13 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from madpinn.dynamics import AGENT
-from madpinn.observation import (
-    EGO_DIM,
-    NEIGHBOUR_DIM,
-    NEIGHBOUR_GOAL,
-    NEIGHBOUR_POSITION,
-    NEIGHBOUR_VELOCITY,
-    ObservationSettings,
-    build_observation,
-    nearest_neighbours,
-)
+from madpinn.dynamics import PAPER_MODEL, model_class
+from madpinn.observation import ObservationLayout, ObservationSettings, build_observation, nearest_neighbours
 
-EGO_FEATURES = EGO_DIM
-NEIGHBOUR_FEATURES = NEIGHBOUR_DIM
+LAYOUT = ObservationLayout(model_class(PAPER_MODEL).position_dim)
+"""the observation layout of the agents the MARL baselines are trained on (the paper's planar ones)"""
+EGO_FEATURES = LAYOUT.ego_dim
+NEIGHBOUR_FEATURES = LAYOUT.neighbour_dim
 
 
 @dataclass
@@ -61,13 +57,16 @@ def local_observation(state: torch.Tensor, goals: torch.Tensor, spec: Observatio
     """Global state ``[S, N, 4]``, goals ``[S, N, 2]`` -> :class:`LocalObs` with K = ``k`` slots."""
     if k < 1:
         raise ValueError(f"need at least one neighbour slot, got {k}")
+    if spec.model != PAPER_MODEL:
+        raise ValueError(f"the MARL baselines are trained on the paper's {PAPER_MODEL} agents, not {spec.model}")
     kspec = replace(spec.base_mapping(), n_neighbours=k)   # issue-14 mapping fixes are MAD-PINN's
-    idx = nearest_neighbours(state, k, radius=spec.sensing_radius)
+    agent = spec.agent
+    idx = nearest_neighbours(agent.position(state), k, radius=spec.sensing_radius)
     obs = build_observation(state, goals, idx, kspec)
-    ego = obs[..., :EGO_DIM]
-    nbr = obs[..., EGO_DIM:].reshape(*obs.shape[:-1], k, NEIGHBOUR_DIM)
-    v_rel = nbr[..., NEIGHBOUR_VELOCITY] - AGENT.velocity(state)[..., None, :]
-    nbr = torch.cat([nbr[..., NEIGHBOUR_POSITION], v_rel, nbr[..., NEIGHBOUR_GOAL]], dim=-1)
+    ego = obs[..., :LAYOUT.ego_dim]
+    nbr = obs[..., LAYOUT.ego_dim:].reshape(*obs.shape[:-1], k, LAYOUT.neighbour_dim)
+    v_rel = nbr[..., LAYOUT.neighbour_velocity] - agent.velocity(state)[..., None, :]
+    nbr = torch.cat([nbr[..., LAYOUT.neighbour_position], v_rel, nbr[..., LAYOUT.neighbour_goal]], dim=-1)
     mask = idx >= 0
     nbr = nbr * mask.unsqueeze(-1)  # phantom slots carry zeros (and are masked in the encoder)
     return LocalObs(ego, nbr, mask)

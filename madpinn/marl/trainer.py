@@ -32,7 +32,6 @@ from typing import Callable, Sequence
 import torch
 from tqdm.auto import tqdm
 
-from madpinn.dynamics import AGENT
 from madpinn.marl.buffer import RolloutBuffer
 from madpinn.marl.env import GoalReachingEnv, RewardSettings, StepInfo, goal_reward
 from madpinn.marl.features import EGO_FEATURES, NEIGHBOUR_FEATURES, LocalObs
@@ -166,7 +165,7 @@ class PPOTrainer:
                 self.obs_norm.update(x)
                 xn = self.obs_norm(x)
                 action, logp, value = self._sample(xn.flatten())
-                obs, info = self.env.step(action.clamp(-1.0, 1.0).view(n_envs, n_agents, AGENT.control_dim) * self.u_max)
+                obs, info = self.env.step(action.clamp(-1.0, 1.0).view(n_envs, n_agents, self.env.dynamics.control_dim) * self.u_max)
                 r = self.reward(info)
                 ep_return += r
                 collided |= info.collided
@@ -194,7 +193,7 @@ class PPOTrainer:
         collided = torch.zeros(n_envs, n_agents, dtype=torch.bool, device=self.device)
         while not self.env.done:
             mean = self.actor(self.obs_norm(self.augment(obs)).flatten())
-            obs, info = self.env.step(mean.clamp(-1.0, 1.0).view(n_envs, n_agents, AGENT.control_dim) * self.u_max)
+            obs, info = self.env.step(mean.clamp(-1.0, 1.0).view(n_envs, n_agents, self.env.dynamics.control_dim) * self.u_max)
             ret += self.reward(info)
             collided |= info.collided
             self.record(info)
@@ -209,7 +208,7 @@ class PPOTrainer:
         adv, ret = self.advantages(buf, last)
         H = ret.shape[-1]
         batch = PPOBatch(
-            obs=buf.flat_obs(), actions=buf.get("action").reshape(-1, AGENT.control_dim), logp_old=buf.get("logp").reshape(-1),
+            obs=buf.flat_obs(), actions=buf.get("action").reshape(-1, self.env.dynamics.control_dim), logp_old=buf.get("logp").reshape(-1),
             advantages=adv.reshape(-1), returns=ret.reshape(-1, H),
         )
         stats.update(ppo_update(self.actor, self.critic, self.optimizer, batch, self.ppo, self.generator))

@@ -16,24 +16,24 @@ from __future__ import annotations
 
 import torch
 
-from madpinn.dynamics import AGENT
+from madpinn.dynamics import AgentModel
 from madpinn.dynamics.double_integrator import hold_step
 from madpinn.observation import ObservationSettings, build_observation
 
 
-def predict_states(state: torch.Tensor, accel: torch.Tensor | None, horizon: float) -> torch.Tensor:
+def predict_states(state: torch.Tensor, accel: torch.Tensor | None, horizon: float, agent: type[AgentModel]) -> torch.Tensor:
     """Double-integrator prediction (:func:`hold_step`, no saturation) of ``state`` ``[..., n]``
-    (m, m/s) ``horizon`` seconds ahead under the constant acceleration ``accel`` ``[..., d]``
-    (m/s²; None: constant velocity)."""
-    p, v = AGENT.position(state), AGENT.velocity(state)
-    return AGENT.join(*hold_step(p, v, torch.zeros_like(v) if accel is None else accel, horizon))
+    (m, m/s; ``agent``'s layout) ``horizon`` seconds ahead under the constant acceleration
+    ``accel`` ``[..., d]`` (m/s²; None: constant velocity)."""
+    p, v = agent.position(state), agent.velocity(state)
+    return agent.join(*hold_step(p, v, torch.zeros_like(v) if accel is None else accel, horizon))
 
 
 def observation_with_own_state(
     own: torch.Tensor, others: torch.Tensor, goals: torch.Tensor, neighbours: torch.Tensor, spec: ObservationSettings
 ) -> torch.Tensor:
     """Observations ``[S, N, D]`` in which agent i sees itself at ``own[:, i]`` and its neighbours
-    at ``others`` (both ``[S, N, 4]``); goals ``[S, N, 2]``, neighbour indices ``[S, N, n]``
+    at ``others`` (both ``[S, N, 2d]``); goals ``[S, N, d]``, neighbour indices ``[S, N, n]``
     (−1 = phantom). ``own = others`` gives ``build_observation(others, …)`` exactly."""
     if own.shape != others.shape:
         raise ValueError(f"own and others must have the same shape, got {tuple(own.shape)} and {tuple(others.shape)}")
@@ -49,8 +49,9 @@ def look_ahead_observation(
     spec: ObservationSettings, horizon: float,
 ) -> torch.Tensor:
     """Observations ``[S, N, D]`` τ = ``horizon`` s ahead: own state under ``last_command``
-    ``[S, N, 2]`` (None, e.g. at the first step: zero acceleration), the others' at constant
+    ``[S, N, d]`` (None, e.g. at the first step: zero acceleration), the others' at constant
     velocity."""
-    accel = torch.zeros_like(AGENT.velocity(state)) if last_command is None else last_command
-    return observation_with_own_state(predict_states(state, accel, horizon), predict_states(state, None, horizon),
+    agent = spec.agent
+    accel = torch.zeros_like(agent.velocity(state)) if last_command is None else last_command
+    return observation_with_own_state(predict_states(state, accel, horizon, agent), predict_states(state, None, horizon, agent),
                                       goals, neighbours, spec)

@@ -24,6 +24,15 @@ Extension, not in the paper: ``safety_filter`` passes the MAD-PINN control throu
 V_s (:mod:`madpinn.policies.safety_filter`, the filter SafeMARL uses), which changes it only
 where a pair's V_s would fall too fast. Off by default; run ``madpinn-filtered`` in config.yaml.
 
+Extension, not in the paper (issue 62): ``conformal`` deploys a calibrated safety level δ of V̂
+(:mod:`madpinn.value_functions.safety_level`): step 3 runs on V̂ + δ, so z* is the least grid z
+with ``V̂(0, o, z) ≤ −δ`` and an agent is infeasible where ``V̂(0, o, z_max) > −δ``; δ is read
+from the ``calibrate-vhat`` report of the loaded V̂ (``--model calibration=PATH``), one δ or one
+per closing-speed bin. The ``value`` neighbour ranking uses the same level: with one δ the order
+of the scores ``V_s − δ`` is the order of ``V_s`` (the plain ranking, exactly); per bin each pair
+is ranked by ``V_s − δ`` of its own closing-speed bin (:mod:`madpinn.policies.leveled_neighbours`).
+Absent (the default): δ = 0, this policy bit for bit.
+
 Deployment adaptation, not in the paper: ``look_ahead`` τ > 0 builds step 2's observation from
 the states predicted τ ahead (own state under the agent's last command, the others' at constant
 velocity; :mod:`madpinn.policies.look_ahead`), which compensates the drones' actuator lag.
@@ -37,7 +46,6 @@ from pathlib import Path
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.observation import ObservationSettings, build_observation
 from madpinn.policies.base import PolicyContext, register_policy
 from madpinn.policies.look_ahead import look_ahead_observation
@@ -64,7 +72,8 @@ class MadPinnSettings:
     τ ahead under its last command and the others' at constant velocity (0: the paper's policy,
     the measured state); vs_band: V_s clamped into its exact band [free-drift bound, ψ]
     (:meth:`madpinn.value_functions.PairValue.banded`, issue 37); infeasible: the control where no
-    budget is feasible (:data:`INFEASIBLE`)."""
+    budget is feasible (:data:`INFEASIBLE`); conformal: the calibrated safety level to deploy,
+    ``{distribution, epsilon, beta, binned}`` (None: δ = 0, the paper's rule)."""
 
     strategy: str
     update_every: int | None
@@ -76,6 +85,7 @@ class MadPinnSettings:
     look_ahead: float
     vs_band: bool
     infeasible: str
+    conformal: dict | None
 
     @classmethod
     def from_config(cls, mcfg: dict) -> "MadPinnSettings":
@@ -86,18 +96,20 @@ class MadPinnSettings:
                    pair_batch=int(mcfg["pair_batch"]), symmetry=str(mcfg["symmetry"]),
                    safety_filter=CBVFSettings.from_config(mcfg["safety_filter"]) if mcfg["safety_filter"] else None,
                    look_ahead=float(mcfg["look_ahead"]), vs_band=bool(mcfg["vs_band"]),
-                   infeasible=str(mcfg["infeasible"]))
+                   infeasible=str(mcfg["infeasible"]), conformal=dict(mcfg["conformal"]) if mcfg["conformal"] else None)
 
 
 def check_compatible(vhat, vs, spec: ObservationSettings, u_max: float) -> None:
     """Fail early when the trained models do not match the deployment configuration."""
     m = vhat.obs_spec
-    for name in ("n_neighbours", "goal_range", "offset_range", "collision_radius"):
+    for name in ("n_neighbours", "goal_range", "offset_range", "collision_radius", "model"):
         if getattr(m, name) != getattr(spec, name):
             raise ValueError(f"V̂ was trained with observation.{name} = {getattr(m, name)}, but the config has "
                              f"{getattr(spec, name)}; retrain V̂ or fix the config")
     if abs(vhat.system.u_max - u_max) > 1e-9:
         raise ValueError(f"V̂ was trained with u_max = {vhat.system.u_max}, config agents.u_max = {u_max}")
+    if vs is not None and vs.system.model != spec.model:
+        raise ValueError(f"V_s was trained for agents.model = {vs.system.model}, the config has {spec.model}; retrain V_s or fix the config")
     if vs is not None and abs(vs.collision_radius - spec.collision_radius) > 1e-9:
         raise ValueError(f"V_s was trained with collision radius {vs.collision_radius}, config has {spec.collision_radius}")
 
@@ -122,7 +134,7 @@ class MadPinnPolicy:
         self._k_last: torch.Tensor | None = None   # last two answers' grid indices (warm start)
         self._k_before: torch.Tensor | None = None
         self._next_update = 0
-        self._u_last: torch.Tensor | None = None   # last command [S, N, 2] (look-ahead)
+        self._u_last: torch.Tensor | None = None   # last command [S, N, d] (look-ahead)
         self.last_search = None   # ZSearchResult of the last step (diagnostics)
         self.stats: dict = {}
 
@@ -156,12 +168,13 @@ class MadPinnPolicy:
 
     def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
         S, N, _ = state.shape
+        agent = self.spec.agent
         x = state.to(device=self.device, dtype=self.dtype)
         g = goals.to(device=self.device, dtype=self.dtype)
         self._update_neighbours(x, int(round(t / self.sim_dt)))
         tau = self.settings.look_ahead
         if tau > 0.0:
-            u_last = self._u_last if self._u_last is not None and self._u_last.shape == AGENT.velocity(x).shape else None
+            u_last = self._u_last if self._u_last is not None and self._u_last.shape == agent.velocity(x).shape else None
             obs = look_ahead_observation(x, u_last, g, self.neighbours, self.spec, tau)
         else:
             obs = build_observation(x, g, self.neighbours, self.spec)
@@ -177,7 +190,7 @@ class MadPinnPolicy:
         z, feasible = r.z, r.feasible
         u = self.vhat.system.optimal_control(r.grad, obs)[:, 0]
         if self.settings.infeasible == "brake":
-            brake = -self.vhat.system.u_max * torch.sign(AGENT.velocity(x).reshape(S * N, -1))
+            brake = -self.vhat.system.u_max * torch.sign(agent.velocity(x).reshape(S * N, -1))
             u = torch.where(feasible.unsqueeze(-1), u, brake)
         st = self.stats
         st["policy_steps"] += 1
@@ -187,7 +200,7 @@ class MadPinnPolicy:
         st["warm_hits"] += int(r.hit.sum())
         st["vhat_value_rows"] += r.value_rows
         st["vhat_grad_rows"] += r.grad_rows
-        self._u_last = u.reshape(S, N, AGENT.control_dim)
+        self._u_last = u.reshape(S, N, agent.control_dim)
         return self._u_last.to(device=state.device, dtype=state.dtype)
 
 
@@ -221,7 +234,12 @@ def make_madpinn(ctx: PolicyContext) -> MadPinnPolicy | FilteredMadPinnPolicy:
     check_compatible(vhat, vs, ctx.obs_spec, ctx.dynamics.u_max)
     gen = torch.Generator(device=ctx.device).manual_seed(int(ctx.seed))
     selector = make_selector(settings.strategy, ctx.obs_spec.n_neighbours, vs=vs, radius=ctx.obs_spec.sensing_radius,
-                             generator=gen, chunk=settings.pair_batch)
+                             generator=gen, chunk=settings.pair_batch, agent=ctx.obs_spec.agent)
+    if settings.conformal is not None:   # issue 62: the calibrated level (module docstring)
+        from madpinn.policies.leveled_neighbours import deploy_level
+
+        vhat, selector = deploy_level(vhat, selector, settings.strategy, vs, ctx.model("calibration", "madpinn"),
+                                      settings.conformal, ctx.obs_spec, settings.pair_batch)
     policy = MadPinnPolicy(vhat, selector, ctx.obs_spec, settings, ctx.sim_dt)
     if settings.safety_filter is None:
         return policy

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import AgentModel
+from madpinn.dynamics import PAPER_MODEL, AgentModel
 from madpinn.observation import ObservationSettings, build_observation, nearest_neighbours, split_observation
 from madpinn.policies.base import PolicyContext, register_policy
 
@@ -120,6 +120,9 @@ class MPPIPlanner:
     def __init__(self, params: MPPISettings, dynamics: AgentModel, collision_radius: float,
                  generator: torch.Generator):
         dynamics.require_uniform_bounds("MPPI")   # its samples are [B = S·N, K, m]: no agent axis to broadcast over
+        if dynamics.name != PAPER_MODEL:   # its cost core is written on x / y (px, py, hypot)
+            raise ValueError(f"MPPI plans for the paper's planar {PAPER_MODEL} agents, not {dynamics.name} "
+                             "(its rollout and cost core are written per x / y axis)")
         self.p = params
         self.dynamics = dynamics
         self.r = float(collision_radius)
@@ -212,7 +215,7 @@ class MPPIPolicy:
     def act(self, state: torch.Tensor, goals: torch.Tensor, t: float) -> torch.Tensor:
         S, N, _ = state.shape
         n = self.spec.n_neighbours
-        nbr = nearest_neighbours(state, n, radius=self.spec.sensing_radius)
+        nbr = nearest_neighbours(self.dynamics.position(state), n, radius=self.spec.sensing_radius)
         obs = build_observation(state, goals, nbr, self.spec)
         positions, velocities, goals_rel = split_observation(obs, n)  # [S, N, n+1, d] each
         d = self.dynamics.position_dim

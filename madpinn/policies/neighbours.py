@@ -42,7 +42,7 @@ from typing import Callable
 
 import torch
 
-from madpinn.dynamics import AGENT
+from madpinn.dynamics import AgentModel
 from madpinn.dynamics.pair import free_drift_and_grad
 from madpinn.observation import PHANTOM, nearest_neighbours, pairwise_distances
 
@@ -90,15 +90,16 @@ def _lexicographic_topk(scores: torch.Tensor, k: int) -> torch.Tensor:
 
 
 def relative_states(state: torch.Tensor) -> torch.Tensor:
-    """All ordered pair states ``x_ij = s_i − s_j`` ``[S, N, N, 4]`` (row i = ego)."""
+    """All ordered pair states ``x_ij = s_i − s_j`` ``[S, N, N, n]`` (row i = ego)."""
     return state.unsqueeze(2) - state.unsqueeze(1)
 
 
-def in_domain(state: torch.Tensor, p_range: float, v_range: float, radius: float | None = None) -> torch.Tensor:
-    """``[S, N, N]`` bool: pair state inside the V_s training box and, with ``radius`` (m), partner
-    within the sensing radius (``d_ij ≤ radius``); self-pairs excluded."""
+def in_domain(state: torch.Tensor, p_range: float, v_range: float, agent: type[AgentModel],
+              radius: float | None = None) -> torch.Tensor:
+    """``[S, N, N]`` bool: pair state of agents of model ``agent`` inside the V_s training box and,
+    with ``radius`` (m), partner within the sensing radius (``d_ij ≤ radius``); self-pairs excluded."""
     S, N, _ = state.shape
-    p, v = AGENT.position(state), AGENT.velocity(state)
+    p, v = agent.position(state), agent.velocity(state)
     ok = ((p.unsqueeze(2) - p.unsqueeze(1)).abs() <= p_range).all(-1)
     ok &= ((v.unsqueeze(2) - v.unsqueeze(1)).abs() <= v_range).all(-1)
     if radius is not None:
@@ -110,7 +111,7 @@ ROW_MULTIPLE = 16  # network calls get a multiple of this many rows (padded): se
 
 
 def _vs_in_chunks(vs, x: torch.Tensor, chunk: int) -> torch.Tensor:
-    """V_s(x, 0) ``[B]`` for pair states ``[B, 4]``, ``chunk`` states per network call.
+    """V_s(x, 0) ``[B]`` for pair states ``[B, 2d]``, ``chunk`` states per network call.
 
     Every call is padded to a multiple of :data:`ROW_MULTIPLE` rows (repeating its last state):
     CPU GEMM kernels compute the rows of a ragged tail by a different code path, whose result can
@@ -136,16 +137,16 @@ def pair_scores_brute_force(state: torch.Tensor, vs, chunk: int = 65536, radius:
     """Reference definition: V_s on all ``S·N·(N−1)`` ordered pairs, ``+∞`` out of domain or
     beyond ``radius`` ``[S, N, N]``."""
     S, N, _ = state.shape
-    x = relative_states(state).reshape(-1, AGENT.state_dim)
+    x = relative_states(state).reshape(S * N * N, -1)
     values = _vs_in_chunks(vs, x, chunk).reshape(S, N, N)
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, vs.system.agent, radius)
     return values.masked_fill(~mask, float("inf"))
 
 
 def pair_scores(state: torch.Tensor, vs, chunk: int = 65536, radius: float | None = None) -> torch.Tensor:
     """Same scores as :func:`pair_scores_brute_force`, evaluating V_s only on in-domain pairs."""
     S, N, _ = state.shape
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, vs.system.agent, radius)
     s_idx, i_idx, j_idx = mask.nonzero(as_tuple=True)
     x = state[s_idx, i_idx] - state[s_idx, j_idx]
     scores = torch.full((S, N, N), float("inf"), dtype=state.dtype, device=state.device)
@@ -153,10 +154,11 @@ def pair_scores(state: torch.Tensor, vs, chunk: int = 65536, radius: float | Non
     return scores
 
 
-def free_drift_lower_bound(x: torch.Tensor, horizon: float, radius: float) -> torch.Tensor:
-    """``min_{τ∈[0,T]} ‖p + v·τ‖ − r`` ``[B]`` for pair states ``x [B, 4]``: the pair's safety
-    margin with no relative control (:func:`madpinn.dynamics.pair.free_drift_and_grad`)."""
-    return free_drift_and_grad(x, horizon, radius)[0]
+def free_drift_lower_bound(x: torch.Tensor, horizon: float, radius: float, agent: type[AgentModel]) -> torch.Tensor:
+    """``min_{τ∈[0,T]} ‖p + v·τ‖ − r`` ``[B]`` for pair states ``x [B, 2d]`` of agents of model
+    ``agent``: the pair's safety margin with no relative control
+    (:func:`madpinn.dynamics.pair.free_drift_and_grad`)."""
+    return free_drift_and_grad(x, horizon, radius, agent)[0]
 
 
 @dataclass(frozen=True)
@@ -170,9 +172,9 @@ class DriftMargins:
     edges: tuple[float, ...]
     margins: tuple[float, ...]
 
-    def of(self, x: torch.Tensor) -> torch.Tensor:
-        """Margin ``[B]`` (m) of pair states ``x [B, 4]``."""
-        speed = torch.linalg.vector_norm(AGENT.velocity(x), dim=-1)
+    def of(self, x: torch.Tensor, agent: type[AgentModel]) -> torch.Tensor:
+        """Margin ``[B]`` (m) of pair states ``x [B, 2d]`` of agents of model ``agent``."""
+        speed = torch.linalg.vector_norm(agent.velocity(x), dim=-1)
         edges = torch.tensor(self.edges, dtype=x.dtype, device=x.device)
         b = torch.bucketize(speed, edges).clamp(max=len(self.margins) - 1)
         return torch.tensor(self.margins, dtype=x.dtype, device=x.device)[b]
@@ -193,10 +195,10 @@ def calibrate_drift_margins(vs, samples: int = MARGIN_SAMPLES, seed: int = MARGI
     system = vs.system
     g = torch.Generator().manual_seed(seed)
     x = system.sample(samples, g, dtype=torch.float64).to(torch.float32)
-    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius) - _vs_in_chunks(vs, x, chunk).to("cpu", x.dtype)
+    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius, system.agent) - _vs_in_chunks(vs, x, chunk).to("cpu", x.dtype)
     top = float(system.v_range) * 2**0.5
     edges = torch.linspace(0.0, top, bins + 1)[1:]
-    b = torch.bucketize(torch.linalg.vector_norm(AGENT.velocity(x), dim=-1), edges).clamp(max=bins - 1)
+    b = torch.bucketize(torch.linalg.vector_norm(system.agent.velocity(x), dim=-1), edges).clamp(max=bins - 1)
     worst = torch.full((bins,), 0.0).scatter_reduce(0, b, excess.clamp_min(0.0), reduce="amax")
     worst = torch.cummax(worst, 0).values
     return DriftMargins(tuple(edges.tolist()), tuple((factor * worst + pad).tolist()))
@@ -221,7 +223,7 @@ def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, 
     ``in_domain`` and ``evaluated`` pairs. ``radius``: only sensed partners are in the domain.
     """
     S, N, _ = state.shape
-    mask = in_domain(state, vs.system.p_range, vs.system.v_range, radius)
+    mask = in_domain(state, vs.system.p_range, vs.system.v_range, vs.system.agent, radius)
     s_idx, i_idx, j_idx = mask.nonzero(as_tuple=True)
     x = state[s_idx, i_idx] - state[s_idx, j_idx]
     P = x.shape[0]
@@ -230,7 +232,8 @@ def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, 
         return scores
     r = vs.collision_radius
     psi = torch.full((S, N, N), float("inf"), dtype=state.dtype, device=state.device)
-    psi[s_idx, i_idx, j_idx] = torch.linalg.vector_norm(AGENT.position(x), dim=-1) - r
+    agent = vs.system.agent
+    psi[s_idx, i_idx, j_idx] = torch.linalg.vector_norm(agent.position(x), dim=-1) - r
     k = min(n, N)
     psi_k, first = torch.topk(psi, k, dim=-1, largest=False)           # [S, N, k]
     pos = torch.full((S, N, N), -1, dtype=torch.long, device=state.device)
@@ -241,7 +244,7 @@ def pair_scores_bounded(state: torch.Tensor, vs, n: int, margins: DriftMargins, 
     full = torch.isfinite(psi_k).all(-1) if k == n else torch.zeros((S, N), dtype=torch.bool, device=state.device)
     tau_ego = torch.where(full, values[torch.gather(pos, -1, first).clamp_min(0)].amax(-1),
                           torch.full((S, N), float("inf"), dtype=state.dtype, device=state.device))
-    lower = free_drift_lower_bound(x, vs.horizon, r) - margins.of(x)
+    lower = free_drift_lower_bound(x, vs.horizon, r, agent) - margins.of(x, agent)
     todo = lower <= tau_ego[s_idx, i_idx]
     todo[first_pos] = False
     rest = todo.nonzero(as_tuple=True)[0]
@@ -266,17 +269,17 @@ def value_selector(vs, n: int, chunk: int = 65536, pruned: bool = True, bounded:
     return lambda state: select_lowest(scorer(state, vs, chunk, radius=radius), n, exact_ties=True)
 
 
-def nearest_selector(n: int, radius: float | None = None) -> Selector:
+def nearest_selector(n: int, agent: type[AgentModel], radius: float | None = None) -> Selector:
     """``nearest`` strategy: the n nearest other agents within ``radius`` (m; None: any distance)."""
-    return lambda state: nearest_neighbours(state, n, radius=radius)
+    return lambda state: nearest_neighbours(agent.position(state), n, radius=radius)
 
 
-def random_selector(n: int, radius: float, generator: torch.Generator) -> Selector:
+def random_selector(n: int, radius: float, generator: torch.Generator, agent: type[AgentModel]) -> Selector:
     """``random`` strategy: n agents drawn uniformly without replacement among those within
     ``radius`` (m) of the ego; fewer -> phantoms. Draws from ``generator`` (seeded per job)."""
 
     def select(state: torch.Tensor) -> torch.Tensor:
-        d = pairwise_distances(AGENT.position(state))
+        d = pairwise_distances(agent.position(state))
         keys = torch.rand(d.shape, generator=generator, device=generator.device, dtype=state.dtype).to(state.device)
         return select_lowest(keys.masked_fill(d > radius, float("inf")), n)
 
@@ -284,17 +287,23 @@ def random_selector(n: int, radius: float, generator: torch.Generator) -> Select
 
 
 def make_selector(strategy: str, n: int, *, vs=None, radius: float | None = None,
-                  generator: torch.Generator | None = None, chunk: int = 65536) -> Selector:
+                  generator: torch.Generator | None = None, chunk: int = 65536,
+                  agent: type[AgentModel] | None = None) -> Selector:
     """Build the selector of ``strategy`` (one of :data:`STRATEGIES`); every strategy reads only
-    the agents within the sensing ``radius`` (m)."""
+    the agents within the sensing ``radius`` (m). The states it reads have the layout of ``agent``
+    (the agents' model class), or of V_s's model where ``agent`` is not given."""
+    if agent is None and vs is not None:
+        agent = vs.system.agent
+    if agent is None and strategy in STRATEGIES and strategy != "value":
+        raise ValueError(f"the '{strategy}' neighbour strategy needs the agents' model (agent=) or V_s")
     if strategy == "value":
         if vs is None:
             raise ValueError("the 'value' neighbour strategy needs the pairwise safety value V_s")
         return value_selector(vs, n, chunk, radius=radius)
     if strategy == "nearest":
-        return nearest_selector(n, radius)
+        return nearest_selector(n, agent, radius)
     if strategy == "random":
         if radius is None or generator is None:
             raise ValueError("the 'random' neighbour strategy needs a sensing radius and a torch.Generator")
-        return random_selector(n, radius, generator)
+        return random_selector(n, radius, generator, agent)
     raise ValueError(f"unknown neighbour strategy '{strategy}' (have {STRATEGIES})")

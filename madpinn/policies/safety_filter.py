@@ -37,7 +37,6 @@ from typing import Mapping
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.observation import gather_agents, nearest_neighbours
 from madpinn.policies.base import Policy
 from madpinn.policies.cbvf_qp import solve_box_qp
@@ -60,6 +59,8 @@ class CBVFFilter:
 
     def __init__(self, vs, u_max: float, gamma: float, critical: int, candidates: int, threshold: float, sensing_radius: float,
                  neighbour_control: str = "zero", coordination_range: float | None = None):
+        if not isinstance(u_max, (int, float)):   # its QP and fallback hold one box; V_s is trained for one u_max
+            raise ValueError(f"the CBVF filter needs one u_max for all agents, got {u_max}")
         if critical > candidates:
             raise ValueError(f"critical_neighbours ({critical}) must not exceed candidates ({candidates})")
         if neighbour_control not in self.NEIGHBOUR_CONTROLS:
@@ -79,46 +80,49 @@ class CBVFFilter:
         self.stats = FilterStats()
 
     def constraint_rows(self, state: torch.Tensor, u_nom: torch.Tensor | None = None):
-        """state ``[S, N, 4]`` (and, for ``neighbour_control = "joint"``, the clipped nominal controls
-        ``u_nom [S, N, 2]`` of all agents) -> ``a [S, N, k, 2]``, ``b [S, N, k]``, ``active [S, N, k]``,
-        ``V [S, N, k]``, ``dV/dv [S, N, k, 2]``, rows sorted by increasing V_s (most critical first);
+        """state ``[S, N, 2d]`` (V_s's agent model's layout; and, for ``neighbour_control = "joint"``,
+        the clipped nominal controls ``u_nom [S, N, d]`` of all agents) -> ``a [S, N, k, d]``,
+        ``b [S, N, k]``, ``active [S, N, k]``, ``V [S, N, k]``, ``dV/dv [S, N, k, d]``, rows sorted by increasing V_s (most critical first);
         ``active`` is False for empty slots and for every row of an agent gated by ``coordination_range``."""
-        S, N, _ = state.shape
-        idx = nearest_neighbours(state, self.candidates, radius=self.sensing_radius)  # [S, N, C]
+        S, N, n = state.shape
+        agent = self.vs.system.agent
+        if n != agent.state_dim:
+            raise ValueError(f"state must be [S, N, {agent.state_dim}] (V_s's {agent.name}), got {tuple(state.shape)}")
+        idx = nearest_neighbours(agent.position(state), self.candidates, radius=self.sensing_radius)  # [S, N, C]
         real = idx >= 0
-        x_rel = state.unsqueeze(2) - gather_agents(state, idx.clamp_min(0))  # [S, N, C, 4]
+        x_rel = state.unsqueeze(2) - gather_agents(state, idx.clamp_min(0))  # [S, N, C, 2d]
         if self.coordination_range is not None:  # gate on the nearest neighbour's distance
-            dist = AGENT.position(x_rel).norm(dim=-1).masked_fill(~real, float("inf"))
+            dist = agent.position(x_rel).norm(dim=-1).masked_fill(~real, float("inf"))
             real = real & (dist.amin(-1, keepdim=True) <= self.coordination_range)
         C = idx.shape[-1]
-        v_all = self.vs.value(x_rel.reshape(-1, AGENT.state_dim), t=0.0).reshape(S, N, C)
+        v_all = self.vs.value(x_rel.reshape(-1, n), t=0.0).reshape(S, N, C)
         v_all = v_all.masked_fill(~real, float("inf"))
         k = min(self.critical, C)
         _, order = torch.topk(v_all, k, dim=-1, largest=False)  # [S, N, k]
         active = torch.gather(real, 2, order)
-        x_k = torch.gather(x_rel, 2, order.unsqueeze(-1).expand(S, N, k, AGENT.state_dim))
-        V, dV = self.vs.value_and_grad(x_k.reshape(-1, AGENT.state_dim), t=0.0)
+        x_k = torch.gather(x_rel, 2, order.unsqueeze(-1).expand(S, N, k, n))
+        V, dV = self.vs.value_and_grad(x_k.reshape(-1, n), t=0.0)
         V = V.reshape(S, N, k).to(state.dtype)
-        dV = dV.reshape(S, N, k, AGENT.state_dim).to(state.dtype)
-        a = AGENT.velocity(dV)                                       # Bᵀ∇V_s: u_i enters v_i
-        b = -self.gamma * V - (AGENT.position(dV) * AGENT.velocity(x_k)).sum(-1)   # −γV − ⟨∇V_s, w(x)⟩
+        dV = dV.reshape(S, N, k, n).to(state.dtype)
+        a = agent.velocity(dV)                                       # Bᵀ∇V_s: u_i enters v_i
+        b = -self.gamma * V - (agent.position(dV) * agent.velocity(x_k)).sum(-1)   # −γV − ⟨∇V_s, w(x)⟩
         if self.neighbour_control == "joint":
             if u_nom is None:
-                raise ValueError("neighbour_control 'joint' needs the nominal controls u_nom [S, N, 2] of all agents")
+                raise ValueError("neighbour_control 'joint' needs the nominal controls u_nom [S, N, d] of all agents")
             j = torch.gather(idx.clamp_min(0), 2, order)  # [S, N, k] neighbour indices
-            u_j = gather_agents(u_nom, j).to(state.dtype)  # [S, N, k, 2]
+            u_j = gather_agents(u_nom, j).to(state.dtype)  # [S, N, k, d]
             b = 0.5 * (b + (a * (u_nom.unsqueeze(2).to(state.dtype) + u_j)).sum(-1))
         return a, b, active, V, a
 
     def __call__(self, state: torch.Tensor, u_nom: torch.Tensor) -> torch.Tensor:
-        """state ``[S, N, 4]``, nominal controls ``[S, N, 2]`` -> filtered controls ``[S, N, 2]`` (in the box)."""
+        """state ``[S, N, 2d]``, nominal controls ``[S, N, d]`` -> filtered controls ``[S, N, d]`` (in the box)."""
         S, N, _ = state.shape
         u_nom = u_nom.clamp(-self.u_max, self.u_max)
         if N < 2:
             return u_nom
         a, b, active, V, grad_v = self.constraint_rows(state, u_nom)
         k = a.shape[2]
-        m = AGENT.control_dim
+        m = self.vs.system.agent.control_dim
         u, feasible = solve_box_qp(u_nom.reshape(-1, m), a.reshape(-1, k, m), b.reshape(-1, k), self.u_max, active.reshape(-1, k))
         u, feasible = u.reshape(S, N, m), feasible.reshape(S, N)
         any_nbr = active[..., 0]

@@ -1,9 +1,10 @@
 """Simulation backends. Every backend steps all scenarios × agents at once and exposes the
-planar state ``[S, N, 4] = [x, y, vx, vy]`` (m, m/s) after each simulation step of ``dt`` s.
+state ``[S, N, 2d]`` of its agent model ``dynamics`` (planar: ``[x, y, vx, vy]``, m, m/s) after
+each simulation step of ``dt`` s.
 
 Protocol (see :class:`SimBackend`): ``reset(starts, velocities)`` -> state; ``command(accel,
-duration)`` sets the policy acceleration ``[S, N, 2]`` (m/s²) held for ``duration`` s (one policy
-step); ``step()`` advances ``dt`` and returns the new planar state.
+duration)`` sets the policy acceleration ``[S, N, d]`` (m/s²) held for ``duration`` s (one policy
+step); ``step()`` advances ``dt`` and returns the new state.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ if TYPE_CHECKING:
 
 class SimBackend(Protocol):
     dt: float
+    dynamics: AgentModel
+    """the agents' model: the layout of the states the backend returns"""
 
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor: ...
 

@@ -27,7 +27,7 @@ class EpisodeResult:
     radius ρ gives the agents a simulation recorded at ρ would call collided (:func:`safe_at`).
     collision_radius: r (m) of ``collided``, or one per agent (a pair collides within the mean of its two).
     final_distance: ``[S, N]`` distance to goal at the final time (m).
-    times: ``[T']`` (s) and positions ``[T', S, N, 2]`` (m) of the decimated trajectory.
+    times: ``[T']`` (s) and positions ``[T', S, N, d]`` (m) of the decimated trajectory.
     encounter_speed: ``[S, N]`` relative speed ‖v_i − v_j‖ (m/s) to the nearest agent j at agent i's
     first collision, or, for an agent that never collides, at its closest approach (the speed of
     its hardest encounter; the *closing* speed −d‖p_i − p_j‖/dt is zero at a smooth closest
@@ -115,8 +115,7 @@ class EpisodeRecorder:
             self._times.append(self._step * self.dt)
             self._positions.append(final_positions.detach().cpu().numpy().copy())
         cost = self.integral + self._last_dist
-        S, N, _ = self.goals.shape
-        positions = np.stack(self._positions) if self._positions else np.zeros((0, S, N, 2))
+        positions = np.stack(self._positions) if self._positions else np.zeros((0, *self.goals.shape))
         return EpisodeResult(
             cost=cost.cpu().numpy(),
             collided=self.collided.cpu().numpy(),

@@ -7,7 +7,6 @@ import time
 import torch
 from tqdm.auto import tqdm
 
-from madpinn.dynamics import AGENT
 from madpinn.dynamics.agent_model import Bound
 from madpinn.simulation.backend import SimBackend
 from madpinn.simulation.recorder import EpisodeRecorder, EpisodeResult
@@ -30,10 +29,12 @@ def run_episode(
 
     The policy (``reset(state, goals)``, ``act(state, goals, t) -> accel [S, N, m]``) is queried
     every ``policy_period`` simulation steps. ``collision_radius``: r (m) or one per agent;
-    ``horizon_steps``: steps at which the cost so far is also kept (``EpisodeResult.cost_at``).
+    ``horizon_steps``: steps at which the cost so far is also kept (``EpisodeResult.cost_at``). The
+    state layout (d, positions) is the backend's agent model's (``backend.dynamics``).
     Returns the episode result and timing statistics.
     """
-    d = AGENT.position_dim
+    agent = backend.dynamics
+    d = agent.position_dim
     if starts.shape != goals.shape or starts.dim() != 3 or starts.shape[-1] != d:
         raise ValueError(f"starts and goals must both be [S, N, {d}], got {tuple(starts.shape)} and {tuple(goals.shape)}")
     if n_steps < 1 or policy_period < 1:
@@ -42,7 +43,7 @@ def run_episode(
     state = backend.reset(starts, torch.zeros_like(starts))
     policy.reset(state, goals)
     rec = EpisodeRecorder(goals, dt, collision_radius, record_every, horizon_steps)
-    rec.update(AGENT.position(state), AGENT.velocity(state))
+    rec.update(agent.position(state), agent.velocity(state))
     policy_time = 0.0
     t0 = time.perf_counter()
     with torch.no_grad():
@@ -53,9 +54,9 @@ def run_episode(
                 policy_time += time.perf_counter() - tp
                 backend.command(accel, policy_period * dt)
             state = backend.step()
-            rec.update(AGENT.position(state), AGENT.velocity(state))
+            rec.update(agent.position(state), agent.velocity(state))
     wall = time.perf_counter() - t0
-    result = rec.finish(AGENT.position(state))
+    result = rec.finish(agent.position(state))
     S, N, _ = starts.shape
     stats = {
         "wall_s": wall,

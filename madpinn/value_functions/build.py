@@ -5,7 +5,7 @@ Light at import (no torch): the command line's parser and the workflow's parse-t
 
 from __future__ import annotations
 
-from madpinn.config import config_hash
+from madpinn.config import config_hash, hashed_agents
 
 KINDS = ("vhat", "vs")
 """value functions: V̂ (epigraph PINN) and V_s (pairwise safety)"""
@@ -42,5 +42,5 @@ def training_hash(cfg: dict, kind: str, schedule_only: bool = False) -> str:
     vcfg = {k: v for k, v in cfg["value_functions"][kind].items()
             if k != "validation" and not (schedule_only and k == "stop_at")}
     observation = {k: v for k, v in cfg["observation"].items() if k not in DEPLOYMENT_ONLY_KEYS}   # deployment-only keys do not retrain
-    return config_hash({"kind": kind, "agents": cfg["agents"], "observation": observation, "vf": vcfg,
+    return config_hash({"kind": kind, "agents": hashed_agents(cfg["agents"]), "observation": observation, "vf": vcfg,
                         "seed": cfg["value_functions"]["seed"], "dtype": cfg["dtype"]})

@@ -1,9 +1,10 @@
 """Decentralized (n+1)-agent epigraph system over the ego-centric observation plus z (SPEC §4).
 
 Augmented state ``ô = [o, z]`` with ``o`` in the :mod:`madpinn.observation` layout
-(``D = 4 + 6n``, offsets relative to the ego position) and the cost budget ``z`` (cost units, m·s
-for the running part plus m for the terminal part). Every agent is a planar double integrator
-with ``u_a ∈ [-u_max, u_max]²``. In observation coordinates (ego at the origin)::
+(``D = 2d + 3d·n``, d the agent model's position axes: 4 + 6n for the paper's planar model;
+offsets relative to the ego position) and the cost budget ``z`` (cost units, m·s
+for the running part plus m for the terminal part). Every agent is a double integrator
+with ``u_a ∈ [-u_max, u_max]^d`` (a 3-D model's altitude band is not part of the system). In observation coordinates (ego at the origin)::
 
     d/dt v_ego            = u_0
     d/dt (g_ego − p_ego)  = −v_ego
@@ -37,13 +38,8 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.dynamics.system import BoxControlSystem
 from madpinn.observation import (
-    EGO_DIM,
-    EGO_VELOCITY,
-    NEIGHBOUR_DIM,
-    NEIGHBOUR_VELOCITY,
     ObservationSettings,
     constraint,
     running_cost,
@@ -87,13 +83,15 @@ class EpigraphSystem(BoxControlSystem):
 
     def velocity_index(self) -> torch.Tensor:
         """Indices ``[n+1, d]`` of each agent's velocity inside the observation."""
-        ego = torch.arange(EGO_DIM)[EGO_VELOCITY]
-        nbr = [EGO_DIM + NEIGHBOUR_DIM * j + torch.arange(NEIGHBOUR_DIM)[NEIGHBOUR_VELOCITY] for j in range(self.spec.n_neighbours)]
+        lay = self.spec.layout
+        ego = torch.arange(lay.ego_dim)[lay.ego_velocity]
+        nbr = [lay.ego_dim + lay.neighbour_dim * j + torch.arange(lay.neighbour_dim)[lay.neighbour_velocity]
+               for j in range(self.spec.n_neighbours)]
         return torch.stack([ego, *nbr])
 
     def half_widths(self) -> torch.Tensor:
         """Per-coordinate half width ``[D]`` of the symmetric observation domain (m, m/s)."""
-        s, d = self.spec, AGENT.position_dim
+        s, d = self.spec, self.spec.layout.d
         nbr = [s.offset_range] * d + [self.v_max] * d + [s.goal_range] * d
         return torch.tensor([self.v_max] * d + [s.goal_range] * d + nbr * s.n_neighbours, dtype=torch.float64)
 
@@ -105,7 +103,7 @@ class EpigraphSystem(BoxControlSystem):
         ``√d·goal_range``; neighbour: ``√d·(goal_range + offset_range)``) plus its largest
         displacement ``√d·(v_max·T + u_max·T²/2)``; the cost is ``(T + 1)`` times the sum.
         """
-        diagonal = math.sqrt(float(AGENT.position_dim))   # per-coordinate bounds -> Euclidean
+        diagonal = math.sqrt(float(spec.layout.d))   # per-coordinate bounds -> Euclidean
         move = diagonal * (v_max * horizon + 0.5 * u_max * horizon**2)
         ego = diagonal * spec.goal_range + move
         nbr = diagonal * (spec.goal_range + spec.offset_range) + move

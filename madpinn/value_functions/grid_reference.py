@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from madpinn.dynamics import AGENT
+from madpinn.dynamics import PAPER_MODEL
 from madpinn.dynamics.pair import PairSystem
 
 
@@ -106,13 +106,17 @@ def solve_pair_grid(system: PairSystem, nodes: int, p_range: float, v_range: flo
     import jax.numpy as jnp
     import hj_reachability as hj
 
+    if system.model != PAPER_MODEL:
+        raise ValueError(f"the grid reference solves the planar pair ({PAPER_MODEL}, a 4-D grid); the pair of "
+                         f"{system.model} is beyond it: check its V_s on rollouts (validate-vs) instead")
+    agent = system.agent
     times = tuple(sorted({float(t) for t in times}, reverse=True))
     if any(not 0.0 <= t < system.horizon for t in times):
         raise ValueError(f"grid times must lie in [0, T = {system.horizon}), got {times}")
-    lo = np.array([-p_range] * AGENT.position_dim + [-v_range] * AGENT.position_dim)
+    lo = np.array([-p_range] * agent.position_dim + [-v_range] * agent.position_dim)
     grid = hj.Grid.from_lattice_parameters_and_boundary_conditions(hj.sets.Box(jnp.array(lo), jnp.array(-lo)),
-                                                                   (nodes,) * AGENT.state_dim)
-    psi = jnp.linalg.norm(grid.states[..., AGENT.position_slice()], axis=-1) - system.collision_radius
+                                                                   (nodes,) * agent.state_dim)
+    psi = jnp.linalg.norm(grid.states[..., agent.position_slice()], axis=-1) - system.collision_radius
     settings = hj.SolverSettings.with_accuracy(accuracy, value_postprocessor=lambda t, v: jnp.minimum(v, psi))
     hj_times = jnp.array([0.0] + [t - system.horizon for t in times])      # backward: s = t − T
     t0 = time.perf_counter()

@@ -17,6 +17,7 @@ from dataclasses import asdict
 
 import torch
 
+from madpinn.dynamics import PAPER_MODEL
 from madpinn.value_functions.epigraph import EpigraphSystem
 from madpinn.dynamics.pair import PairSystem
 from madpinn.observation import TRAINING_MAPPING, ObservationSettings
@@ -128,14 +129,14 @@ class EpigraphProblem(PINNProblem):
 
     def describe(self) -> dict:
         sy = self.system
-        d = {"spec": asdict(sy.spec), "u_max": sy.u_max, "v_max": sy.v_max, "horizon": sy.horizon, "z_max": sy.z_max}
+        d = {"spec": _without_paper_model(asdict(sy.spec)), "u_max": sy.u_max, "v_max": sy.v_max, "horizon": sy.horizon, "z_max": sy.z_max}
         if sy.velocity_saturation:   # absent = the unbounded dynamics of every earlier checkpoint
             d["velocity_saturation"] = True
         return d
 
     @classmethod
     def from_description(cls, d: dict) -> "EpigraphProblem":
-        return cls(EpigraphSystem(spec=ObservationSettings(**{**TRAINING_MAPPING, **d["spec"]}), u_max=d["u_max"], v_max=d["v_max"],
+        return cls(EpigraphSystem(spec=ObservationSettings(**{**TRAINING_MAPPING, "model": PAPER_MODEL, **d["spec"]}), u_max=d["u_max"], v_max=d["v_max"],
                                   horizon=d["horizon"], z_max=d["z_max"], velocity_saturation=bool(d.get("velocity_saturation", False))))
 
 
@@ -162,8 +163,8 @@ class PairProblem(PINNProblem):
         sy = self.system
         s = self.sample_states(batch, generator, dtype)
         if self.conflict is not None:
-            s = place_pair_conflicts(s, sy.horizon, sy.p_range, self.conflict, generator, v_range=sy.v_range)
-        return s if self.near is None else place_near(s, sy.p_range, sy.v_range, self.near, generator)
+            s = place_pair_conflicts(s, sy.horizon, sy.p_range, self.conflict, generator, sy.agent, v_range=sy.v_range)
+        return s if self.near is None else place_near(s, sy.p_range, sy.v_range, self.near, generator, sy.agent)
 
     def boundary_and_grad(self, s):
         return self.system.target_and_grad(s)
@@ -176,11 +177,18 @@ class PairProblem(PINNProblem):
         return torch.relu(value - self.system.target(s))
 
     def describe(self) -> dict:
-        return asdict(self.system)
+        return _without_paper_model(asdict(self.system))
 
     @classmethod
     def from_description(cls, d: dict) -> "PairProblem":
-        return cls(PairSystem(**d))
+        return cls(PairSystem(**{"model": PAPER_MODEL, **d}))
+
+
+def _without_paper_model(d: dict) -> dict:
+    """A description without its ``model`` when that is the paper's planar model: descriptions
+    written before agent models had names (every checkpoint so far) stay equal; absent reads as
+    :data:`~madpinn.dynamics.PAPER_MODEL`."""
+    return {k: v for k, v in d.items() if not (k == "model" and v == PAPER_MODEL)}
 
 
 PROBLEMS = {"vhat": EpigraphProblem, "vs": PairProblem}

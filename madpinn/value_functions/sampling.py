@@ -22,15 +22,8 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import AGENT
-from madpinn.observation import (
-    EGO_DIM,
-    EGO_VELOCITY,
-    NEIGHBOUR_DIM,
-    NEIGHBOUR_POSITION,
-    NEIGHBOUR_VELOCITY,
-    split_observation,
-)
+from madpinn.dynamics import AgentModel
+from madpinn.observation import ObservationLayout, split_observation
 
 
 @dataclass(frozen=True)
@@ -69,9 +62,16 @@ class ConflictSamplingSettings:
                    closing_speed=None if speed is None else tuple(float(x) for x in speed))
 
 
-def _velocity_columns(agent: torch.Tensor) -> torch.Tensor:
+def _velocity_columns(agent: torch.Tensor, lay: ObservationLayout) -> torch.Tensor:
     """First velocity column of observed agent ``agent`` (0 = ego) in the observation vector."""
-    return torch.where(agent == 0, torch.full_like(agent, EGO_VELOCITY.start), EGO_DIM + (agent - 1) * NEIGHBOUR_DIM + NEIGHBOUR_VELOCITY.start)
+    return torch.where(agent == 0, torch.full_like(agent, lay.ego_velocity.start),
+                       lay.ego_dim + (agent - 1) * lay.neighbour_dim + lay.neighbour_velocity.start)
+
+
+def _on_axes(planar: torch.Tensor, d: int) -> torch.Tensor:
+    """Planar draws ``[m, 2]`` as ``[m, d]`` vectors: 0 on any axis beyond the horizontal plane
+    (the conflict draws are planar by design; a 3-D model's pairs meet at equal altitude)."""
+    return torch.cat([planar, planar.new_zeros(planar.shape[0], d - planar.shape[-1])], dim=-1)
 
 
 def _draw_course(m: int, horizon: float, sampling: ConflictSamplingSettings, generator: torch.Generator,
@@ -94,17 +94,17 @@ def _draw_closing_velocity(m: int, speed: tuple[float, float], generator: torch.
 
 
 def _redraw_closing(out: torch.Tensor, a, c, va, vc, speed: tuple[float, float], v_max: float,
-                    generator: torch.Generator):
+                    generator: torch.Generator, lay: ObservationLayout):
     """Give pair ``(a, c)`` of each row a relative velocity of speed ``U[speed]`` (m/s), uniform
     direction, around its mean velocity; both clipped to ±``v_max``; written into ``out``.
-    Returns the new ``(va, vc)`` ``[m, 2]``."""
+    Returns the new ``(va, vc)`` ``[m, d]``."""
     m, dtype, device = va.shape[0], va.dtype, va.device
-    rel = _draw_closing_velocity(m, speed, generator, dtype, device)
+    rel = _on_axes(_draw_closing_velocity(m, speed, generator, dtype, device), lay.d)
     mean = 0.5 * (va + vc)
     va, vc = (mean - 0.5 * rel).clamp(-v_max, v_max), (mean + 0.5 * rel).clamp(-v_max, v_max)
     rows = torch.arange(m, device=device)
     for agent, v in ((a, va), (c, vc)):
-        col = _velocity_columns(agent)
+        col = _velocity_columns(agent, lay)
         for k in range(v.shape[-1]):
             out[rows, col + k] = v[:, k]
     return va, vc
@@ -124,27 +124,29 @@ def place_conflicts(obs: torch.Tensor, n_neighbours: int, horizon: float, offset
     if sampling.closing_speed is not None and v_max is None:
         raise ValueError("conflict sampling with closing_speed needs v_max (the velocity bound of the domain)")
     dtype, device = obs.dtype, obs.device
+    lay = ObservationLayout.of(obs.shape[-1], n_neighbours)
     pairs = [(a, c) for c in range(1, n_neighbours + 1) for a in range(c)]   # (a < c), c a neighbour
     pick = torch.randint(len(pairs), (m,), generator=generator)
     a = torch.tensor([p[0] for p in pairs])[pick].to(device)
     c = torch.tensor([p[1] for p in pairs])[pick].to(device)
     tau, d = _draw_course(m, horizon, sampling, generator, dtype, device)
-    pos, vel, _ = split_observation(obs[:m], n_neighbours)      # [m, n+1, 2], ego first
+    d = _on_axes(d, lay.d)
+    pos, vel, _ = split_observation(obs[:m], n_neighbours)      # [m, n+1, d], ego first
     rows = torch.arange(m, device=device)
     pa, va, vc = pos[rows, a], vel[rows, a], vel[rows, c]
     out = obs.clone()
     if sampling.closing_speed is not None:
-        va, vc = _redraw_closing(out, a, c, va, vc, sampling.closing_speed, v_max, generator)
+        va, vc = _redraw_closing(out, a, c, va, vc, sampling.closing_speed, v_max, generator, lay)
     pc = (pa - (vc - va) * tau[:, None] + d).clamp(-offset_range, offset_range)
-    cols = EGO_DIM + (c - 1) * NEIGHBOUR_DIM + NEIGHBOUR_POSITION.start   # position offset of neighbour c
+    cols = lay.ego_dim + (c - 1) * lay.neighbour_dim + lay.neighbour_position.start   # position offset of neighbour c
     for k in range(pc.shape[-1]):
         out[rows, cols + k] = pc[:, k]
     return out
 
 
 def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampling: ConflictSamplingSettings,
-                         generator: torch.Generator, v_range: float | None = None) -> torch.Tensor:
-    """Return the relative pair states ``x [B, 4] = [p, v]`` with the first ``round(fraction·B)``
+                         generator: torch.Generator, agent: type[AgentModel], v_range: float | None = None) -> torch.Tensor:
+    """Return the relative pair states ``x [B, 2d] = [p, v]`` of agents of model ``agent`` with the first ``round(fraction·B)``
     rows moved onto a near-collision course: ``p = −v·τ + d``, ``τ ~ U[lo·T, hi·T]`` (``sampling.tau``),
     ``d`` uniform in the disk of radius ρ, clipped to ``|p| ≤ p_range`` (V_s's training domain).
     Velocities stay uniform unless ``sampling.closing_speed`` redraws them (speed ``U[lo, hi]`` m/s,
@@ -157,11 +159,12 @@ def place_pair_conflicts(x: torch.Tensor, horizon: float, p_range: float, sampli
         raise ValueError("conflict sampling with closing_speed needs v_range (the velocity bound of the domain)")
     dtype, device = x.dtype, x.device
     tau, d = _draw_course(m, horizon, sampling, generator, dtype, device)
+    d = _on_axes(d, agent.position_dim)
     out = x.clone()
     if sampling.closing_speed is not None:
-        rel = _draw_closing_velocity(m, sampling.closing_speed, generator, dtype, device)
-        out[:m, AGENT.velocity_slice()] = rel.clamp(-v_range, v_range)
-    out[:m, AGENT.position_slice()] = (-AGENT.velocity(out[:m]) * tau[:, None] + d).clamp(-p_range, p_range)
+        rel = _on_axes(_draw_closing_velocity(m, sampling.closing_speed, generator, dtype, device), agent.position_dim)
+        out[:m, agent.velocity_slice()] = rel.clamp(-v_range, v_range)
+    out[:m, agent.position_slice()] = (-agent.velocity(out[:m]) * tau[:, None] + d).clamp(-p_range, p_range)
     return out
 
 
@@ -189,16 +192,17 @@ class NearSamplingSettings:
 
 
 def place_near(x: torch.Tensor, p_range: float, v_range: float, sampling: NearSamplingSettings,
-               generator: torch.Generator) -> torch.Tensor:
-    """Return the relative pair states ``x [B, 4]`` with the last ``round(fraction·B)`` rows redrawn
+               generator: torch.Generator, agent: type[AgentModel]) -> torch.Tensor:
+    """Return the relative pair states ``x [B, 2d]`` of agents of model ``agent`` with the last ``round(fraction·B)`` rows redrawn
     uniformly from the inner box (clipped to the training box ``p_range``, ``v_range``); the first
     rows (where :func:`place_pair_conflicts` works) are untouched. ``fraction = 0`` returns ``x``
     unchanged without drawing. Pure function of the generator state."""
     m = int(round(sampling.fraction * x.shape[0]))
     if m == 0:
         return x
-    half = torch.tensor([min(sampling.p_range, p_range)] * 2 + [min(sampling.v_range, v_range)] * 2, dtype=x.dtype)
-    u = torch.rand(m, 4, generator=generator, dtype=x.dtype)
+    d = agent.position_dim
+    half = torch.tensor([min(sampling.p_range, p_range)] * d + [min(sampling.v_range, v_range)] * d, dtype=x.dtype)
+    u = torch.rand(m, agent.state_dim, generator=generator, dtype=x.dtype)
     out = x.clone()
     out[x.shape[0] - m:] = ((2.0 * u - 1.0) * half).to(x.device)
     return out

@@ -17,7 +17,9 @@ agents in a head-on encounter see observations related by the 180° rotation ``o
 same sign of a tiny, noisy ``∂V̂/∂v_y``. The gradient is ``∇V̄(o) = mean_g gᵀ ∇V̂(g·o)``.
 
 Groups: ``none`` (1 element), ``point`` ({I, −I}, 2), ``d4`` (8), ``full`` (D4 × neighbour
-permutations, 8·n!). Cost: |G| network evaluations per query.
+permutations, 8·n!). Cost: |G| network evaluations per query. The group is planar by design: for
+agents with more position axes (the 3-D model) it acts on the horizontal plane and leaves the
+further axes alone (still an exact symmetry: the plane's distances and box are unchanged).
 """
 
 from __future__ import annotations
@@ -26,8 +28,7 @@ import itertools
 
 import torch
 
-from madpinn.dynamics import AGENT
-from madpinn.observation import EGO_DIM, NEIGHBOUR_DIM
+from madpinn.observation import ObservationLayout
 
 GROUPS = ("none", "point", "d4", "full")
 
@@ -46,17 +47,21 @@ def _planar_group(name: str) -> list[torch.Tensor]:
     return out
 
 
-def observation_transforms(name: str, n_neighbours: int) -> torch.Tensor:
-    """Group elements as matrices ``[G, D, D]`` acting on observations (``o' = g·o``), float64."""
+def observation_transforms(name: str, n_neighbours: int, layout: ObservationLayout) -> torch.Tensor:
+    """Group elements as matrices ``[G, D, D]`` acting on observations of ``layout`` (``o' = g·o``),
+    float64; on d > 2 position axes the planar element acts on the first two, the rest fixed."""
     if name not in GROUPS:
         raise ValueError(f"symmetry group must be one of {GROUPS}, got '{name}'")
-    n_vec = (EGO_DIM + NEIGHBOUR_DIM * n_neighbours) // AGENT.position_dim
+    lay = layout
+    n_vec = lay.dim(n_neighbours) // lay.d
     perms = list(itertools.permutations(range(n_neighbours))) if name == "full" else [tuple(range(n_neighbours))]
     mats = []
     for m in _planar_group(name):
-        planar = torch.kron(torch.eye(n_vec, dtype=torch.float64), m)
+        k = m.shape[0]
+        axes = torch.block_diag(m, torch.eye(lay.d - k, dtype=torch.float64)) if lay.d > k else m
+        planar = torch.kron(torch.eye(n_vec, dtype=torch.float64), axes)
         for perm in perms:
-            blocks = [torch.arange(EGO_DIM)] + [EGO_DIM + NEIGHBOUR_DIM * j + torch.arange(NEIGHBOUR_DIM) for j in perm]
+            blocks = [torch.arange(lay.ego_dim)] + [lay.ego_dim + lay.neighbour_dim * j + torch.arange(lay.neighbour_dim) for j in perm]
             p = torch.eye(planar.shape[0], dtype=torch.float64)[torch.cat(blocks)]   # row i of p·o = o[src(i)]
             mats.append(p @ planar)
     return torch.stack(mats)
@@ -70,7 +75,7 @@ class SymmetrizedVHat:
         self.base = base
         self.group = group
         p = next(base.net.parameters())
-        self._g = observation_transforms(group, base.obs_spec.n_neighbours).to(device=p.device, dtype=p.dtype)
+        self._g = observation_transforms(group, base.obs_spec.n_neighbours, base.obs_spec.layout).to(device=p.device, dtype=p.dtype)
 
     def __getattr__(self, name):
         return getattr(self.base, name)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.observation import build_observation
 from madpinn.value_functions.z_search import min_feasible_z
 
@@ -51,18 +50,26 @@ def vs_rollouts(vs, samples: int, dt: float, seed: int = 0, chunk: int = 4096) -
     }
 
 
+def _on_axes(planar: torch.Tensor, d: int) -> torch.Tensor:
+    """Planar vectors ``[..., 2]`` of a figure as ``[..., d]`` (0 on any axis beyond the horizontal
+    plane: a 3-D model's slice at equal altitude and no vertical motion)."""
+    return torch.cat([planar, planar.new_zeros(*planar.shape[:-1], d - planar.shape[-1])], dim=-1)
+
+
 def vs_slices(vs, velocities, points: int = 161, half_width: float | None = None):
     """V_s(x, 0) on the relative-position plane ``[-h, h]²`` (``h``: ``half_width`` m, default the
-    training range ``p_range``) for each relative velocity: returns ``(axis [P], values [K, P, P])``
-    (rows: y, columns: x)."""
+    training range ``p_range``) for each planar relative velocity (m/s): returns ``(axis [P],
+    values [K, P, P])`` (rows: y, columns: x); a 3-D pair is sliced at equal altitude, vz = 0."""
     system = vs.system
+    agent = system.agent
     h = system.p_range if half_width is None else float(half_width)
     axis = torch.linspace(-h, h, points, dtype=torch.float64)
     yy, xx = torch.meshgrid(axis, axis, indexing="ij")
     out = []
     for vel in velocities:
-        x = torch.stack([xx.flatten(), yy.flatten(), torch.full_like(xx.flatten(), vel[0]),
-                         torch.full_like(xx.flatten(), vel[1])], dim=-1)
+        p = _on_axes(torch.stack([xx.flatten(), yy.flatten()], dim=-1), agent.position_dim)
+        v = _on_axes(torch.tensor(vel, dtype=torch.float64).expand(p.shape[0], -1), agent.position_dim)
+        x = agent.join(p, v)
         out.append(vs.value(x.float(), 0.0).double().cpu().reshape(points, points))
     return axis, torch.stack(out)
 
@@ -79,7 +86,8 @@ HEATMAP = {
 
 def heatmap_observations(spec, half_width: float = 1.0, points: int = 101, cfg: dict = HEATMAP):
     """Observations ``[P*P, D]`` of the ego over a grid of its positions on ``[-hw, hw]²`` in the
-    heatmap configuration, built with :func:`madpinn.observation.build_observation`."""
+    heatmap configuration, built with :func:`madpinn.observation.build_observation` (a 3-D model's
+    agents all at one altitude, no vertical motion: the horizontal slice)."""
     axis = torch.linspace(-half_width, half_width, points, dtype=torch.float32)
     yy, xx = torch.meshgrid(axis, axis, indexing="ij")
     P = points * points
@@ -88,8 +96,10 @@ def heatmap_observations(spec, half_width: float = 1.0, points: int = 101, cfg: 
     ego_v, nb_v = torch.tensor(cfg["ego_velocity"]), torch.tensor(cfg["neighbour_velocity"])
     positions = torch.cat([ego_p[:, None], nb_p.expand(P, -1, -1)], dim=1)                  # [P, 3, d]
     velocities = torch.cat([ego_v.expand(P, 1, -1), nb_v.expand(P, len(nb_p), -1)], dim=1)
-    state = AGENT.join(positions, velocities)
+    d = spec.layout.d
+    state = spec.agent.join(_on_axes(positions, d), _on_axes(velocities, d))
     goals = torch.cat([torch.tensor(cfg["ego_goal"]).expand(P, 1, -1), torch.tensor(cfg["neighbour_goals"]).expand(P, -1, -1)], dim=1)
+    goals = _on_axes(goals, d)
     neighbours = torch.tensor([[1, 2], [0, 2], [0, 1]]).expand(P, -1, -1)
     obs = build_observation(state, goals, neighbours, spec)[:, 0]
     return axis, obs

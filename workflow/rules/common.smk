@@ -457,11 +457,34 @@ def run_vhat_variant(run):
 
 def madpinn_models(wildcards):
     """The trained files a MAD-PINN run loads: its V̂ (the base's, or the variant's its settings name)
-    and V_s. Plain strings (run_models)."""
+    and V_s; a run that deploys a calibrated level (`conformal`, issue 62) also the calibrate-vhat
+    report of its V̂ (rule calibrate_vhat), so its cells depend on the calibration. Plain strings (run_models)."""
     variant = run_vhat_variant(wildcards.run)
     vhat = (str(rules.train_vhat_variant.output.model).format(variant=variant) if variant
             else str(rules.train_vhat.output.model))
-    return {"vhat": vhat, "vs": str(rules.train_vs.output.model)}
+    models = {"vhat": vhat, "vs": str(rules.train_vs.output.model)}
+    if run_conformal(wildcards.run):
+        models["calibration"] = calibration_report(vf_model_name("vhat", variant))
+    return models
+
+
+def run_conformal(run):
+    """The calibrated level a MAD-PINN run deploys (`conformal`: issue 62), or None (the paper's δ = 0)."""
+    try:
+        return method_config(config, run)[1].get("conformal")
+    except ConfigError:   # an unknown run: the job itself says so in one line
+        return None
+
+
+def calibration_report(vhat):
+    """The calibrate-vhat report (JSON) of V̂ model ``vhat`` (``vhat`` or ``vhat_<variant>``)."""
+    return str(rules.calibrate_vhat.output.report).format(vhat=vhat)
+
+
+def conformal_vhats():
+    """The V̂ models a configured study's run deploys a calibrated level with (their calibrations are targets)."""
+    return sorted({vf_model_name("vhat", run_vhat_variant(run)) for st in config["studies"].values() for run in st["runs"]
+                   if run.partition("-")[0] == "madpinn" and run_conformal(run)})
 
 
 

@@ -87,3 +87,50 @@ rule verify_vhat:
 
 
 register_targets(f"{RESULTS}/validation/vhat_scenario.json")
+
+
+# Issue 62 (not in the paper): the calibrated safety level δ of a V̂ per (ε, β), pooled and per
+# closing-speed bin, with held-out coverage (calibrate-vhat): a JSON report, which the cells of runs
+# that deploy a level (`conformal`) load (madpinn_models, common.smk), and its table, an item of the
+# report. Built for the V̂ of every configured run with a level (none in the protocol: overlay
+# workflow/configs/conformal.yaml), or on request: `snakemake -j2 results/validation/vhat_calibration.json`.
+rule calibrate_vhat:
+    input:
+        tracking=TRACKING,
+        model=f"{RESULTS}/models/{{vhat}}.pt",   # rules.train_vhat / train_vhat_variant (or the shipped model)
+    output:
+        report=f"{RESULTS}/validation/{{vhat}}_calibration.json",
+        csv=kept(f"{FIGURES}/table_{{vhat}}_calibration.csv"),
+        md=kept(f"{FIGURES}/table_{{vhat}}_calibration.md"),
+        html=report(kept(f"{FIGURES}/table_{{vhat}}_calibration.html"), caption="../report/table_vhat_calibration.rst",
+                    category=REPORT_SECTIONS["our_tables"],
+                    labels={"Item": "table_vhat_calibration: V̂'s safety level δ", "Study": "V̂ calibration"}),
+    wildcard_constraints:
+        vhat="|".join(VERIFIED_VHATS),
+    params:
+        config=RESOLVED,
+        settings=settings_hash("calibrate-vhat"),
+        source=source_hash("calibrate-vhat"),
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=60,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/calibrate_{{vhat}}.log",
+    shell:
+        "python -m madpinn calibrate-vhat --config {params.config:q} --model vhat={input.model:q} --out {output.report:q}"
+        " --table-csv {output.csv:q} --table-md {output.md:q} --table-html {output.html:q} --threads {threads} 2>&1 | tee {log:q}"
+
+
+for _vhat in conformal_vhats():
+    register_targets(calibration_report(_vhat), *[f"{FIGURES}/table_{_vhat}_calibration.{ext}" for ext in ("csv", "md")])
+
+CONFORMAL_STUDIES = [s for s, st in config["studies"].items() if any(run_conformal(r) for r in st["runs"])]
+"""studies with a run that deploys a calibrated level (overlay workflow/configs/conformal.yaml)"""
+if CONFORMAL_STUDIES:
+
+    rule conformal_cells:   # `snakemake -j2 conformal_cells`: every cell of those studies (closed loop, heavy)
+        input:
+            lambda w: sorted({p for s in CONFORMAL_STUDIES for p in study_results(s)}),

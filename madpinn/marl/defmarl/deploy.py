@@ -14,7 +14,6 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from madpinn.dynamics import AGENT
 from madpinn.marl.checkpoint import CheckpointError, load_actor, load_checkpoint
 from madpinn.marl.defmarl.root import CONSENSUS, agree, smallest_safe_z
 from madpinn.marl.features import EGO_FEATURES, local_observation
@@ -82,7 +81,7 @@ class DefMarlPolicy:
             return rest(base + (self._normalised_z(z).unsqueeze(-1) - z0) * w_z)[:, 0]
 
         root = smallest_safe_z(vh, S * N, self.z_min, self.z_max, self.iterations, self.level, state.device, state.dtype)
-        z = agree(root.z.view(S, N), AGENT.position(state), self.obs_spec.sensing_radius, self.consensus)
+        z = agree(root.z.view(S, N), self.obs_spec.agent.position(state), self.obs_spec.sensing_radius, self.consensus)
         return xn, z, root
 
     @torch.no_grad()
@@ -100,7 +99,7 @@ class DefMarlPolicy:
             xn = self.obs_norm(obs.with_extra(torch.zeros(S, N, 1, dtype=state.dtype, device=state.device))).flatten()
         self._calls += 1
         xn.ego[:, EGO_FEATURES] = self._normalised_z(self._z.reshape(-1))
-        return self.actor(xn).view(S, N, AGENT.control_dim).clamp(-1.0, 1.0) * self.u_max
+        return self.actor(xn).view(S, N, self.obs_spec.agent.control_dim).clamp(-1.0, 1.0) * self.u_max
 
 
 def load_defmarl(path, obs_spec: ObservationSettings, u_max: float, collision_radius: float, device="cpu",

@@ -8,7 +8,10 @@ planar state returned is read from the simulated drones after the last substep.
 Setpoints: the policy acceleration ``a`` (clipped to the control box) drives a double-integrator
 reference (``madpinn.dynamics.DoubleIntegrator``, exact ZOH with velocity saturation) at the
 physics rate, so over one policy step the setpoint is the integral of ``a``; ``a`` itself is the
-feed-forward. Altitude setpoint ``altitude`` m, vertical velocity 0, yaw 0.
+feed-forward. The reference lives on the agent model's axes (``dynamics.position_dim`` of MuJoCo's
+x, y, z): a planar model holds the altitude setpoint ``altitude`` m with vertical velocity 0; the
+3-D model's reference carries the policy's altitude setpoint (its z, kept in the model's altitude
+band by the model's step), vertical velocity and acceleration. Yaw 0.
 
 ``contacts`` (``sim.contacts``): drones carry their collision cylinders and touch each other and
 the floor; every world then holds whole scenarios, each at its own planar offset
@@ -60,7 +63,7 @@ class MujocoBackend:
 
     # ------------------------------------------------------------------ protocol
     def reset(self, positions: torch.Tensor, velocities: torch.Tensor) -> torch.Tensor:
-        """Place S × N level drones at ``positions`` ``[S, N, d]`` (m), altitude ``altitude``, with
+        """Place S × N level drones at ``positions`` ``[S, N, d]`` (m; planar: at altitude ``altitude``), with
         ``velocities`` ``[S, N, d]`` (m/s) on the model's axes; returns the model's state ``[S, N, 2d]``."""
         d = self.dynamics.position_dim
         if positions.dim() != 3 or positions.shape[-1] != d or velocities.shape != positions.shape:
@@ -77,8 +80,8 @@ class MujocoBackend:
         self._build_worlds(count, N)
         self.qpos = np.zeros((count, 7))
         self.qvel = np.zeros((count, 6))
-        self.qpos[:, self._axes] = p
-        self.qpos[:, 2] = self.settings.altitude
+        self.qpos[:, 2] = self.settings.altitude   # a planar model's drones fly at sim.mujoco.altitude
+        self.qpos[:, self._axes] = p                # a 3-D model's positions carry their own altitude
         self.qpos[:, 3] = 1.0
         self.qvel[:, self._axes] = v
         for model, data, sl in self._worlds:
@@ -163,7 +166,8 @@ class MujocoBackend:
         return out
 
     def _setpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(p_d, v_d, a_ff) ``[M, 3]`` from the planar reference; altitude hold, no vertical motion."""
+        """(p_d, v_d, a_ff) ``[M, 3]`` from the reference on the model's axes; a planar model's
+        altitude is held at ``altitude`` with no vertical motion."""
         if self._setpoint_buffers is None or self._setpoint_buffers[0].shape[0] != self.reference.shape[0]:
             p_d, v_d, a_ff = (np.zeros((self.reference.shape[0], 3)) for _ in range(3))
             p_d[:, 2] = self.settings.altitude
