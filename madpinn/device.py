@@ -10,13 +10,31 @@ import torch
 _DTYPES = {"float32": torch.float32, "float64": torch.float64}
 
 
+class DeviceUnavailableError(RuntimeError):
+    """A job asked for CUDA on a machine without it."""
+
+
 def resolve_device(name: str = "auto") -> torch.device:
-    """``auto`` -> CUDA when available, else CPU. ``cuda`` without a GPU is a clear error."""
+    """``auto`` -> CUDA when available, else CPU. ``cuda`` without a GPU is a clear error
+    (:class:`DeviceUnavailableError`)."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     if name.startswith("cuda") and not torch.cuda.is_available():
-        raise RuntimeError(f"device '{name}' requested but CUDA is not available; use 'auto' or 'cpu'")
+        raise DeviceUnavailableError(f"device '{name}' requested but CUDA is not available on this machine")
     return torch.device(name)
+
+
+def planned_device(name: str = "auto") -> str:
+    """The device kind (``cpu`` | ``cuda``) an evaluation cell is keyed under and runs on, fixed
+    when the workflow plans it: ``cuda`` for a ``cuda`` setting, or for ``auto`` on a machine with
+    CUDA; else ``cpu``. A cell's floating-point results depend on the device (GPU kernels sum in
+    another order), so the workflow passes it to the job as a param (``evaluate --device``): a
+    GPU cell and a CPU cell of the same settings are two output-cache entries, never one restored
+    for the other. On a cluster whose planning machine has no GPU, ``device: cuda`` plans GPU
+    cells (the job stops with one line on a node without one)."""
+    if name == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    return "cuda" if name.startswith("cuda") else "cpu"
 
 
 def resolve_dtype(name: str = "float32") -> torch.dtype:

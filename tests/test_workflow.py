@@ -10,6 +10,7 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from conftest import REPO, SMOKE, run_snakemake
+from madpinn.device import planned_device
 
 
 def _job_counts(workdir: Path) -> Counter:
@@ -157,6 +158,7 @@ def test_dry_run_of_paper_config_lists_the_full_fan_out(tmp_path, paper_cfg):
     assert counts == [3, 8, 12, 16, 64, 128, 256]
     for n in counts:
         assert f"n{n}_seed0.parquet" in out
+    assert f"--device {planned_device('auto')}" in out   # every cell is keyed under, and runs on, this machine's device
     assert not (tmp_path / "mlflow").exists()
 
 

@@ -24,7 +24,7 @@ from madpinn.config import RunSettings
 RESTORED_TAG = "madpinn.restored"          # "true": restored from the output cache, "false": computed here
 PROVENANCE_TAG = "madpinn.provenance_hash"      # Snakemake's provenance hash of the cell (its cache entry)
 LOGGED = ("safety_rate", "safe_scenarios", "cost", "cost_time_avg", "cost_all", "cost_all_time_avg",
-          "safety_rate_2r", "safe_scenarios_2r", "elapsed_s", "policy_us_per_agent_step")
+          "safety_rate_2r", "safe_scenarios_2r", "elapsed_s", "cpu_s", "policy_us_per_agent_step")
 """Figures of a cell's JSON summary logged as metrics (with ``min_separation`` from its scenarios
 and ``infeasible_share`` where the policy reports it: :func:`cell_metrics`)."""
 

@@ -33,6 +33,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
     from madpinn.value_functions.shipping import ShippedModelError
     from madpinn.value_functions.train import TrainingDiverged
 
+    from madpinn.device import DeviceUnavailableError
+
     retrain = "run the workflow (snakemake -j2 all) to (re)train it, or pass the right --model NAME=PATH"
     return [
         (ProtocolSeedError, "use a validation seed (≥ 100), or say why with --protocol-seed-reason TEXT (recorded in "
@@ -58,6 +60,8 @@ def _expected() -> list[tuple[type[BaseException], str, int]]:
         (UnwritableDirectoryError, "make the directory writable (permissions, a read-write mount) or name another "
                                    "one (the command's --out-dir / --out)", 2),
         (TrackingError, "start the tracking server named by tracking.uri, or set tracking.enabled: false", 6),
+        (DeviceUnavailableError, "set device: auto or cpu in the config (or pass --device cpu), or run on a machine with "
+                                 "a CUDA GPU", 2),
     ]
 
 

@@ -28,11 +28,14 @@ def evaluate(
     collision_events: bool = False,
     protocol_seed_reason: str | None = None,
     by_hand: bool = False,
+    device: str | None = None,
 ) -> dict:
     """Run one cell inside its live MLflow run (opened before the simulation), write its files,
     log them; return the summary. ``collision_events``: classify the collision onsets of a MAD-PINN
     cell into its summary also where the study does not ask for it (the study's
-    ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell)."""
+    ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell). ``device``: ``cpu`` or
+    ``cuda`` in place of the config's ``device`` (the workflow passes the device the cell is keyed
+    under: :func:`madpinn.device.planned_device`); CUDA on a machine without it is one line, before any file."""
     from dataclasses import replace
 
     from madpinn.commands.cell_runs import cell_metrics, cell_record
@@ -45,6 +48,11 @@ def evaluate(
 
     r = RunSettings.resolve(cfg, study, run)   # the run, merged once
     cs = CellSettings.from_run(cfg, r)   # the run's agents override included (run_limits)
+    if device is not None:
+        from madpinn.device import resolve_device
+
+        resolve_device(device)   # CUDA asked for where there is none: one line, nothing written
+        cs = replace(cs, device=device)
     if collision_events and not cs.collision_events:
         if r.method != "madpinn":
             raise ConfigError(f"--collision-events classifies MAD-PINN collisions; run '{run}' is not a MAD-PINN run")
@@ -75,7 +83,7 @@ def _evaluate(args) -> int:
     evaluate(config_of(args), args.study, args.run, args.n_agents, args.seed, args.out, models=parse_models(args.model),
              backend=args.backend, threads=args.threads, progress=not args.no_progress, track=not args.no_track, echo=True,
              collision_events=args.collision_events, protocol_seed_reason=args.protocol_seed_reason,
-             by_hand=True)
+             by_hand=True, device=args.device)
     return 0
 
 
@@ -88,6 +96,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--backend", default=None, help="override the study's backend (its sim.backend, else sim.backend)")
     p.add_argument("--out", required=True, help="per-scenario Parquet path")
+    p.add_argument("--device", choices=("cpu", "cuda"), default=None,
+                   help="run the cell on this device instead of the config's `device` (the workflow passes the one the cell is keyed under)")
     p.add_argument("--collision-events", action="store_true",
                    help="classify every collision onset of a MAD-PINN cell into its JSON summary (madpinn/evaluation/collisions.py)")
     p.add_argument("--protocol-seed-reason", default=None, metavar="TEXT",

@@ -9,7 +9,7 @@ from madpinn.config import ConfigError, method_config, study_backend, study_patt
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.commands.seed_guard import WORKFLOW_ENV
-from madpinn.device import pinned_job_environment
+from madpinn.device import pinned_job_environment, planned_device
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.output_cache import cache_layers, install as install_output_cache
 from madpinn.provenance import plugin_module, registry
@@ -38,6 +38,9 @@ BACKEND = config["sim"]["backend"]
 LOGS = f"{RESULTS}/logs"
 # Training rules ask the cluster for one GPU when the config asks for CUDA (`device: cuda`).
 TRAIN_GPU = {"gpu": 1} if config["device"] == "cuda" else {}
+# Evaluation cells run on the device they are keyed under (madpinn.device.planned_device): a param
+# of rule evaluate, so GPU and CPU cells are separate output-cache entries.
+CELL_DEVICE = planned_device(config["device"])
 
 # Jobs read the merged, validated config from here. Parsing writes nothing (a dry run beside a
 # running workflow must not change its config): the file is written by `onstart` below, i.e. only

@@ -16,6 +16,7 @@ rule evaluate:
         source=eval_source_hash,
         models=model_args,
         cell=cell_key,
+        device=CELL_DEVICE,
     cache: True
     threads: 1
     priority: eval_priority
@@ -29,4 +30,4 @@ rule evaluate:
     shell:
         "python -m madpinn evaluate --config {params.config:q} --study {wildcards.study:q} --run {wildcards.run:q}"
         " --n-agents {wildcards.n} --seed {wildcards.seed} --backend {wildcards.backend:q}"
-        " --out {output.parquet:q} {params.models:q} --threads {threads} 2>&1 | tee {log:q}"
+        " --out {output.parquet:q} {params.models:q} --device {params.device} --threads {threads} 2>&1 | tee {log:q}"
