@@ -30,4 +30,4 @@ rule evaluate:
     shell:
         "python -m madpinn evaluate --config {params.config:q} --study {wildcards.study:q} --run {wildcards.run:q}"
         " --n-agents {wildcards.n} --seed {wildcards.seed} --backend {wildcards.backend:q}"
-        " --out {output.parquet:q} {params.models:q} --device {params.device} --threads {threads} 2>&1 | tee {log:q}"
+        " --out {output.parquet:q} {params.models:q} --device {params.device:q} --threads {threads} 2>&1 | tee {log:q}"
