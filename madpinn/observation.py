@@ -40,25 +40,15 @@ class ObservationLayout:
 
     d: int
 
-    @property
-    def ego_velocity(self) -> slice:
-        return slice(0, self.d)
+    def block(self, k: int) -> slice:
+        """The ``k``-th ``d``-wide block of an ego or a neighbour part."""
+        return slice(k * self.d, (k + 1) * self.d)
 
-    @property
-    def ego_goal(self) -> slice:
-        return slice(self.d, 2 * self.d)
-
-    @property
-    def neighbour_position(self) -> slice:
-        return slice(0, self.d)
-
-    @property
-    def neighbour_velocity(self) -> slice:
-        return slice(self.d, 2 * self.d)
-
-    @property
-    def neighbour_goal(self) -> slice:
-        return slice(2 * self.d, 3 * self.d)
+    ego_velocity = property(lambda self: self.block(0))
+    ego_goal = property(lambda self: self.block(1))
+    neighbour_position = property(lambda self: self.block(0))
+    neighbour_velocity = property(lambda self: self.block(1))
+    neighbour_goal = property(lambda self: self.block(2))
 
     @property
     def ego_dim(self) -> int:
