@@ -145,7 +145,7 @@ REPORT_SECTIONS = {
 
 wildcard_constraints:
     backend=r"[a-z_]+",
-    study=r"[a-z_]+",
+    study=r"[a-z][a-z0-9_]*",
     run=r"[a-z][a-z0-9]*(-[a-z0-9]+)?",
     n=r"\d+",
     seed=r"\d+",
