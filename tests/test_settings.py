@@ -53,8 +53,14 @@ def _calls(name: str) -> list[str]:
     return where
 
 
-def test_one_place_builds_the_double_integrator_and_one_factory_name():
-    assert _calls("DoubleIntegrator") == ["madpinn/settings.py"]
+def test_one_place_builds_the_agent_model_and_one_factory_name():
+    """No module constructs an agent model by its class: the one place is ``AgentSettings.dynamics``,
+    which builds the configured ``agents.model`` from its class in the registry (issue 63)."""
+    from madpinn.dynamics import MODELS
+
+    for cls in MODELS.values():
+        assert _calls(cls.__name__) == [], cls.__name__
+    assert "model_class(self.model)" in inspect.getsource(AgentSettings.dynamics)
     for bad in ("from_dict", "from_method_config"):
         assert _calls(bad) == [], bad
 
