@@ -64,8 +64,8 @@ def scenario_metrics(result: EpisodeResult, first_index: int = 0) -> pd.DataFram
     end = _safety_and_cost(collided, result.cost, episode_s)
     safe_2r = result.safe_at(DISC_FACTOR * result.collision_radius)
     at_horizons = {}
+    first = result.first_collision_step
     for k, cost in sorted(result.cost_at.items()):
-        first = result.first_collision_step
         at_horizons.update(_safety_and_cost((first >= 0) & (first <= k), cost, k * result.dt, horizon_suffix(k * result.dt)))
     speed = result.encounter_speed if result.encounter_speed is not None else np.full((S, N), np.nan)
     with np.errstate(invalid="ignore"):
@@ -114,18 +114,21 @@ def seed_summary(df: pd.DataFrame) -> dict:
     for name, col in RATE_COLUMNS.items():   # results written before they existed: NaN
         out[name] = float(df[col].astype(float).mean()) if col in df else float("nan")
     for name, col in COST_COLUMNS.items():
-        vals = df[col].to_numpy(dtype=float) if col in df else np.full(len(df), np.nan)
-        out[name] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+        out[name] = _finite_mean(df[col] if col in df else np.full(len(df), np.nan))
     for col in df.columns:   # figures at earlier horizons (scenario_metrics): safety, safe scenarios, costs
         base, _, horizon = col.partition("_at_")
         if horizon.endswith("s") and base in _HORIZON_FIGURES:
-            vals = df[col].to_numpy(dtype=float)
-            out[_HORIZON_FIGURES[base] + "_at_" + horizon] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+            out[_HORIZON_FIGURES[base] + "_at_" + horizon] = _finite_mean(df[col])
     if "encounter_speed_mean" in df:
-        vals = df["encounter_speed_mean"].to_numpy(dtype=float)
-        out["encounter_speed_mean"] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
+        out["encounter_speed_mean"] = _finite_mean(df["encounter_speed_mean"])
     out["n_scenarios"] = int(len(df))
     return out
+
+
+def _finite_mean(values) -> float:
+    """Mean of the finite entries of ``values``; NaN when there are none."""
+    vals = np.asarray(values, dtype=float)
+    return float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
 
 
 _HORIZON_FIGURES = {"safety_rate": "safety_rate", "safe": "safe_scenarios", **{v: k for k, v in COST_COLUMNS.items()}}
