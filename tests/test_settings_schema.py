@@ -49,6 +49,7 @@ from madpinn.simulation.settings import SimSettings
 from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.settings import MujocoSettings
 from madpinn.evaluation.cell import CellSettings
+from madpinn.evaluation.table_ii_settings import ReadingsSettings
 from madpinn.tracking.settings import TrackingSettings
 from madpinn.value_functions.grid_reference import GridSettings
 from madpinn.value_functions.sampling import ConflictSamplingSettings, NearSamplingSettings
@@ -79,6 +80,13 @@ class Entry:
     keys: dict = field(default_factory=dict)
     not_config: tuple = ()          # fields that are no config key (derived, or set in code)
     nested: tuple = ()              # fields holding another registered settings object
+    overlay: tuple = ()             # config files over config.yaml that declare a section null there
+
+    def config(self, paper_cfg: dict) -> dict:
+        """The config this entry's rules read: config.yaml, with the entry's overlays merged over it."""
+        from madpinn.config import load_config
+
+        return load_config([REPO / "config.yaml", *self.overlay]) if self.overlay else paper_cfg
 
 
 SETTINGS = [
@@ -128,6 +136,10 @@ SETTINGS = [
           not_config=("spec", "z_max")),   # spec: ObservationSettings at the training mapping; z_max: a number or `auto` (computed)
     Entry(PairSystem, "value_functions.vs", PairSystem.from_config,
           keys={"model": "/agents.model", "u_max": "/agents.u_max", "collision_radius": "/agents.collision_radius"}),
+    Entry(ReadingsSettings, "table_ii_readings", ReadingsSettings.from_config,
+          keys={"anchor": "anchor.study", "anchor_agents": "anchor.n_agents", "collision_radius": "/agents.collision_radius"},
+          not_config=("patterns", "episodes", "labels", "protocol"),   # read from the studies and runs it names; protocol: two keys
+          overlay=(REPO / "workflow" / "configs" / "scenario_laws.yaml",)),
     Entry(CellSettings, "studies.main", lambda c: CellSettings.from_config(c, "main", "madpinn"),
           not_config=tuple(f.name for f in dataclasses.fields(CellSettings))),   # composite: study, run and parsed parts
 ]
@@ -224,6 +236,7 @@ def test_config_fields_have_no_default_of_their_own(entry):
 @pytest.mark.parametrize("entry", SETTINGS, ids=lambda e: f"{e.cls.__name__}:{e.section}")
 def test_fields_read_their_keys(entry, paper_cfg):
     """Each mapped key exists in the schema and in config.yaml, and the built field holds its value."""
+    paper_cfg = entry.config(paper_cfg)
     built = entry.build(copy.deepcopy(paper_cfg))
     for name in _config_fields(entry):
         path = _key_path(entry, name)
@@ -242,6 +255,7 @@ def test_fields_read_their_keys(entry, paper_cfg):
 
 @pytest.mark.parametrize("entry", SETTINGS, ids=lambda e: f"{e.cls.__name__}:{e.section}")
 def test_optional_keys_read_as_the_schema_default(entry, paper_cfg):
+    paper_cfg = entry.config(paper_cfg)
     for name in _config_fields(entry):
         path = _key_path(entry, name)
         if name in entry.nested or entry.cls is CellSettings or _required(path):
@@ -316,6 +330,7 @@ CROSS_FIELD = {
 
 @pytest.mark.parametrize("entry", SETTINGS, ids=lambda e: f"{e.cls.__name__}:{e.section}")
 def test_dataclass_bounds_agree_with_the_schema(entry, paper_cfg):
+    paper_cfg = entry.config(paper_cfg)
     for name in _config_fields(entry):
         path = _key_path(entry, name)
         if name in entry.nested or entry.cls is CellSettings:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job, write_commit_record
-from madpinn.commands.reads import governors, keys, labels, study_sim_override
+from madpinn.commands.reads import governors, keys, labels, study_sim_override, table_ii_readings
 from madpinn.config import hashed_agents
 
 
@@ -169,6 +169,24 @@ def _controller_readings(args) -> int:
         return finish(run, record, echo=list(record.artifacts))
 
 
+def _table_ii_readings(args) -> int:
+    from madpinn.evaluation.reproduction import paper_values
+    from madpinn.evaluation.table_ii_page import load_frames, write_table_ii_readings
+    from madpinn.evaluation.table_ii_readings import PaperRow, reading_rows
+    from madpinn.evaluation.table_ii_settings import ReadingsSettings
+    from madpinn.figures.table_ii_readings import plot_table_ii_readings
+
+    cfg = config_of(args)
+    settings, paper = ReadingsSettings.from_config(cfg), PaperRow.from_paper_values(paper_values())
+    record = JobRecord(job_key="table/table_ii_readings", rule="table_ii_readings", params={"inputs": len(args.inputs)})
+    with job(cfg, record, not args.no_track) as run:
+        anchor, large = load_frames(args.inputs, settings)
+        files = write_table_ii_readings(anchor, large, settings, paper, args.out_dir)
+        files += plot_table_ii_readings(reading_rows(large), paper, settings.labels, Path(args.out_dir) / "fig_table_ii_readings")
+        record.artifacts = files
+        return finish(run, record, echo=list(record.artifacts))
+
+
 def register(sub) -> None:
     p = sub.add_parser("table", help="assemble a paper table from result files")
     add_config_arg(p)
@@ -217,6 +235,13 @@ def register(sub) -> None:
     p.set_defaults(func=_controller_readings,
                    reads=lambda cfg, studies: {"experiment": cfg["experiment"], "labels": labels(cfg, *studies),
                                                "readings": {s: study_sim_override(cfg, s) for s in studies}})
+
+    p = sub.add_parser("table-ii-readings", help="Table II under the readings the paper leaves open, and the claim's verdict (issue 60)")
+    add_config_arg(p)
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of table_ii_readings' studies and its anchor")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_table_ii_readings, reads=table_ii_readings)
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)

@@ -47,6 +47,15 @@ def governors(cfg: Mapping, study: str) -> dict:
     return {r.run: {"vhat": r.vhat, "observation": r.observation, "agents": hashed_agents(r.agents)} for r in runs}
 
 
+def table_ii_readings(cfg: Mapping, **_) -> dict:
+    """What the Table II readings page reads besides its cells (:class:`madpinn.evaluation.table_ii_settings.ReadingsSettings`)."""
+    import dataclasses
+
+    from madpinn.evaluation.table_ii_settings import ReadingsSettings
+
+    return {"experiment": cfg["experiment"], **dataclasses.asdict(ReadingsSettings.from_config(cfg))}
+
+
 def cell(cfg: Mapping, study: str, run: str) -> dict:
     from madpinn.config import RunSettings
 

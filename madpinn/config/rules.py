@@ -94,6 +94,34 @@ def _gap_errors(cfg: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _table_ii_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """The Table II readings' studies exist, lie in the large arena at Table II's agent counts or a
+    subset, the anchor is a small-arena uniform study with its agent count, and the protocol's run
+    is one of its study's runs."""
+    sec = cfg["table_ii_readings"]
+    if not sec:
+        return []
+    lines, studies = [], cfg["studies"]
+    for name in sec["studies"]:
+        st = studies.get(name)
+        if st is None:
+            lines.append(f"  - 'table_ii_readings.studies': unknown study '{name}'")
+        elif st["arena"] != "large":
+            lines.append(f"  - 'studies.{name}.arena': a Table II reading runs in the large arena, got '{st['arena']}'")
+    anchor = studies.get(sec["anchor"]["study"])
+    if anchor is None:
+        lines.append(f"  - 'table_ii_readings.anchor.study': unknown study '{sec['anchor']['study']}'")
+    elif anchor["arena"] != "small" or anchor["pattern"] != "uniform" or sec["anchor"]["n_agents"] not in anchor["agent_counts"]:
+        lines.append(f"  - 'table_ii_readings.anchor': Table I's setting is a small-arena uniform study with "
+                     f"{sec['anchor']['n_agents']} agents among its agent_counts")
+    proto = sec["protocol"]
+    if proto["study"] not in sec["studies"]:
+        lines.append(f"  - 'table_ii_readings.protocol.study': '{proto['study']}' is not one of table_ii_readings.studies")
+    elif proto["study"] in studies and proto["run"] not in studies[proto["study"]]["runs"]:
+        lines.append(f"  - 'table_ii_readings.protocol.run': study '{proto['study']}' has no run '{proto['run']}'")
+    return lines
+
+
 def _variant_errors(cfg: Mapping[str, Any]) -> list[str]:
     """Deployment overrides of MAD-PINN runs name an existing V̂ variant and only lower the speed
     bound (a governor: V̂ and V_s are trained at ``agents.v_max``)."""
@@ -129,6 +157,7 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
             elif variant and variant not in methods[method]["variants"]:
                 lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
     lines += _gap_errors(cfg)
+    lines += _table_ii_errors(cfg)
     lines += _variant_errors(cfg)
     lines += _stop_at_errors(cfg)
     lines += _horizon_errors(cfg)

@@ -69,3 +69,43 @@ if CONTROLLER_STUDIES:
 
     if all(s in studies_in_all() for s in CONTROLLER_STUDIES):
         register_targets(rules.controller_readings.output.csv, rules.controller_readings.output.md)
+
+
+# Table II under the readings the paper leaves open (issue 60): every (study, run, horizon) of the
+# studies table_ii_readings lists, judged against Table II by the pre-registered scale, the claim's
+# verdict, and the start/goal laws against Table I's anchor. Defined when configured
+# (workflow/configs/scenario_laws.yaml); not part of all:  snakemake -j2 table_ii_readings
+if config["table_ii_readings"]:
+    TABLE_II_STUDIES = [*config["table_ii_readings"]["studies"], config["table_ii_readings"]["anchor"]["study"]]
+
+    rule table_ii_readings:
+        input:
+            tracking=TRACKING,
+            results=sorted({p for s in TABLE_II_STUDIES for p in study_results(s)}),
+        output:
+            csv=kept(f"{FIGURES}/table_ii_readings/table_ii_readings.csv"),
+            md=kept(f"{FIGURES}/table_ii_readings/table_ii_readings.md"),
+            html=report(kept(f"{FIGURES}/table_ii_readings/table_ii_readings.html"), caption="../report/table_ii_readings.rst",
+                        category=REPORT_SECTIONS["our_tables"],
+                        labels={"Item": "table_ii_readings", "Study": "table_ii_readings.studies"}),
+            verdict=kept(f"{FIGURES}/table_ii_readings/verdict.json"),
+            laws=kept(f"{FIGURES}/table_ii_readings/laws.csv"),
+            png=report(kept(f"{FIGURES}/table_ii_readings/fig_table_ii_readings.png"), caption="../report/table_ii_readings.rst",
+                       category=REPORT_SECTIONS["our_tables"],
+                       labels={"Item": "fig_table_ii_readings", "Study": "table_ii_readings.studies"}),
+            pdf=kept(f"{FIGURES}/table_ii_readings/fig_table_ii_readings.pdf"),
+        params:
+            config=RESOLVED,
+            settings=settings_hash("table-ii-readings"),
+            source=source_hash("table-ii-readings"),
+            out_dir=out_dir_of("csv"),
+        resources:
+            mem_mb=2000,
+            runtime=10,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/table_ii_readings.log",
+        shell:
+            "python -m madpinn table-ii-readings --config {params.config:q}"
+            " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"

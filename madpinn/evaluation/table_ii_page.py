@@ -1,0 +1,154 @@
+"""The Table II readings page (issue 60): ``table_ii_readings.{csv,md,html}``, ``verdict.json`` and
+the start/goal laws' rule (``laws.csv``), from the cells of ``table_ii_readings.studies`` and its
+anchor (:mod:`madpinn.evaluation.table_ii_readings` computes, this module writes)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+
+from madpinn.evaluation.encounter_hazard import hazard_by_speed
+from madpinn.evaluation.table_ii_readings import SCALE, PaperRow, claim_verdict, judge, law_reading, law_rule, reading_rows
+from madpinn.evaluation.table_ii_settings import ReadingsSettings
+from madpinn.evaluation.tables import load_results, to_markdown
+
+SPEED_EDGES = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0)
+"""m/s: the bins of the collided share by encounter speed (the first pass's, docs/findings/2026-11-29-scenario-laws-first-pass.md)"""
+PLAN = "docs/findings/2026-11-28-table-ii-readings-preregistered.md"
+
+
+def load_frames(result_paths: Iterable[str | Path], settings: ReadingsSettings) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(anchor scenario rows, large-arena scenario rows) of the given cells, each with its study's ``pattern``."""
+    df = load_results(result_paths)
+    unknown = sorted(set(df["study"]) - set(settings.patterns))
+    if unknown:
+        raise ValueError(f"cells of studies outside table_ii_readings: {unknown}")
+    df["pattern"] = df["study"].map(settings.patterns)
+    return df[df["study"] == settings.anchor].copy(), df[df["study"].isin(settings.studies)].copy()
+
+
+def verdict_of(rows: pd.DataFrame, paper: PaperRow, settings: ReadingsSettings) -> tuple[pd.DataFrame, dict]:
+    """The judged readings and the claim's verdict; with no reading at every N, the verdict says so."""
+    judged = judge(rows, paper)
+    if judged.empty:
+        return judged, {"verdict": "not judged: no reading has a cell at each of Table II's agent counts",
+                        "readings_judged": 0}
+    return judged, claim_verdict(judged, settings.protocol_reading)
+
+
+def _pct(x: float) -> str:
+    return "–" if not np.isfinite(x) else f"{100 * x:.1f}"
+
+
+def _reading_name(r, settings: ReadingsSettings) -> str:
+    return f"{r['study']} ({r['pattern']}) · {settings.labels.get(r['run'], r['run'])} · T = {r['horizon_s']:g} s"
+
+
+def readings_display(rows: pd.DataFrame, judged: pd.DataFrame, paper: PaperRow, settings: ReadingsSettings) -> pd.DataFrame:
+    """One display row per reading: per N safety [95 % CI] / safe sc. / cost ∫ / cost ÷T, and its checks."""
+    checks = {(r["study"], r["run"], r["horizon_s"]): f"{r['checks_passed']}/{r['checks']}" + (" ✔" if r["reproduces"] else "")
+              for _, r in judged.iterrows()}
+    out = []
+    for key, g in rows.groupby(["study", "run", "horizon_s"], sort=False):
+        g = g.set_index("n_agents")
+        row = {"reading": _reading_name({**g.iloc[0], "study": key[0], "run": key[1], "horizon_s": key[2]}, settings)}
+        for n in sorted(set(paper.cells) | set(g.index)):
+            if n not in g.index:
+                row[f"N={n}"] = "–"
+                continue
+            c = g.loc[n]
+            row[f"N={n}"] = (f"{_pct(c['safety'])} [{_pct(c['safety_lo'])}, {_pct(c['safety_hi'])}] / {_pct(c['safe_scenarios'])}"
+                             f" / {c['cost']:.2f} / {c['cost_time_avg']:.2f}")
+        row["checks"] = checks.get(key, "not every N")
+        out.append(row)
+    return pd.DataFrame(out)
+
+
+def laws_display(rule: pd.DataFrame) -> pd.DataFrame:
+    """The §1 rule's cells for the page."""
+    return pd.DataFrame({
+        "cell": [f"{r.study} ({r.pattern}) · {r.run} · N={r.n_agents} · seed {r.seed}" for r in rule.itertuples()],
+        "encounters / agent": [f"{x:.2f}" for x in rule["encounters_per_agent"]],
+        "safety %": [_pct(x) for x in rule["safety"]],
+        "h [95 % CI]": [f"{r.hazard:.3f} [{r.hazard_lo:.3f}, {r.hazard_hi:.3f}]" for r in rule.itertuples()],
+        "anchor h [95 % CI]": [f"{r.anchor_hazard:.3f} [{r.anchor_lo:.3f}, {r.anchor_hi:.3f}]" for r in rule.itertuples()],
+        "load-matched": ["yes" if m else "no" for m in rule["load_matched"]],
+        "rule": [r or "–" for r in rule["reading"]],
+    })
+
+
+def speed_display(large: pd.DataFrame, settings: ReadingsSettings) -> pd.DataFrame:
+    """Collided share by encounter speed, per study (all its runs and cells pooled)."""
+    out = []
+    for study, g in large.groupby("study", sort=False):
+        for r in hazard_by_speed(g, SPEED_EDGES, settings.collision_radius).itertuples():
+            out.append({"study": study, "speed (m/s)": f"{r.speed_low:g}–{r.speed_high:g}" if np.isfinite(r.speed_high) else f"≥ {r.speed_low:g}",
+                        "agents": r.agents, "collided": r.collided,
+                        "share [95 % Wilson]": "–" if not r.agents else f"{r.hazard:.3f} [{r.low:.3f}, {r.high:.3f}]"})
+    return pd.DataFrame(out)
+
+
+def verdict_sentence(verdict: dict) -> str:
+    """The verdict in one plain sentence, naming the readings it rests on."""
+    v = verdict["verdict"]
+    if not verdict.get("readings_judged"):
+        return f"**{v}.**"
+    name = lambda r: f"{r['study']} · {r['run']} · T = {r['horizon_s']:g} s"   # noqa: E731
+    text = f"**Table II {v}.** The protocol's reading ({name(verdict['protocol'])}) passes {verdict['protocol']['checks_passed']} of {verdict['protocol']['checks']} checks."
+    if verdict["reproducing"]:
+        text += " Readings that reproduce it: " + "; ".join(f"{name(r)} (cost reading {r['cost_reading']})" for r in verdict["reproducing"]) + "."
+    else:
+        c = verdict["closest"]
+        text += f" The closest reading: {name(c)}, {c['checks_passed']} of {c['checks']} checks."
+    return text
+
+
+def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, settings: ReadingsSettings, paper: PaperRow,
+                            out_dir: str | Path) -> list[Path]:
+    """From :func:`load_frames`' scenario rows, write ``table_ii_readings.csv`` (one row per reading
+    and N), ``.md`` / ``.html`` (the verdict, the readings, the law rule, the speed bins),
+    ``verdict.json`` and ``laws.csv``; returns the paths."""
+    from madpinn.evaluation.html import markdown_page
+
+    rows = reading_rows(large)
+    judged, verdict = verdict_of(rows, paper, settings)
+    rule = law_rule(anchor, large, settings.anchor_agents) if len(anchor) else pd.DataFrame()
+    verdict["law_rule"] = law_reading(rule) if len(rule) else "no anchor cells"
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    csv, laws, js, md = out / "table_ii_readings.csv", out / "laws.csv", out / "verdict.json", out / "table_ii_readings.md"
+    rows.merge(judged[["study", "run", "horizon_s", "checks_passed", "checks", "reproduces", "cost_reading"]]
+               if len(judged) else pd.DataFrame(columns=["study", "run", "horizon_s"]),
+               on=["study", "run", "horizon_s"], how="left").to_csv(csv, index=False)
+    rule.to_csv(laws, index=False)
+    js.write_text(json.dumps(verdict, indent=2, sort_keys=True) + "\n")
+    paper_line = " · ".join(f"N={n}: {_pct(c['safety'])} % / {_pct(c['safe_scenarios'])} % / {c['cost']:.2f}"
+                            for n, c in sorted(paper.cells.items()))
+    text = [
+        "# Table II under the readings the paper leaves open (issue 60; not in the paper)", "",
+        verdict_sentence(verdict), "",
+        f"Scale, fixed before the cells ran ({PLAN} §3): at each N safety ≥ the paper's − {100 * SCALE.safety_points:g} points,",
+        f"safe scenarios ≥ the paper's − {100 * SCALE.safe_points:g} points, and cost within ±{100 * SCALE.cost_relative:g} % of the paper's at every N",
+        "in one cost reading (∫ over [0, T], or ∫ ÷ T; collision-free agents). A reading is a large-arena study",
+        "(its start/goal law), a run (the deployment) and a horizon T read from the same episodes. Scenarios are",
+        "pooled over the reading's seeds (validation seeds only); intervals are 95 % bootstraps over scenarios.", "",
+        f"Paper (Table II, safety % / safe scenarios % / cost): {paper_line}.", "",
+        "## Readings", "",
+        "Per N: safety % [95 % CI] / safe scenarios % / cost ∫ / cost ÷T; checks passed of 3 per N (✔: reproduces).", "",
+        to_markdown(readings_display(rows, judged, paper, settings)), "",
+        f"## The start/goal law at Table I's load ({PLAN} §1)", "",
+        f"Rule: {verdict['law_rule']}. h = (1 − safety) / straight-line encounters per agent; the anchor is "
+        f"{settings.anchor} at {settings.anchor_agents} agents, the same seed; load-matched = within ±{100 * SCALE.load_window:g} %.", "",
+        to_markdown(laws_display(rule)) if len(rule) else "No anchor cells.", "",
+        "## Collided share by encounter speed", "",
+        "Each agent's relative speed to its nearest agent at its first collision, else at its closest approach.", "",
+        to_markdown(speed_display(large, settings)),
+    ]
+    md.write_text("\n".join(text))
+    page = out / "table_ii_readings.html"
+    page.write_text(markdown_page(md.read_text(), "table_ii_readings"))
+    return [csv, md, page, js, laws]
