@@ -15,7 +15,8 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, validate_config
-from madpinn.evaluation.table_ii_readings import PaperRow, claim_verdict, horizons_of, judge, law_reading, law_rule, reading_rows
+from madpinn.evaluation.table_ii_readings import (PaperRow, baseline_reading, claim_verdict, horizons_of, judge, law_reading, law_rule,
+                                                  reading_rows)
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 
 PAPER = PaperRow({64: {"safety": 1.0, "safe_scenarios": 1.0, "cost": 1.09},
@@ -123,6 +124,14 @@ def test_the_law_rule_reads_harder_alike_and_unmatched_cells():
     assert law_reading(rule.reset_index()).startswith("mixed: ")
 
 
+def test_a_baseline_at_table_ii_safety_makes_the_arena_hard_for_madpinn_alone():
+    safe = reading("baselines_large", "safemarl", {64: 1.0, 128: 0.98, 256: 0.95}, PAPER_COST_INT)   # 0.75 / 1.25 points short
+    unsafe = reading("baselines_large", "mppi", {64: 1.0, 128: 0.9, 256: 0.95}, PAPER_COST_INT)
+    both = baseline_reading(reading_rows(pd.concat([safe, unsafe], ignore_index=True)), PAPER)
+    assert both == {"reading": "hard for MAD-PINN alone", "reaching": ["safemarl"]}
+    assert baseline_reading(reading_rows(unsafe), PAPER)["reading"] == "hard for every method tried"
+
+
 SCENARIO_LAWS = REPO / "workflow" / "configs" / "scenario_laws.yaml"
 
 
@@ -138,7 +147,8 @@ def test_settings_come_from_the_config_and_bad_declarations_fail_early():
     for change, message in [({"table_ii_readings": {"studies": ["nope"]}}, "unknown study 'nope'"),
                             ({"table_ii_readings": {"anchor": {"study": "law_uniform"}}}, "small-arena uniform study"),
                             ({"table_ii_readings": {"protocol": {"run": "mppi"}}}, "has no run 'mppi'"),
-                            ({"table_ii_readings": {"studies": ["law_anchor_small"]}}, "runs in the large arena")]:
+                            ({"table_ii_readings": {"studies": ["law_anchor_small"]}}, "runs in the large arena"),
+                            ({"table_ii_readings": {"baselines": ["nope"]}}, "'table_ii_readings.baselines': unknown study 'nope'")]:
         with pytest.raises(ConfigError, match=message):
             validate_config(deep_merge(cfg, change))
 
@@ -146,7 +156,8 @@ def test_settings_come_from_the_config_and_bad_declarations_fail_early():
 def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     frames = {"law_anchor_small": _anchor(0.98).assign(study="law_anchor_small"),
               "law_uniform": reading("law_uniform", "madpinn", {64: 0.65, 128: 0.58, 256: 0.47}, PAPER_COST_INT),
-              "law_within_1m": reading("law_within_1m", "madpinn", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, load=0.3)}
+              "law_within_1m": reading("law_within_1m", "madpinn", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, load=0.3),
+              "baselines_large": reading("baselines_large", "safemarl", {64: 0.9, 128: 0.8, 256: 0.7}, PAPER_COST_INT)}
     paths = []
     for study, f in frames.items():
         rng = np.random.default_rng(0)
@@ -171,5 +182,7 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     assert [r["study"] for r in verdict["reproducing"]] == ["law_within_1m"]
     md = (out / "table_ii_readings.md").read_text()
     assert "holds only under readings the paper does not state" in md and "law_within_1m (goals_within_1m)" in md
+    assert verdict["baselines"] == {"reading": "hard for every method tried", "reaching": []}
+    assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 |" in md
     for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf"):
         assert (out / name).stat().st_size > 0

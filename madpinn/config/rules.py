@@ -102,10 +102,10 @@ def _table_ii_errors(cfg: Mapping[str, Any]) -> list[str]:
     if not sec:
         return []
     lines, studies = [], cfg["studies"]
-    for name in sec["studies"]:
+    for key, name in [("studies", s) for s in sec["studies"]] + [("baselines", s) for s in sec["baselines"]]:
         st = studies.get(name)
         if st is None:
-            lines.append(f"  - 'table_ii_readings.studies': unknown study '{name}'")
+            lines.append(f"  - 'table_ii_readings.{key}': unknown study '{name}'")
         elif st["arena"] != "large":
             lines.append(f"  - 'studies.{name}.arena': a Table II reading runs in the large arena, got '{st['arena']}'")
     anchor = studies.get(sec["anchor"]["study"])

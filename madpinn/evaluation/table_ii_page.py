@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 
 from madpinn.evaluation.encounter_hazard import hazard_by_speed
-from madpinn.evaluation.table_ii_readings import SCALE, PaperRow, claim_verdict, judge, law_reading, law_rule, reading_rows
+from madpinn.evaluation.table_ii_readings import (SCALE, PaperRow, baseline_reading, claim_verdict, judge, law_reading, law_rule,
+                                                  reading_rows)
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 from madpinn.evaluation.tables import load_results, to_markdown
 
@@ -21,14 +22,15 @@ SPEED_EDGES = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0)
 PLAN = "docs/findings/2026-11-28-table-ii-readings-preregistered.md"
 
 
-def load_frames(result_paths: Iterable[str | Path], settings: ReadingsSettings) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(anchor scenario rows, large-arena scenario rows) of the given cells, each with its study's ``pattern``."""
+def load_frames(result_paths: Iterable[str | Path], settings: ReadingsSettings) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """(anchor, readings, baselines) scenario rows of the given cells, each with its study's ``pattern``."""
     df = load_results(result_paths)
     unknown = sorted(set(df["study"]) - set(settings.patterns))
     if unknown:
         raise ValueError(f"cells of studies outside table_ii_readings: {unknown}")
     df["pattern"] = df["study"].map(settings.patterns)
-    return df[df["study"] == settings.anchor].copy(), df[df["study"].isin(settings.studies)].copy()
+    return (df[df["study"] == settings.anchor].copy(), df[df["study"].isin(settings.studies)].copy(),
+            df[df["study"].isin(settings.baselines)].copy())
 
 
 def verdict_of(rows: pd.DataFrame, paper: PaperRow, settings: ReadingsSettings) -> tuple[pd.DataFrame, dict]:
@@ -107,8 +109,22 @@ def verdict_sentence(verdict: dict) -> str:
     return text
 
 
-def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, settings: ReadingsSettings, paper: PaperRow,
-                            out_dir: str | Path) -> list[Path]:
+def baselines_display(rows: pd.DataFrame, protocol: pd.DataFrame, paper: PaperRow, settings: ReadingsSettings) -> pd.DataFrame:
+    """The baselines' rows and the protocol's reading beside them: per N safety [95 % CI] / safe sc. / cost ÷T."""
+    out = []
+    for (study, run), g in pd.concat([protocol, rows], ignore_index=True).groupby(["study", "run"], sort=False):
+        g = g[g["horizon_s"] == g["horizon_s"].max()].set_index("n_agents")
+        row = {"method": f"{settings.labels.get(run, run)} ({study})"}
+        for n in sorted(set(paper.cells) | set(g.index)):
+            c = g.loc[n] if n in g.index else None
+            row[f"N={n}"] = "–" if c is None else (f"{_pct(c['safety'])} [{_pct(c['safety_lo'])}, {_pct(c['safety_hi'])}]"
+                                                   f" / {_pct(c['safe_scenarios'])} / {c['cost_time_avg']:.2f}")
+        out.append(row)
+    return pd.DataFrame(out)
+
+
+def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, baselines: pd.DataFrame, settings: ReadingsSettings,
+                            paper: PaperRow, out_dir: str | Path) -> list[Path]:
     """From :func:`load_frames`' scenario rows, write ``table_ii_readings.csv`` (one row per reading
     and N), ``.md`` / ``.html`` (the verdict, the readings, the law rule, the speed bins),
     ``verdict.json`` and ``laws.csv``; returns the paths."""
@@ -118,6 +134,9 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, settings:
     judged, verdict = verdict_of(rows, paper, settings)
     rule = law_rule(anchor, large, settings.anchor_agents) if len(anchor) else pd.DataFrame()
     verdict["law_rule"] = law_reading(rule) if len(rule) else "no anchor cells"
+    base_rows = reading_rows(baselines) if len(baselines) else pd.DataFrame()
+    if len(base_rows):
+        verdict["baselines"] = baseline_reading(base_rows, paper)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     csv, laws, js, md = out / "table_ii_readings.csv", out / "laws.csv", out / "verdict.json", out / "table_ii_readings.md"
@@ -144,6 +163,12 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, settings:
         f"Rule: {verdict['law_rule']}. h = (1 − safety) / straight-line encounters per agent; the anchor is "
         f"{settings.anchor} at {settings.anchor_agents} agents, the same seed; load-matched = within ±{100 * SCALE.load_window:g} %.", "",
         to_markdown(laws_display(rule)) if len(rule) else "No anchor cells.", "",
+        *(["## The baselines in the large arena (labelled rows the paper does not report)", "",
+            f"Rule (fixed before the cells): {verdict['baselines']['reading']}"
+            + (f" (reaching Table II's safety at every N: {', '.join(verdict['baselines']['reaching'])})" if verdict["baselines"]["reaching"] else "")
+            + ". Per N: safety % [95 % CI] / safe scenarios % / cost ÷T; the protocol's MAD-PINN reading first.", "",
+            to_markdown(baselines_display(base_rows, rows[(rows["study"] == settings.protocol[0]) & (rows["run"] == settings.protocol[1])],
+                                          paper, settings)), ""] if len(base_rows) else []),
         "## Collided share by encounter speed", "",
         "Each agent's relative speed to its nearest agent at its first collision, else at its closest approach.", "",
         to_markdown(speed_display(large, settings)),

@@ -205,3 +205,20 @@ def law_reading(rule: pd.DataFrame) -> str:
     if not readings:
         return "no large-arena cell at the anchor's load"
     return readings[0] if len(readings) == 1 else "mixed: " + "; ".join(readings)
+
+
+BASELINE_READINGS = ("hard for MAD-PINN alone", "hard for every method tried")
+
+
+def baseline_reading(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> dict:
+    """Item 4's rule (fixed before the cells, docs/findings/2026-11-29-table-ii-grid-plan.md): the
+    baselines' :func:`reading_rows` at their episode length; a baseline *reaches Table II's safety*
+    when its safety ≥ the paper's − 2 points at every paper N. ``{"reading", "reaching": [run, ...]}``:
+    "hard for MAD-PINN alone" when some baseline reaches it, else "hard for every method tried"."""
+    reaching = []
+    for run, g in rows.groupby("run", sort=False):
+        g = g[g["horizon_s"] == g["horizon_s"].max()].set_index("n_agents")
+        if set(paper.cells) <= set(g.index) and all(
+                g.at[n, "safety"] >= c["safety"] - scale.safety_points - 1e-12 for n, c in paper.cells.items()):
+            reaching.append(str(run))
+    return {"reading": BASELINE_READINGS[0] if reaching else BASELINE_READINGS[1], "reaching": reaching}

@@ -18,6 +18,8 @@ class ReadingsSettings:
     """study -> its start/goal law (``uniform`` | ``goals_within_<R>m``)"""
     episodes: Mapping[str, float]
     """study -> its episode length T (s): the horizon its unsuffixed figures are read at"""
+    baselines: tuple[str, ...]
+    """large-arena studies of other methods under the protocol's reading (item 4)"""
     anchor: str
     """Table I's setting (small arena, uniform law): the per-encounter hazard reference of §1"""
     anchor_agents: int
@@ -35,9 +37,9 @@ class ReadingsSettings:
 
         sec, studies = cfg["table_ii_readings"], cfg["studies"]
         names = tuple(sec["studies"])
-        every = (*names, sec["anchor"]["study"])
+        every = (*names, *sec["baselines"], sec["anchor"]["study"])
         runs = {r for s in every for r in studies[s]["runs"]}
-        return cls(studies=names, patterns={s: study_pattern(studies[s]) for s in every},
+        return cls(studies=names, baselines=tuple(sec["baselines"]), patterns={s: study_pattern(studies[s]) for s in every},
                    episodes={s: float(cfg["arenas"][studies[s]["arena"]]["episode_s"]) for s in every},
                    anchor=str(sec["anchor"]["study"]), anchor_agents=int(sec["anchor"]["n_agents"]),
                    protocol=(str(sec["protocol"]["study"]), str(sec["protocol"]["run"])),

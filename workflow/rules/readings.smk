@@ -76,7 +76,8 @@ if CONTROLLER_STUDIES:
 # verdict, and the start/goal laws against Table I's anchor. Defined when configured
 # (workflow/configs/scenario_laws.yaml); not part of all:  snakemake -j2 table_ii_readings
 if config["table_ii_readings"]:
-    TABLE_II_STUDIES = [*config["table_ii_readings"]["studies"], config["table_ii_readings"]["anchor"]["study"]]
+    TABLE_II_STUDIES = [*config["table_ii_readings"]["studies"], *config["table_ii_readings"]["baselines"],
+                        config["table_ii_readings"]["anchor"]["study"]]
 
     rule table_ii_readings:
         input:
