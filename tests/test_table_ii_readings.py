@@ -186,3 +186,18 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 |" in md
     for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf"):
         assert (out / name).stat().st_size > 0
+
+
+def test_the_claims_page_reads_the_verdict_of_the_readings():
+    from madpinn.evaluation.claim_checks import UNSTATED, claim_verdict as page_verdict
+    from madpinn.evaluation.claim_table2_readings import readings_checks
+
+    good = reading("law_local", "madpinn", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, pattern="goals_within_1m")
+    bad = reading("law_uniform", "madpinn", {64: 0.65, 128: 0.58, 256: 0.47}, PAPER_COST_INT)
+    judged = judge(reading_rows(pd.concat([good, bad], ignore_index=True)), PAPER)
+    checks = readings_checks(claim_verdict(judged, ("law_uniform", "madpinn", T)))
+    assert [c.stated for c in checks] == [False, True]
+    assert page_verdict(checks) == UNSTATED            # the readings page's words, on the claims page's scale
+    only_bad = readings_checks(claim_verdict(judge(reading_rows(bad), PAPER), ("law_uniform", "madpinn", T)))
+    assert page_verdict(only_bad) == "does not hold"
+    assert page_verdict(readings_checks(claim_verdict(judged, ("law_local", "madpinn", T)))) == "holds"

@@ -141,7 +141,8 @@ def _claims(args) -> int:
     cfg = config_of(args)
     record = JobRecord(job_key="report/claims", rule="claims_table", params={"report": str(args.report)})
     with job(cfg, record, not args.no_track) as run:
-        record.artifacts = write_claims(args.report, args.out_dir, timing_path=args.timing, heatmap_path=args.heatmap)
+        record.artifacts = write_claims(args.report, args.out_dir, timing_path=args.timing, heatmap_path=args.heatmap,
+                                        readings_path=args.table_ii_verdict)
         write_commit_record(cfg, record.job_key, record.artifacts)
         return finish(run, record, echo=list(record.artifacts))
 
@@ -214,6 +215,7 @@ def register(sub) -> None:
     p.add_argument("--report", required=True, help="reproduction.json (python -m madpinn reproduction)")
     p.add_argument("--timing", default=None, help="neighbour_timing.json (python -m madpinn neighbour-timing)")
     p.add_argument("--heatmap", default=None, help="fig_value_heatmap.json (python -m madpinn fig-value-heatmap)")
+    p.add_argument("--table-ii-verdict", default=None, help="verdict.json of the Table II readings (python -m madpinn table-ii-readings)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_claims, reads=keys("experiment"))

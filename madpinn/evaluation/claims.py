@@ -130,14 +130,28 @@ def heatmap_claim() -> Claim:
                  "of the goal", heatmap_checks)
 
 
-def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, heatmap: Mapping | None = None) -> dict:
+def table2_readings_claim() -> Claim:
+    """Table II over the readings the paper leaves open; its checks read the readings page's verdict."""
+    from madpinn.evaluation.claim_table2_readings import readings_checks
+
+    return Claim("table2_readings", "Table II's row (safety, safe scenarios and cost at 64 / 128 / 256 agents), under "
+                 "the readings the paper leaves open (start/goal law, deployment, horizon)", "Table II, tex 410-424; Results 2, tex 427",
+                 "per reading (paper_figures/table_ii_readings/verdict.json): every check of the scale fixed before the cells "
+                 "(docs/findings/2026-11-28-table-ii-readings-preregistered.md §3); the protocol's reading is the stated one",
+                 readings_checks)
+
+
+def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, heatmap: Mapping | None = None,
+                 readings: Mapping | None = None) -> dict:
     """``{"claims": [...], "verdicts": {id: verdict}, "counts": {scale word: n}, "values": [...],
     "consistency": [...], "provenance": {...}}`` from a reproduction report, the neighbour-timing
-    measurement and the heatmap's reading (``timing``, ``heatmap``: their JSON; None: that claim is left out)."""
+    measurement, the heatmap's reading and Table II's readings (``timing``, ``heatmap``, ``readings``: their
+    JSON; None: that claim is left out)."""
     from madpinn.evaluation.claim_values import value_rows
     from madpinn.evaluation.paper_consistency import check_paper
 
-    extra = {"neighbour_selection_time": (timing_claim, timing), "value_heatmap": (heatmap_claim, heatmap)}
+    extra = {"neighbour_selection_time": (timing_claim, timing), "value_heatmap": (heatmap_claim, heatmap),
+             "table2_readings": (table2_readings_claim, readings)}
     inputs = {cl.id: report for cl in claims}
     listed = list(claims)
     for cid, (make, data) in extra.items():
@@ -172,7 +186,7 @@ def readme_lines(claims: dict) -> list[str]:
 
 
 def write_claims(report_path: str | Path, out_dir: str | Path, timing_path: str | Path | None = None,
-                 heatmap_path: str | Path | None = None) -> list[Path]:
+                 heatmap_path: str | Path | None = None, readings_path: str | Path | None = None) -> list[Path]:
     """Read ``reproduction.json`` at ``report_path`` (and the neighbour timing, the heatmap's reading);
     write ``claims.json``, ``claims.md`` and ``claims.html`` (the page the Snakemake report shows) into ``out_dir``."""
     from madpinn.evaluation.claims_page import to_markdown
@@ -182,7 +196,7 @@ def write_claims(report_path: str | Path, out_dir: str | Path, timing_path: str 
     if not isinstance(report, dict) or "provenance" not in report:
         raise ValueError(f"{report_path} is not a reproduction report (no provenance)")
     read = lambda p: json.loads(Path(p).read_text()) if p else None   # noqa: E731
-    claims = build_claims(report, timing=read(timing_path), heatmap=read(heatmap_path))
+    claims = build_claims(report, timing=read(timing_path), heatmap=read(heatmap_path), readings=read(readings_path))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     js, md, page = out_dir / "claims.json", out_dir / "claims.md", out_dir / "claims.html"

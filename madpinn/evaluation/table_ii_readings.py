@@ -144,7 +144,8 @@ def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataF
 
 def claim_verdict(judged: pd.DataFrame, protocol: tuple[str, str, float]) -> dict:
     """The Table II claim's verdict from judged readings; ``protocol`` = (study, run, horizon_s) of
-    the protocol's own reading. ``{"verdict", "protocol_reproduces", "reproducing", "closest"}``."""
+    the protocol's own reading. ``{"verdict", "protocol", "protocol_reproduces", "reproducing", "closest",
+    "readings_judged", "judged"}`` (each reading: study, run, horizon_s, checks_passed, checks, cost_reading)."""
     if judged.empty:
         raise ValueError("no reading has a cell at every agent count of Table II")
     key = judged[["study", "run", "horizon_s"]].apply(tuple, axis=1)
@@ -163,7 +164,8 @@ def claim_verdict(judged: pd.DataFrame, protocol: tuple[str, str, float]) -> dic
         verdict = VERDICTS[2]
     return {"verdict": verdict, "protocol": name(proto.iloc[0]), "protocol_reproduces": bool(proto["reproduces"].iloc[0]),
             "reproducing": [name(r) for _, r in hits.iterrows()], "closest": name(closest),
-            "readings_judged": int(len(judged))}
+            "readings_judged": int(len(judged)),
+            "judged": [{**name(r), "reproduces": bool(r["reproduces"]), "pattern": str(r["pattern"])} for _, r in judged.iterrows()]}
 
 
 def law_rule(anchor: pd.DataFrame, large: pd.DataFrame, anchor_n: int, scale: Scale = SCALE) -> pd.DataFrame:

@@ -78,6 +78,7 @@ rule claims_table:
         report=rules.reproduction_report.output.json,
         timing=NEIGHBOUR_TIMING,
         heatmap=f"{FIGURES}/fig_value_heatmap.json",   # rules.fig_value_heatmap (train.smk); a path, so the rule files may come in any order
+        readings=[f"{FIGURES}/table_ii_readings/verdict.json"] if config["table_ii_readings"] else [],   # rules.table_ii_readings (readings.smk)
     output:
         md=kept(CLAIMS_OUTPUTS[0]),   # kept: a failed job never deletes the committed claims (common.smk)
         json=kept(CLAIMS_OUTPUTS[1]),
@@ -98,7 +99,8 @@ rule claims_table:
     shell:
         "python -m madpinn claims --config {params.config:q} --report {input.report:q} --timing {input.timing:q}"
         " --heatmap {input.heatmap:q} --out-dir {params.out_dir:q}"
-        " 2>&1 | tee {log:q}"
+        + (" --table-ii-verdict {input.readings:q}" if config["table_ii_readings"] else "")
+        + " 2>&1 | tee {log:q}"
 
 
 register_targets(*CLAIMS_OUTPUTS, NEIGHBOUR_TIMING)
