@@ -110,8 +110,11 @@ def in_domain(state: torch.Tensor, p_range: float, v_range: float, agent: type[A
 ROW_MULTIPLE = 16  # network calls get a multiple of this many rows (padded): see _vs_in_chunks
 
 
-def _vs_in_chunks(vs, x: torch.Tensor, chunk: int) -> torch.Tensor:
-    """V_s(x, 0) ``[B]`` for pair states ``[B, 2d]``, ``chunk`` states per network call.
+def _vs_in_chunks(vs, x: torch.Tensor, chunk: int, reuse_buffers: bool = True) -> torch.Tensor:
+    """V_s(x, 0) ``[B]`` for pair states ``[B, 2d]``, ``chunk`` states per network call
+    (``reuse_buffers``: on the network's reused workspace, bitwise the same values, see
+    :meth:`~madpinn.value_functions.PairValue.value`; off for one-off calls of many rows, whose
+    buffers would stay allocated).
 
     Every call is padded to a multiple of :data:`ROW_MULTIPLE` rows (repeating its last state):
     CPU GEMM kernels compute the rows of a ragged tail by a different code path, whose result can
@@ -129,7 +132,7 @@ def _vs_in_chunks(vs, x: torch.Tensor, chunk: int) -> torch.Tensor:
         pad = -part.shape[0] % ROW_MULTIPLE
         if pad:
             part = torch.cat([part, part[-1:].expand(pad, -1)])
-        out.append(vs.value(part, 0.0)[: part.shape[0] - pad].to(x.dtype))
+        out.append(vs.value(part, 0.0, reuse_buffers)[: part.shape[0] - pad].to(x.dtype))
     return torch.cat(out)
 
 
@@ -195,7 +198,7 @@ def calibrate_drift_margins(vs, samples: int = MARGIN_SAMPLES, seed: int = MARGI
     system = vs.system
     g = torch.Generator().manual_seed(seed)
     x = system.sample(samples, g, dtype=torch.float64).to(torch.float32)
-    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius, system.agent) - _vs_in_chunks(vs, x, chunk).to("cpu", x.dtype)
+    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius, system.agent) - _vs_in_chunks(vs, x, chunk, reuse_buffers=False).to("cpu", x.dtype)
     top = float(system.v_range) * 2**0.5
     edges = torch.linspace(0.0, top, bins + 1)[1:]
     b = torch.bucketize(torch.linalg.vector_norm(system.agent.velocity(x), dim=-1), edges).clamp(max=bins - 1)

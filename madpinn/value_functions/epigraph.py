@@ -192,7 +192,12 @@ class EpigraphSystem(BoxControlSystem):
         """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, d]``;
         with ``velocity_saturation`` (``obs`` then required) 0 where it would push a saturated
         velocity further out."""
-        u = super().optimal_control(dv_dobs)
+        return self.velocity_control(self.velocity_grad(dv_dobs), obs)
+
+    def velocity_control(self, dv_dv: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
+        """:meth:`optimal_control` from the velocity block ``∂V/∂v_a [B, n+1, d]`` of the gradient
+        (:meth:`velocity_grad`) alone."""
+        u = self.bang_bang(dv_dv)
         if self.velocity_saturation:
             if obs is None:
                 raise ValueError("optimal_control needs the observation when velocity_saturation is on")
