@@ -82,7 +82,12 @@ class EpigraphSystem(BoxControlSystem):
         return self.spec.dim + 1
 
     def velocity_index(self) -> torch.Tensor:
-        """Indices ``[n+1, d]`` of each agent's velocity inside the observation."""
+        """Indices ``[n+1, d]`` of each agent's velocity inside the observation (built once, read-only)."""
+        if "_velocity_index" not in self.__dict__:   # frozen dataclass: kept beside the fields
+            self.__dict__["_velocity_index"] = self._build_velocity_index()
+        return self.__dict__["_velocity_index"]
+
+    def _build_velocity_index(self) -> torch.Tensor:
         lay = self.spec.layout
         ego = torch.arange(lay.ego_dim)[lay.ego_velocity]
         nbr = [lay.ego_dim + lay.neighbour_dim * j + torch.arange(lay.neighbour_dim)[lay.neighbour_velocity]
