@@ -24,8 +24,8 @@ scenario, collided agents, mean cost and minimum separation, and whether they ar
 ``old``'s. Last line: ``madpinn_cell_speedup_at_256: Z`` (old episode CPU time / ``neighbours`` —
 the whole episode, simulation and collision checks included, and robust to other jobs on a shared
 machine, unlike wall time, which is printed too; the selector's one-off margin calibration, ≈ 1–2 s
-per job, is not in it). The variants run one after the other, or with ``--lockstep`` one policy
-step each in turn (:mod:`lockstep`), so that a shared machine's drifting load weighs on all of them
+per job, is not in it). The variants run one after the other, or with ``--lockstep K`` K policy
+steps each in turn (:mod:`lockstep`), so that a shared machine's drifting load weighs on all of them
 alike.
 
 The ceiling for identical answers: the z search's own time inside the ``neighbours`` episode is
@@ -40,7 +40,7 @@ without evaluating them (:func:`zsearch_floor.certifiable_rows`, every 20th sear
 ``--arena small --agents 12`` runs the same comparison in Table I's arena (the last lines keep
 their names).
 
-    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0 [--variants old neighbours] [--lockstep]
+    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0 [--variants old neighbours] [--lockstep 20]
 """
 
 from __future__ import annotations
@@ -159,8 +159,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
                     help="variants to run (old and neighbours always run: the last lines compare them)")
-    ap.add_argument("--lockstep", action="store_true",
-                    help="run the variants' episodes in lockstep, one policy step each in turn (benchmarks/lockstep.py): "
+    ap.add_argument("--lockstep", type=int, default=0, metavar="STEPS",
+                    help="run the variants' episodes in lockstep, STEPS policy steps each in turn (benchmarks/lockstep.py): "
                          "the same machine load for every variant; wall times then include the waits")
     args = ap.parse_args()
     if args.lockstep and "newton" in args.variants:
@@ -178,7 +178,7 @@ def main() -> None:
     with torch.no_grad():
         runs = {v: episode(vhat, vs, v, starts, goals, steps) for v in variants}
         if args.lockstep:
-            runs = dict(zip(variants, (r for r, _ in run_in_lockstep(list(runs.values())))))
+            runs = dict(zip(variants, (r for r, _ in run_in_lockstep(list(runs.values()), args.lockstep))))
         else:
             runs = {v: run(lambda policy: policy) for v, run in runs.items()}
         for variant, r in runs.items():

@@ -2,8 +2,10 @@
 
 On a shared machine the speed of a core drifts by tens of percent within a minute, so two episodes
 timed one after the other compare two loads as much as two code paths. :func:`run_in_lockstep` runs
-each episode in its own thread and lets them take turns: a turn is one policy step and the
-simulation step and bookkeeping after it, and only the thread whose turn it is runs. Each thread's
+each episode in its own thread and lets them take turns: a turn is ``steps`` policy steps and the
+simulation steps and bookkeeping after them, and only the thread whose turn it is runs. Turns of
+several steps keep the episodes from evicting each other's working set from the caches at every
+step (a cost no real cell pays), turns of seconds still share the load's drift. Each thread's
 CPU time (:func:`time.thread_time`, torch on one thread) is then measured over the same stretch of
 the machine's load as the others'. Threads only take turns, so the answers are those of episodes run
 alone.
@@ -42,25 +44,28 @@ class Turns:
 
 
 class TakingTurns:
-    """A policy (``reset``, ``act``) whose every step waits for thread ``i``'s turn."""
+    """A policy (``reset``, ``act``) that runs ``steps`` steps in each of thread ``i``'s turns."""
 
-    def __init__(self, policy, turns: Turns, i: int):
-        self.policy, self.turns, self.i = policy, turns, i
+    def __init__(self, policy, turns: Turns, i: int, steps: int):
+        self.policy, self.turns, self.i, self.steps, self.calls = policy, turns, i, steps, 0
 
     def reset(self, state, goals) -> None:
         self.turns.wait(self.i)
         self.policy.reset(state, goals)
 
     def act(self, state, goals, t):
-        self.turns.hand_on(self.i)
-        self.turns.wait(self.i)
+        if self.calls and self.calls % self.steps == 0:
+            self.turns.hand_on(self.i)
+            self.turns.wait(self.i)
+        self.calls += 1
         return self.policy.act(state, goals, t)
 
 
-def run_in_lockstep(episodes: list[Callable[[Callable], object]]) -> list[tuple[object, float]]:
+def run_in_lockstep(episodes: list[Callable[[Callable], object]], steps: int = 1) -> list[tuple[object, float]]:
     """``episode(wrap)`` runs one episode with the policy ``wrap(policy)`` and returns its result;
-    returns ``(result, thread CPU seconds)`` per episode, the episodes run in lockstep (module
-    docstring). Setup before the first policy step is timed as well, outside the turns."""
+    returns ``(result, thread CPU seconds)`` per episode, the episodes run in lockstep, ``steps``
+    policy steps a turn (module docstring). Setup before the first policy step is timed as well,
+    outside the turns."""
     turns = Turns(len(episodes))
     out: list = [None] * len(episodes)
 
@@ -68,8 +73,10 @@ def run_in_lockstep(episodes: list[Callable[[Callable], object]]) -> list[tuple[
         try:
             with torch.no_grad():   # grad mode is per thread
                 t0 = time.thread_time()
-                result = episodes[i](lambda policy: TakingTurns(policy, turns, i))
+                result = episodes[i](lambda policy: TakingTurns(policy, turns, i, steps))
                 out[i] = (result, time.thread_time() - t0)
+        except BaseException as exc:   # noqa: BLE001 - raised again in the calling thread
+            out[i] = exc
         finally:
             turns.hand_on(i, done=True)
 
@@ -78,6 +85,7 @@ def run_in_lockstep(episodes: list[Callable[[Callable], object]]) -> list[tuple[
         th.start()
     for th in threads:
         th.join()
-    if any(o is None for o in out):
-        raise RuntimeError("an episode in lockstep failed (its traceback is above)")
+    for o in out:
+        if isinstance(o, BaseException):
+            raise RuntimeError("an episode in lockstep failed") from o
     return out

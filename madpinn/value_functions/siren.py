@@ -68,18 +68,20 @@ class Siren(nn.Module):
             return torch.addmm(self.out.bias, h, self.out.weight.t())[:, 0]
 
     # ---- analytic input gradient ----------------------------------------------------------
-    def _scaled(self):
-        """``(ω_l W_l, ω_l b_l)`` per hidden layer: the frequencies folded into the weights, kept
-        until a parameter changes (its storage or its version counter, which every in-place update
-        such as an optimiser step moves)."""
-        params = [p for lin in self.hidden_layers for p in (lin.weight, lin.bias)]
-        key = tuple((p.data_ptr(), p._version) for p in params)
-        kept = self.__dict__.get("_scaled_kept")
-        if kept is None or kept[0] != key:
+    def _kept(self, name: str, build: Callable[[], list]) -> list:
+        """``build()`` (tensors derived from the parameters, built under ``no_grad``), kept until a
+        parameter changes: its storage or its version counter, which every in-place update such as
+        an optimiser step moves."""
+        key = tuple((p.data_ptr(), p._version) for lin in (*self.hidden_layers, self.out) for p in (lin.weight, lin.bias))
+        kept = self.__dict__.setdefault("_kept_tensors", {})
+        if name not in kept or kept[name][0] != key:
             with torch.no_grad():
-                kept = (key, [(w * lin.weight, w * lin.bias) for lin, w in zip(self.hidden_layers, self.omegas)])
-            self.__dict__["_scaled_kept"] = kept
-        return kept[1]
+                kept[name] = (key, build())
+        return kept[name][1]
+
+    def _scaled(self):
+        """``(ω_l W_l, ω_l b_l)`` per hidden layer: the frequencies folded into the weights."""
+        return self._kept("scaled", lambda: [(w * lin.weight, w * lin.bias) for lin, w in zip(self.hidden_layers, self.omegas)])
 
     def _sweeps(self, x: torch.Tensor, reuse: bool):
         """Forward sweep (``h_l = sin a_l``, ``cos a_l``) and reverse sweep ``∂N/∂h_{l−1} =
