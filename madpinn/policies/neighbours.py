@@ -43,7 +43,7 @@ from typing import Callable
 import torch
 
 from madpinn.dynamics import AgentModel
-from madpinn.dynamics.pair import free_drift_and_grad
+from madpinn.dynamics.pair import closest_free_drift_offset
 from madpinn.observation import PHANTOM, nearest_neighbours, pairwise_distances
 
 STRATEGIES = ("value", "nearest", "random")
@@ -100,11 +100,13 @@ def in_domain(state: torch.Tensor, p_range: float, v_range: float, agent: type[A
     with ``radius`` (m), partner within the sensing radius (``d_ij ≤ radius``); self-pairs excluded."""
     S, N, _ = state.shape
     p, v = agent.position(state), agent.velocity(state)
-    ok = ((p.unsqueeze(2) - p.unsqueeze(1)).abs() <= p_range).all(-1)
-    ok &= ((v.unsqueeze(2) - v.unsqueeze(1)).abs() <= v_range).all(-1)
+    ok = ~torch.eye(N, dtype=torch.bool, device=state.device)
+    for q, half in ((p, p_range), (v, v_range)):
+        for k in range(q.shape[-1]):   # axis by axis: [S, N, N] passes, no reduction over a short last axis
+            ok = ok & ((q[..., k].unsqueeze(2) - q[..., k].unsqueeze(1)).abs() <= half)
     if radius is not None:
         ok &= pairwise_distances(p) <= radius
-    return ok & ~torch.eye(N, dtype=torch.bool, device=state.device)
+    return ok
 
 
 ROW_MULTIPLE = 16  # network calls get a multiple of this many rows (padded): see _vs_in_chunks
@@ -160,8 +162,8 @@ def pair_scores(state: torch.Tensor, vs, chunk: int = 65536, radius: float | Non
 def free_drift_lower_bound(x: torch.Tensor, horizon: float, radius: float, agent: type[AgentModel]) -> torch.Tensor:
     """``min_{τ∈[0,T]} ‖p + v·τ‖ − r`` ``[B]`` for pair states ``x [B, 2d]`` of agents of model
     ``agent``: the pair's safety margin with no relative control
-    (:func:`madpinn.dynamics.pair.free_drift_and_grad`)."""
-    return free_drift_and_grad(x, horizon, radius, agent)[0]
+    (:func:`madpinn.dynamics.pair.free_drift_and_grad`, without the gradient)."""
+    return torch.linalg.vector_norm(closest_free_drift_offset(x, horizon, agent)[0], dim=-1) - radius
 
 
 @dataclass(frozen=True)
