@@ -18,13 +18,15 @@ are 6 s), torch one thread. Variants, each the same scenarios from the same star
   changes answers where V̂ is not monotone in z);
 - ``newton``: bounded scoring and the Newton-stepped warm search (:func:`newton_search.newton_policy`).
 
-Prints policy time (wall, as the evaluation cells' ``policy_us_per_agent_step``) and process CPU
-time per agent-step, V̂ rows per agent-step and, per scenario, collided agents, mean cost and
-minimum separation, and whether they are identical to ``old``'s. Last line:
-``madpinn_cell_speedup_at_256: Z`` (old episode process CPU time / ``neighbours`` — the whole episode,
-simulation and collision checks included, and robust to other jobs on a shared machine, unlike
-wall time, which is printed too; the selector's one-off margin calibration, ≈ 1–2 s per job, is
-not in it).
+Prints policy time (wall, as the evaluation cells' ``policy_us_per_agent_step``) and CPU time
+(of the episode's thread; torch runs on it) per agent-step, V̂ rows per agent-step and, per
+scenario, collided agents, mean cost and minimum separation, and whether they are identical to
+``old``'s. Last line: ``madpinn_cell_speedup_at_256: Z`` (old episode CPU time / ``neighbours`` —
+the whole episode, simulation and collision checks included, and robust to other jobs on a shared
+machine, unlike wall time, which is printed too; the selector's one-off margin calibration, ≈ 1–2 s
+per job, is not in it). The variants run one after the other, or with ``--lockstep K`` K policy
+steps each in turn (:mod:`lockstep`), so that a shared machine's drifting load weighs on all of them
+alike.
 
 The ceiling for identical answers: the z search's own time inside the ``neighbours`` episode is
 timed too. Replacing it with the floor of :mod:`zsearch_floor` gives the time of a cell whose
@@ -38,7 +40,7 @@ without evaluating them (:func:`zsearch_floor.certifiable_rows`, every 20th sear
 ``--arena small --agents 12`` runs the same comparison in Table I's arena (the last lines keep
 their names).
 
-    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0 [--variants old neighbours]
+    PYTHONPATH=$PWD python benchmarks/bench_policy_cell.py --scenarios 2 --episode-s 1.0 [--variants old neighbours] [--lockstep 20]
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ from contextlib import nullcontext
 from dataclasses import replace
 
 import argparse
+import threading
 import time
 
 import numpy as np
@@ -63,6 +66,7 @@ from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
 import madpinn.policies.madpinn as madpinn_policy
+from lockstep import run_in_lockstep   # benchmarks/lockstep.py
 from newton_search import newton_policy   # benchmarks/newton_search.py
 from zsearch_floor import certifiable_rows, floor_us_per_agent_step, row_costs_us   # benchmarks/zsearch_floor.py
 from zsearch_reference import reference_cold_search   # benchmarks/zsearch_reference.py
@@ -92,28 +96,31 @@ def old_selector(vs, n: int, chunk: int = 65536):
 
 
 VARIANTS = ("old", "neighbours", "warm", "newton")
-# the policy's cold z searches in the current episode (timed wrapper below): the search run
-# (the package's, or the reference for ``old``), process CPU seconds, calls, and (obs, grid) of
-# every 20th call, for certifiable_rows
+# the policy's cold z searches in each thread's current episode (timed wrapper below): the search
+# run (the package's, or the reference for ``old``), CPU seconds of the thread, calls, and (obs,
+# grid) of every 20th call, for certifiable_rows
 _cold_search = madpinn_policy.cold_search
-SEARCH = {"search": _cold_search, "cpu": 0.0, "calls": 0, "kept": []}
+SEARCHES: dict[int, dict] = {}
 
 
 def _timed_cold_search(vhat, obs, grid, *args, **kwargs):
-    t0 = time.process_time()
+    log = SEARCHES[threading.get_ident()]
+    t0 = time.thread_time()
     try:
-        return SEARCH["search"](vhat, obs, grid, *args, **kwargs)
+        return log["search"](vhat, obs, grid, *args, **kwargs)
     finally:
-        SEARCH["cpu"] += time.process_time() - t0
-        SEARCH["calls"] += 1
-        if SEARCH["calls"] % 20 == 0:
-            SEARCH["kept"].append((obs.clone(), grid))
+        log["cpu"] += time.thread_time() - t0
+        log["calls"] += 1
+        if log["calls"] % 20 == 0:
+            log["kept"].append((obs.clone(), grid))
 
 
 madpinn_policy.cold_search = _timed_cold_search
 
 
-def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
+def episode(vhat, vs, variant: str, starts, goals, steps: int):
+    """``run(wrap)``: the variant's episode with the policy ``wrap(policy)`` (policy and selector
+    built here, outside it), returning the figures :func:`main` prints."""
     if variant == "old":
         selector, settings = old_selector(vs, SPEC.n_neighbours), BASE_SETTINGS
     else:
@@ -121,18 +128,23 @@ def run(vhat, vs, variant: str, starts, goals, steps: int) -> dict:
         settings = BASE_SETTINGS if variant == "neighbours" else replace(BASE_SETTINGS, warm_start=True)
     pol = MadPinnPolicy(vhat, selector, SPEC, settings, DT)
     backend = DoubleIntegratorBackend(DoubleIntegrator(u_max=4.0, v_max=4.0), DT)
-    SEARCH.update(search=reference_cold_search if variant == "old" else _cold_search, cpu=0.0, calls=0, kept=[])
-    cpu = time.process_time()
-    with newton_policy() if variant == "newton" else nullcontext():
-        result, stats = run_episode(backend, pol, starts, goals, steps, SPEC.collision_radius, progress=False)
-    cpu = time.process_time() - cpu
-    agent_steps = steps * starts.shape[0] * starts.shape[1]
-    s = MadPinnPolicy.summarise_stats(pol.stats)
-    return {"result": result, "policy_us": 1e6 * stats["policy_s"] / agent_steps, "cpu_us": 1e6 * cpu / agent_steps,
-            "wall_s": stats["wall_s"],
-            "rows": s["vhat_evals_per_agent_step"], "hit": s["warm_hit_rate"],
-            "search_us": 1e6 * SEARCH["cpu"] / agent_steps, "infeasible": s["infeasible_fraction"],
-            "searches": SEARCH["kept"]}
+
+    def run(wrap) -> dict:
+        log = SEARCHES[threading.get_ident()] = dict(search=reference_cold_search if variant == "old" else _cold_search,
+                                                     cpu=0.0, calls=0, kept=[])
+        cpu = time.thread_time()
+        with newton_policy() if variant == "newton" else nullcontext():
+            result, stats = run_episode(backend, wrap(pol), starts, goals, steps, SPEC.collision_radius, progress=False)
+        cpu = time.thread_time() - cpu
+        agent_steps = steps * starts.shape[0] * starts.shape[1]
+        s = MadPinnPolicy.summarise_stats(pol.stats)
+        return {"result": result, "policy_us": 1e6 * stats["policy_s"] / agent_steps, "cpu_us": 1e6 * cpu / agent_steps,
+                "wall_s": stats["wall_s"],
+                "rows": s["vhat_evals_per_agent_step"], "hit": s["warm_hit_rate"],
+                "search_us": 1e6 * log["cpu"] / agent_steps, "infeasible": s["infeasible_fraction"],
+                "searches": log["kept"]}
+
+    return run
 
 
 def main() -> None:
@@ -147,7 +159,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=100, help="scenario seed (validation seeds are ≥ 100)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
                     help="variants to run (old and neighbours always run: the last lines compare them)")
+    ap.add_argument("--lockstep", type=int, default=0, metavar="STEPS",
+                    help="run the variants' episodes in lockstep, STEPS policy steps each in turn (benchmarks/lockstep.py): "
+                         "the same machine load for every variant; wall times then include the waits")
     args = ap.parse_args()
+    if args.lockstep and "newton" in args.variants:
+        raise SystemExit("--lockstep cannot run the newton variant (it swaps the policy's search for every thread)")
     if args.seed < 100:
         raise SystemExit(f"use a validation seed (≥ 100), not {args.seed}")
     torch.set_num_threads(1)
@@ -158,13 +175,16 @@ def main() -> None:
     print(f"{args.agents} agents, {args.arena} arena, {args.scenarios} scenarios of seed {args.seed}, {steps} steps "
           f"({args.episode_s} s), double integrator, torch 1 thread", flush=True)
     variants = [v for v in VARIANTS if v in {"old", "neighbours", *args.variants}]
-    runs = {}
     with torch.no_grad():
-        for variant in variants:
-            r = runs[variant] = run(vhat, vs, variant, starts, goals, steps)
+        runs = {v: episode(vhat, vs, v, starts, goals, steps) for v in variants}
+        if args.lockstep:
+            runs = dict(zip(variants, (r for r, _ in run_in_lockstep(list(runs.values()), args.lockstep))))
+        else:
+            runs = {v: run(lambda policy: policy) for v, run in runs.items()}
+        for variant, r in runs.items():
             res = r["result"]
             print(f"{variant:10s}: episode wall {r['wall_s']:6.1f} s, policy {r['policy_us']:7.1f} us/agent-step "
-                  f"(episode process CPU {r['cpu_us']:7.1f}), "
+                  f"(episode CPU {r['cpu_us']:7.1f}), "
                   f"V̂ rows/agent-step {r['rows']:.3f}, warm hits {r['hit']:.3f}", flush=True)
             for s in range(args.scenarios):
                 print(f"    scenario {s}: collided agents {int(res.collided[s].sum())}, mean cost {res.cost[s].mean():.6f}, "
@@ -176,7 +196,7 @@ def main() -> None:
                    for f in ("cost", "collided", "min_separation", "final_distance"))
         print(f"{variant} vs old: per-scenario metrics identical: {same}; max |cost difference| "
               f"{np.abs(res.cost - base.cost).max():.3e}, collided agents {int(res.collided.sum())} vs {int(base.collided.sum())}, "
-              f"speedup: episode process CPU {runs['old']['cpu_us'] / runs[variant]['cpu_us']:.2f}, episode wall "
+              f"speedup: episode CPU {runs['old']['cpu_us'] / runs[variant]['cpu_us']:.2f}, episode wall "
               f"{runs['old']['wall_s'] / runs[variant]['wall_s']:.2f}, policy wall "
               f"{runs['old']['policy_us'] / runs[variant]['policy_us']:.2f}", flush=True)
     new = runs["neighbours"]
@@ -186,7 +206,7 @@ def main() -> None:
     certified = [certifiable_rows(vhat, obs, grid) for obs, grid in new["searches"]]
     print(f"neighbours: value rows per agent-step whose sign the network's output bound certifies without a row: "
           f"{sum(certified) / max(1, len(certified)):.4f} (every 20th search of the episode, {len(certified)} searches)")
-    print(f"neighbours: cold z search {new['search_us']:.1f} us/agent-step of {new['cpu_us']:.1f} (process CPU; "
+    print(f"neighbours: cold z search {new['search_us']:.1f} us/agent-step of {new['cpu_us']:.1f} (CPU; "
           f"infeasible share {new['infeasible']:.3f}); the rows it cannot skip: value row {value_us:.3f} us, "
           f"gradient row {grad_us:.3f} us at batch {args.agents * args.scenarios} -> floor {floor:.1f} us/agent-step; "
           f"rest of the episode {rest:.1f} us/agent-step")

@@ -97,7 +97,7 @@ def test_warm_search_returns_the_cold_answer_on_monotone_rows(spread):
     assert rows.sum() >= 10 and (~cold.feasible[rows]).sum() >= 3 and cold.feasible[rows].sum() >= 3
     assert torch.equal(warm.index[rows], cold.index[rows]) and torch.equal(warm.feasible[rows], cold.feasible[rows])
     assert torch.equal(warm.z[rows], cold.z[rows])
-    assert torch.allclose(warm.grad[rows], cold.grad[rows], rtol=1e-5, atol=1e-5)
+    assert torch.allclose(warm.velocity_grad[rows], cold.velocity_grad[rows], rtol=1e-5, atol=1e-5)
     ok = warm.feasible.nonzero().squeeze(1)
     i = warm.index
     assert torch.all(values[ok, i[ok]] <= 0) and torch.all((i[ok] == 1) | (values[ok, i[ok] - 1] > 0))
@@ -408,7 +408,7 @@ def test_newton_search_returns_the_warm_answer_where_the_crossing_is_unique(mode
     assert unique.sum() >= 20 and (unique & ~mono).sum() >= 1   # unique crossings where V̂ is not monotone too
     assert torch.equal(new.index[unique], warm.index[unique]) and torch.equal(new.index[unique], cold.index[unique])
     assert torch.equal(new.z[unique], cold.z[unique])
-    assert torch.allclose(new.grad[unique], cold.grad[unique], rtol=1e-5, atol=1e-5)
+    assert torch.allclose(new.velocity_grad[unique], cold.velocity_grad[unique], rtol=1e-5, atol=1e-5)
     ok = new.feasible.nonzero().squeeze(1)
     i = new.index[ok]
     assert torch.all(values[ok, i] <= 1e-4) and torch.all((i == 1) | (values[ok, i - 1] > -1e-4))

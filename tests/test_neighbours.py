@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from madpinn.dynamics import DoubleIntegrator
-from madpinn.observation import PHANTOM
+from madpinn.observation import PHANTOM, pairwise_distances
 from madpinn.policies.neighbours import (
     DriftMargins,
     _lexicographic_topk,
@@ -15,8 +15,10 @@ from madpinn.policies.neighbours import (
     pair_scores,
     pair_scores_bounded,
     pair_scores_brute_force,
+    relative_states,
     select_lowest,
 )
+from madpinn.dynamics.pair import free_drift_and_grad
 from madpinn.value_functions import load_vs
 from pathlib import Path
 
@@ -140,6 +142,19 @@ def test_free_drift_bound_is_the_closest_approach():
     assert torch.allclose(lb, torch.tensor([-0.1, 0.2, 0.9, 1.9]), atol=1e-6)
     psi = x[:, :2].norm(dim=-1) - 0.1
     assert (lb <= psi + 1e-7).all()
+    y = torch.randn(500, 4, generator=torch.Generator().manual_seed(0))
+    assert torch.equal(free_drift_lower_bound(y, 1.0, 0.1, DoubleIntegrator), free_drift_and_grad(y, 1.0, 0.1, DoubleIntegrator)[0])
+
+
+def test_in_domain_is_the_box_test_on_every_ordered_pair():
+    """Axis by axis as the definition: ``|p_i − p_j| ≤ p_range`` and ``|v_i − v_j| ≤ v_range`` per
+    axis, the partner within the radius, no self-pair."""
+    state = random_states(2, 40, 2.0, 3.0, seed=1)
+    x = relative_states(state)
+    box = (x[..., :2].abs() <= 1.0).all(-1) & (x[..., 2:].abs() <= 2.5).all(-1) & ~torch.eye(40, dtype=torch.bool)
+    assert torch.equal(in_domain(state, 1.0, 2.5, DoubleIntegrator), box) and 0 < int(box.sum()) < box.numel() // 2
+    near = box & (pairwise_distances(state[..., :2]) <= 0.8)
+    assert torch.equal(in_domain(state, 1.0, 2.5, DoubleIntegrator, radius=0.8), near)
 
 
 def crowd_states(S, N, half_width, v_max, seed, converging=0.0):

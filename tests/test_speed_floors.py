@@ -1,7 +1,8 @@
 """The speed-floor tools of issue 37 (benchmarks/zsearch_floor.py, scripts/paired_cells.py): the
 floor counts exactly the rows the deployed cold search evaluates, the cells' summaries are read in
 both layouts (benchmarks/protocol_time.py), and the paired comparison refuses cells that did not
-run the same scenarios."""
+run the same scenarios; episodes in lockstep (benchmarks/lockstep.py, issue 65) take turns of the
+given number of steps and return their own results."""
 
 import json
 import subprocess
@@ -17,6 +18,7 @@ from madpinn.value_functions.z_search import ZGrid, bisection_steps, cold_search
 from policy_models import tiny_models
 
 sys.path.insert(0, str(REPO / "benchmarks"))
+from lockstep import run_in_lockstep  # noqa: E402
 from protocol_time import cell_summaries  # noqa: E402
 from zsearch_floor import certifiable_rows, floor_us_per_agent_step, ran_cold_bisection  # noqa: E402
 
@@ -110,3 +112,47 @@ def test_paired_cells_differences_and_refusal(tmp_path):
 def test_paired_cells_needs_pairs(argv):
     bad = subprocess.run([sys.executable, str(REPO / "scripts" / "paired_cells.py"), *argv], capture_output=True, text=True)
     assert bad.returncode != 0
+
+
+class _Logged:
+    """A policy that logs its steps into a shared list."""
+
+    def __init__(self, name, log):
+        self.name, self.log = name, log
+
+    def reset(self, state, goals):
+        pass
+
+    def act(self, state, goals, t):
+        self.log.append(self.name)
+        return t
+
+
+@pytest.mark.parametrize("steps", [1, 3])
+def test_lockstep_episodes_take_turns_of_steps_and_keep_their_results(steps):
+    log = []
+
+    def episode(name, n):
+        def run(wrap):
+            policy = wrap(_Logged(name, log))
+            policy.reset(None, None)
+            return [policy.act(None, None, k) for k in range(n)]
+        return run
+
+    (a, cpu_a), (b, cpu_b) = run_in_lockstep([episode("a", 7), episode("b", 4)], steps)
+    assert a == list(range(7)) and b == list(range(4)) and cpu_a >= 0 and cpu_b >= 0
+    assert "".join(log) == {1: "ababababaaa", 3: "aaabbbaaaba"}[steps]
+
+
+def test_lockstep_reports_a_failed_episode_without_hanging():
+    def failing(wrap):
+        wrap(_Logged("x", [])).reset(None, None)
+        raise ValueError("boom")
+
+    def fine(wrap):
+        policy = wrap(_Logged("y", []))
+        policy.reset(None, None)
+        return [policy.act(None, None, k) for k in range(3)]
+
+    with pytest.raises(RuntimeError, match="failed"):
+        run_in_lockstep([failing, fine])

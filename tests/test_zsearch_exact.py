@@ -3,7 +3,9 @@
 each). The package's search skips the halvings of rows infeasible at z_max and computes the
 terminal term's z-independent parts once; its grid indices, budgets, feasibility flags and control
 gradients, and whole closed-loop episodes with the shipped models, are compared with ``torch.equal``
-/ ``np.array_equal``."""
+/ ``np.array_equal``. Issue 65: the policy step's network paths on reused buffers (V̂'s halvings,
+its control gradient without the terminal term, V_s's neighbour scores) are bitwise the allocating
+ones, and a policy step gives the reference path's neighbours, z* and controls."""
 
 import sys
 
@@ -15,7 +17,7 @@ from conftest import REPO
 from madpinn.dynamics import DoubleIntegrator
 from madpinn.observation import build_observation
 from madpinn.policies.madpinn import MadPinnPolicy
-from madpinn.policies.neighbours import make_selector
+from madpinn.policies.neighbours import make_selector, value_selector
 from madpinn.simulation import run_episode
 from madpinn.simulation.backend import DoubleIntegratorBackend
 from madpinn.value_functions import load_vhat, load_vs
@@ -66,7 +68,7 @@ def crowded_observations(B: int, seed: int) -> torch.Tensor:
 
 
 def assert_same_search(new, ref):
-    for field in ("index", "z", "feasible", "grad", "hit"):
+    for field in ("index", "z", "feasible", "velocity_grad", "hit"):
         assert torch.equal(getattr(new, field), getattr(ref, field)), field
     assert new.grad_rows == ref.grad_rows
 
@@ -86,7 +88,7 @@ def test_cold_search_is_bitwise_the_reference(B):
     if B >= 200:
         assert (~new.feasible).sum() >= B // 5 and new.value_rows < 0.85 * ref.value_rows
     budgets = cold_search(vhat, obs, grid, with_grad=False)
-    assert budgets.grad is None and torch.equal(budgets.index, ref.index)
+    assert budgets.velocity_grad is None and torch.equal(budgets.index, ref.index)
 
 
 @bitwise
@@ -183,3 +185,92 @@ def test_search_agrees_with_the_reference_within_rounding():
     rows = padded_rows(new.feasible)
     full = vhat.value(obs, z, 0.0)
     assert torch.allclose(vhat.at_observations(obs).rows(rows)(z[rows]), full[rows], rtol=1e-5, atol=1e-6)
+
+
+def _bits(t: torch.Tensor) -> torch.Tensor:
+    """float32 ``t`` as its int32 bit patterns (tells −0 from +0, unlike ``torch.equal``)."""
+    return t.contiguous().view(torch.int32)
+
+
+def test_buffered_network_paths_are_bitwise_the_allocating_ones():
+    """The shipped networks on reused workspace buffers (batches growing and shrinking, so a
+    buffer's leading rows serve smaller ones) give bitwise the allocating paths' values and input
+    gradients, and a result is not overwritten by the next call."""
+    vhat, vs = load_vhat(REPO / "models" / "vhat.pt"), load_vs(REPO / "models" / "vs.pt")
+    banded = load_vs(REPO / "models" / "vs.pt", band=True)
+    g = torch.Generator().manual_seed(4)
+    with torch.no_grad():
+        for B in (90, 333, 17, 512, 64):
+            x = torch.rand(B, vhat.net.in_features, generator=g) * 2 - 1
+            grad = vhat.net.input_grad_reusing_buffers(x)
+            assert torch.equal(_bits(grad), _bits(vhat.net.value_and_input_grad(x)[1]))
+            assert torch.equal(_bits(vhat.net.forward_reusing_buffers(x)), _bits(vhat.net(x)))
+            pairs = (torch.rand(B, 4, generator=g) * 2 - 1) * torch.tensor([vs.system.p_range] * 2 + [vs.system.v_range] * 2)
+            for v in (vs, banded):
+                buffered = v.value(pairs, 0.0, reuse_buffers=True)
+                assert torch.equal(_bits(buffered), _bits(v.value(pairs, 0.0)))
+            kept = grad.clone()
+            vhat.net.input_grad_reusing_buffers(torch.rand(B, vhat.net.in_features, generator=g))
+            assert torch.equal(grad, kept)
+
+
+def test_velocity_grad_is_the_velocity_block_of_value_and_grad_bitwise():
+    """``VHat.velocity_grad`` (the network's gradient alone) equals the velocity block of the full
+    gradient bit for bit: the terminal term ``max(φ_d − z, g_d)`` has a +0 velocity gradient."""
+    vhat = load_vhat(REPO / "models" / "vhat.pt")
+    obs = crowded_observations(200, seed=8)
+    z = torch.rand(200, generator=torch.Generator().manual_seed(9)) * vhat.z_max
+    system = vhat.system
+    _, go, _ = system.terminal_value_and_grad(obs, z)
+    assert torch.equal(_bits(system.velocity_grad(go)), torch.zeros_like(_bits(system.velocity_grad(go))))
+    full = system.velocity_grad(vhat.value_and_grad(obs, z, 0.0)[1])
+    assert torch.equal(_bits(vhat.velocity_grad(obs, z, 0.0)), _bits(full))
+    assert torch.equal(system.velocity_control(vhat.velocity_grad(obs, z, 0.0), obs),
+                       system.optimal_control(vhat.value_and_grad(obs, z, 0.0)[1], obs))
+
+
+class _Allocating:
+    """A V_s whose every value call takes the allocating network path (the reference scoring)."""
+
+    def __init__(self, vs):
+        self.vs = vs
+
+    def __getattr__(self, name):
+        return getattr(self.vs, name)
+
+    def value(self, x, t=0.0, reuse_buffers=False):
+        return self.vs.value(x, t)
+
+
+@bitwise
+def test_policy_step_is_bitwise_the_reference_path():
+    """One policy step on random crowded states (shipped V̂ and V_s, 2 scenarios × 64 agents in a
+    2 m arena): the deployed path (bounded neighbour scores on reused buffers, the cold search at
+    its floor, the control from the network's velocity gradient) gives the reference path's
+    (exhaustive allocating scores, :func:`reference_cold_search`) neighbours, z*, feasibility and
+    controls, bit for bit."""
+    vhat, vs = load_vhat(REPO / "models" / "vhat.pt"), load_vs(REPO / "models" / "vs.pt")
+    import madpinn.policies.madpinn as madpinn_policy
+
+    n = SPEC.n_neighbours
+    for seed in range(3):
+        g = torch.Generator().manual_seed(seed)
+        state = torch.cat([4 * torch.rand(2, 64, 2, generator=g) - 2, 4 * torch.rand(2, 64, 2, generator=g) - 2], -1)
+        goals = 4 * torch.rand(2, 64, 2, generator=g) - 2
+        steps = []
+        for selector, search in ((make_selector("value", n, vs=vs), cold_search),
+                                 (value_selector(_Allocating(vs), n, bounded=False), reference_cold_search)):
+            pol = MadPinnPolicy(vhat, selector, SPEC, madpinn_settings(strategy="value"), 0.0025)
+            pol.reset(state, goals)
+            saved, madpinn_policy.cold_search = madpinn_policy.cold_search, search
+            try:
+                with torch.no_grad():
+                    u = pol.act(state, goals, 0.0)
+            finally:
+                madpinn_policy.cold_search = saved
+            steps.append((pol.neighbours, pol.last_search, u))
+        (nb_new, r_new, u_new), (nb_ref, r_ref, u_ref) = steps
+        assert torch.equal(nb_new, nb_ref) and (nb_new >= 0).float().mean() > 0.5
+        assert torch.equal(r_new.z, r_ref.z) and torch.equal(r_new.feasible, r_ref.feasible)
+        assert (~r_new.feasible).any() and r_new.feasible.any()
+        assert torch.equal(_bits(u_new), _bits(u_ref))

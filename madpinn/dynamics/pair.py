@@ -115,15 +115,21 @@ class PairSystem(BoxControlSystem):
         )
 
 
+def closest_free_drift_offset(x: torch.Tensor, remaining: float | torch.Tensor, agent: type[AgentModel]):
+    """``(p + v·τ* [B, d], τ* [B])``: the closest relative offset of pair states ``x [B, 2d]`` drifting
+    without control over ``τ ∈ [0, T']`` (``T'`` = ``remaining``, s) and its time."""
+    p, v = agent.position(x), agent.velocity(x)
+    tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(min=0.0)
+    tau = torch.minimum(tau, torch.as_tensor(remaining, dtype=x.dtype, device=x.device).expand_as(tau))
+    return p + v * tau[..., None], tau
+
+
 def free_drift_and_grad(x: torch.Tensor, remaining: float | torch.Tensor, radius: float, agent: type[AgentModel]):
     """``min_{τ∈[0, T']} ‖p + v·τ‖ − r`` ``[B]`` and its gradient ``[B, 2d]`` for pair states
     ``x [B, 2d]`` of agents of model ``agent`` over the remaining horizon ``T'`` (s): the safety margin with no relative
     control, a lower bound of the exact V_s (which maximises over controls); ``≤ ψ`` (τ = 0).
     Gradient by the envelope theorem at the minimiser τ*: ``(u, τ*·u)``, u the unit closest offset."""
-    p, v = agent.position(x), agent.velocity(x)
-    tau = (-(p * v).sum(-1) / (v * v).sum(-1).clamp_min(1e-12)).clamp(min=0.0)
-    tau = torch.minimum(tau, torch.as_tensor(remaining, dtype=x.dtype, device=x.device).expand_as(tau))
-    d = p + v * tau[..., None]
+    d, tau = closest_free_drift_offset(x, remaining, agent)
     norm = torch.linalg.vector_norm(d, dim=-1, keepdim=True)
     u = d / norm.clamp_min(1e-12)
     return norm[..., 0] - radius, torch.cat([u, tau[..., None] * u], dim=-1)

@@ -45,5 +45,9 @@ class BoxControlSystem:
 
     def optimal_control(self, grad: torch.Tensor) -> torch.Tensor:
         """Bang-bang optimiser ``∓ū·sign(Bᵀ∇V)`` (shape of :meth:`control_grad`)."""
+        return self.bang_bang(self.control_grad(grad))
+
+    def bang_bang(self, block: torch.Tensor) -> torch.Tensor:
+        """``∓ū·sign(block)`` of the block ``Bᵀ∇V`` (:meth:`control_grad`) itself."""
         bound = -self.control_bound if self.control_mode == "min" else self.control_bound
-        return bound * torch.sign(self.control_grad(grad))
+        return bound * torch.sign(block)

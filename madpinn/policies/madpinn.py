@@ -188,7 +188,7 @@ class MadPinnPolicy:
         self._k_before, self._k_last = self._k_last, r.index
         self.last_search = r
         z, feasible = r.z, r.feasible
-        u = self.vhat.system.optimal_control(r.grad, obs)[:, 0]
+        u = self.vhat.system.velocity_control(r.velocity_grad, obs)[:, 0]
         if self.settings.infeasible == "brake":
             brake = -self.vhat.system.u_max * torch.sign(agent.velocity(x).reshape(S * N, -1))
             u = torch.where(feasible.unsqueeze(-1), u, brake)

@@ -43,7 +43,7 @@ from typing import Callable
 import torch
 
 from madpinn.dynamics import AgentModel
-from madpinn.dynamics.pair import free_drift_and_grad
+from madpinn.dynamics.pair import closest_free_drift_offset
 from madpinn.observation import PHANTOM, nearest_neighbours, pairwise_distances
 
 STRATEGIES = ("value", "nearest", "random")
@@ -100,18 +100,23 @@ def in_domain(state: torch.Tensor, p_range: float, v_range: float, agent: type[A
     with ``radius`` (m), partner within the sensing radius (``d_ij ≤ radius``); self-pairs excluded."""
     S, N, _ = state.shape
     p, v = agent.position(state), agent.velocity(state)
-    ok = ((p.unsqueeze(2) - p.unsqueeze(1)).abs() <= p_range).all(-1)
-    ok &= ((v.unsqueeze(2) - v.unsqueeze(1)).abs() <= v_range).all(-1)
+    ok = ~torch.eye(N, dtype=torch.bool, device=state.device)
+    for q, half in ((p, p_range), (v, v_range)):
+        for k in range(q.shape[-1]):   # axis by axis: [S, N, N] passes, no reduction over a short last axis
+            ok = ok & ((q[..., k].unsqueeze(2) - q[..., k].unsqueeze(1)).abs() <= half)
     if radius is not None:
         ok &= pairwise_distances(p) <= radius
-    return ok & ~torch.eye(N, dtype=torch.bool, device=state.device)
+    return ok
 
 
 ROW_MULTIPLE = 16  # network calls get a multiple of this many rows (padded): see _vs_in_chunks
 
 
-def _vs_in_chunks(vs, x: torch.Tensor, chunk: int) -> torch.Tensor:
-    """V_s(x, 0) ``[B]`` for pair states ``[B, 2d]``, ``chunk`` states per network call.
+def _vs_in_chunks(vs, x: torch.Tensor, chunk: int, reuse_buffers: bool = True) -> torch.Tensor:
+    """V_s(x, 0) ``[B]`` for pair states ``[B, 2d]``, ``chunk`` states per network call
+    (``reuse_buffers``: on the network's reused workspace, bitwise the same values, see
+    :meth:`~madpinn.value_functions.PairValue.value`; off for one-off calls of many rows, whose
+    buffers would stay allocated).
 
     Every call is padded to a multiple of :data:`ROW_MULTIPLE` rows (repeating its last state):
     CPU GEMM kernels compute the rows of a ragged tail by a different code path, whose result can
@@ -129,7 +134,7 @@ def _vs_in_chunks(vs, x: torch.Tensor, chunk: int) -> torch.Tensor:
         pad = -part.shape[0] % ROW_MULTIPLE
         if pad:
             part = torch.cat([part, part[-1:].expand(pad, -1)])
-        out.append(vs.value(part, 0.0)[: part.shape[0] - pad].to(x.dtype))
+        out.append(vs.value(part, 0.0, reuse_buffers)[: part.shape[0] - pad].to(x.dtype))
     return torch.cat(out)
 
 
@@ -157,8 +162,8 @@ def pair_scores(state: torch.Tensor, vs, chunk: int = 65536, radius: float | Non
 def free_drift_lower_bound(x: torch.Tensor, horizon: float, radius: float, agent: type[AgentModel]) -> torch.Tensor:
     """``min_{τ∈[0,T]} ‖p + v·τ‖ − r`` ``[B]`` for pair states ``x [B, 2d]`` of agents of model
     ``agent``: the pair's safety margin with no relative control
-    (:func:`madpinn.dynamics.pair.free_drift_and_grad`)."""
-    return free_drift_and_grad(x, horizon, radius, agent)[0]
+    (:func:`madpinn.dynamics.pair.free_drift_and_grad`, without the gradient)."""
+    return torch.linalg.vector_norm(closest_free_drift_offset(x, horizon, agent)[0], dim=-1) - radius
 
 
 @dataclass(frozen=True)
@@ -195,7 +200,7 @@ def calibrate_drift_margins(vs, samples: int = MARGIN_SAMPLES, seed: int = MARGI
     system = vs.system
     g = torch.Generator().manual_seed(seed)
     x = system.sample(samples, g, dtype=torch.float64).to(torch.float32)
-    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius, system.agent) - _vs_in_chunks(vs, x, chunk).to("cpu", x.dtype)
+    excess = free_drift_lower_bound(x, vs.horizon, vs.collision_radius, system.agent) - _vs_in_chunks(vs, x, chunk, reuse_buffers=False).to("cpu", x.dtype)
     top = float(system.v_range) * 2**0.5
     edges = torch.linspace(0.0, top, bins + 1)[1:]
     b = torch.bucketize(torch.linalg.vector_norm(system.agent.velocity(x), dim=-1), edges).clamp(max=bins - 1)

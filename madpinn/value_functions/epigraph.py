@@ -82,7 +82,12 @@ class EpigraphSystem(BoxControlSystem):
         return self.spec.dim + 1
 
     def velocity_index(self) -> torch.Tensor:
-        """Indices ``[n+1, d]`` of each agent's velocity inside the observation."""
+        """Indices ``[n+1, d]`` of each agent's velocity inside the observation (built once, read-only)."""
+        if "_velocity_index" not in self.__dict__:   # frozen dataclass: kept beside the fields
+            self.__dict__["_velocity_index"] = self._build_velocity_index()
+        return self.__dict__["_velocity_index"]
+
+    def _build_velocity_index(self) -> torch.Tensor:
         lay = self.spec.layout
         ego = torch.arange(lay.ego_dim)[lay.ego_velocity]
         nbr = [lay.ego_dim + lay.neighbour_dim * j + torch.arange(lay.neighbour_dim)[lay.neighbour_velocity]
@@ -192,7 +197,12 @@ class EpigraphSystem(BoxControlSystem):
         """Bang-bang minimiser ``−u_max·sign(∂V/∂v_a)`` for every observed agent ``[B, n+1, d]``;
         with ``velocity_saturation`` (``obs`` then required) 0 where it would push a saturated
         velocity further out."""
-        u = super().optimal_control(dv_dobs)
+        return self.velocity_control(self.velocity_grad(dv_dobs), obs)
+
+    def velocity_control(self, dv_dv: torch.Tensor, obs: torch.Tensor | None = None) -> torch.Tensor:
+        """:meth:`optimal_control` from the velocity block ``∂V/∂v_a [B, n+1, d]`` of the gradient
+        (:meth:`velocity_grad`) alone."""
+        u = self.bang_bang(dv_dv)
         if self.velocity_saturation:
             if obs is None:
                 raise ValueError("optimal_control needs the observation when velocity_saturation is on")

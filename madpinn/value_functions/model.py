@@ -50,10 +50,13 @@ class PINNValueFunction:
             raise ValueError(f"{self.problem.kind}: expected state [B, {self.problem.state_dim}], got {tuple(s.shape)}")
         return s, as_time(t, s.shape[0], s).to(dtype=p.dtype)
 
-    def state_value(self, s: torch.Tensor, t=0.0) -> torch.Tensor:
+    def state_value(self, s: torch.Tensor, t=0.0, reuse_buffers: bool = False) -> torch.Tensor:
+        """``V [B]`` of states ``s [B, S]`` at ``t`` (s). ``reuse_buffers``: the network runs on
+        reused workspace buffers (:meth:`Siren.forward_reusing_buffers`, bitwise the same values)."""
         s, t = self._prepare(s, t)
         with torch.no_grad():
-            n = self.net(self.problem.normalise(s, t))
+            x = self.problem.normalise(s, t)
+            n = self.net.forward_reusing_buffers(x) if reuse_buffers else self.net(x)
             return self._boundary(s) + (self.horizon - t) * self.output_scale * n
 
     def _boundary(self, s):
@@ -97,6 +100,18 @@ class VHat(PINNValueFunction):
         """``(V̂ [B], ∂V̂/∂obs [B, D], ∂V̂/∂z [B])``."""
         v, _, g = self.state_value_and_grads(self._state(obs, z), t)
         return v, g[:, :-1], g[:, -1]
+
+    def velocity_grad(self, obs: torch.Tensor, z: torch.Tensor, t=0.0) -> torch.Tensor:
+        """``∂V̂/∂v_a`` ``[B, n+1, d]`` (every observed agent's velocity: what the control reads),
+        bitwise ``system.velocity_grad`` of :meth:`value_and_grad`'s ``∂V̂/∂obs``, at the cost of the
+        network's input gradient alone (:meth:`Siren.input_grad_reusing_buffers`): the terminal term
+        ``max(φ_d − z, g_d)`` reads positions and goals only, so its velocity gradient is +0, added
+        as such (+0 + −0 = +0, as in the sum of :func:`assemble`)."""
+        s, tt = self._prepare(self._state(obs, z), t)
+        grad_n = self.net.input_grad_reusing_buffers(self.problem.normalise(s, tt))
+        idx = self.system.velocity_index().to(grad_n.device)
+        tau = (self.horizon - tt) * self.output_scale
+        return (tau[:, None, None] * grad_n[:, idx] * self.problem.input_scale(grad_n)[idx]).add_(0.0)
 
     def at_observations(self, obs: torch.Tensor, t=0.0) -> "ObservationValues":
         """V̂ of the fixed observations ``obs [B, D]`` at time ``t``, as a function of z (for a z search)."""
@@ -166,8 +181,10 @@ class PairValue(PINNValueFunction):
     def system(self):
         return self.problem.system
 
-    def value(self, x_rel: torch.Tensor, t=0.0) -> torch.Tensor:
-        v = self.state_value(x_rel, t)
+    def value(self, x_rel: torch.Tensor, t=0.0, reuse_buffers: bool = False) -> torch.Tensor:
+        """V_s ``[B]`` of relative states ``x_rel [B, 2d]`` at ``t`` (s); ``reuse_buffers``: as in
+        :meth:`PINNValueFunction.state_value` (the deployed neighbour scoring)."""
+        v = self.state_value(x_rel, t, reuse_buffers)
         if not self.band:
             return v
         x = x_rel.to(v.dtype)

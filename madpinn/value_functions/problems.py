@@ -44,21 +44,29 @@ class PINNProblem:
     def in_features(self) -> int:
         return self.state_dim + 1
 
+    def _constants(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``(centre [S], half-width [S], input scale [S + 1])`` in ``like``'s dtype and device
+        (converted once per dtype and device, read-only)."""
+        kept = self.__dict__.setdefault("_constants_kept", {})
+        key = (like.dtype, like.device)
+        if key not in kept:
+            scale = torch.cat([1.0 / self._half, torch.tensor([2.0 / self.horizon], dtype=torch.float64)])
+            kept[key] = tuple(v.to(dtype=like.dtype, device=like.device) for v in (self._centre, self._half, scale))
+        return kept[key]
+
     def input_scale(self, like: torch.Tensor) -> torch.Tensor:
         """``dx̃/d(s, t)`` ``[S + 1]`` (diagonal)."""
-        scale = torch.cat([1.0 / self._half, torch.tensor([2.0 / self.horizon], dtype=torch.float64)])
-        return scale.to(dtype=like.dtype, device=like.device)
+        return self._constants(like)[2]
 
     def normalise(self, s: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-        c = self._centre.to(dtype=s.dtype, device=s.device)
-        h = self._half.to(dtype=s.dtype, device=s.device)
+        c, h, _ = self._constants(s)
         return torch.cat([(s - c) / h, (2.0 * t / self.horizon - 1.0)[:, None]], dim=-1)
 
     def coordinate_normaliser(self, i: int, like: torch.Tensor):
         """``values [B] ↦`` column ``i`` of :meth:`normalise` for values of state coordinate ``i``
         (``like``'s dtype and device): the same float operations, so bitwise the same numbers."""
-        c = self._centre.to(dtype=like.dtype, device=like.device)[i : i + 1]
-        h = self._half.to(dtype=like.dtype, device=like.device)[i : i + 1]
+        c, h, _ = self._constants(like)
+        c, h = c[i : i + 1], h[i : i + 1]
         return lambda values: ((values[:, None] - c) / h)[:, 0]
 
     def sample_times(self, batch: int, alpha: float, generator: torch.Generator, dtype) -> torch.Tensor:

@@ -68,48 +68,65 @@ class Siren(nn.Module):
             return torch.addmm(self.out.bias, h, self.out.weight.t())[:, 0]
 
     # ---- analytic input gradient ----------------------------------------------------------
+    def _kept(self, name: str, build: Callable[[], list]) -> list:
+        """``build()`` (tensors derived from the parameters, built under ``no_grad``), kept until a
+        parameter changes: its storage or its version counter, which every in-place update such as
+        an optimiser step moves."""
+        key = tuple((p.data_ptr(), p._version) for lin in (*self.hidden_layers, self.out) for p in (lin.weight, lin.bias))
+        kept = self.__dict__.setdefault("_kept_tensors", {})
+        if name not in kept or kept[name][0] != key:
+            with torch.no_grad():
+                kept[name] = (key, build())
+        return kept[name][1]
+
     def _scaled(self):
         """``(ω_l W_l, ω_l b_l)`` per hidden layer: the frequencies folded into the weights."""
-        return [(w * lin.weight, w * lin.bias) for lin, w in zip(self.hidden_layers, self.omegas)]
+        return self._kept("scaled", lambda: [(w * lin.weight, w * lin.bias) for lin, w in zip(self.hidden_layers, self.omegas)])
 
-    def _sweeps(self, x: torch.Tensor, scaled, keep: bool):
-        """Forward sweep (``h_l``, ``cos a_l``) and reverse sweep for ``∇_x N``. Returns
-        ``(N, ∇_x N, hs, cs, gs, dps)`` with ``gs[l] = ∂N/∂h_l`` and ``dps[l] = cos a_l ⊙ gs[l]``."""
-        hs, cs = [x], []
-        h = x
-        for weight, bias in scaled:
-            a = torch.addmm(bias, h, weight.t())
-            h = torch.sin(a)
+    def _sweeps(self, x: torch.Tensor, reuse: bool):
+        """Forward sweep (``h_l = sin a_l``, ``cos a_l``) and reverse sweep ``∂N/∂h_{l−1} =
+        (cos a_l ⊙ ∂N/∂h_l) V_l``; returns ``(N [B], ∇_x N [B, d_in])``. ``reuse``: every
+        ``[B, hidden]`` intermediate is written into a reused workspace buffer (the same operations,
+        so bitwise the same results; the two returned tensors are fresh)."""
+        scaled = self._scaled()
+        B = x.shape[0]
+        out = (lambda key: self._buffer(("sweeps", key), (B, self.hidden), x)) if reuse else (lambda key: None)  # noqa: E731
+        cs, h = [], x
+        for layer, (weight, bias) in enumerate(scaled):
+            a = torch.addmm(bias, h, weight.t(), out=out(("a", layer)))
+            h = torch.sin(a, out=out(("h", layer)))
             cs.append(a.cos_())
-            hs.append(h)
         n = torch.addmm(self.out.bias, h, self.out.weight.t())[:, 0]
-        g = self.out.weight.expand(x.shape[0], -1)
-        L = self.n_layers
-        gs, dps = [None] * (L + 1), [None] * (L + 1)
-        gs[L] = g
-        for layer in range(L, 0, -1):
-            dp = cs[layer - 1] * g  # δ'_l = cos(a_l) ⊙ ∂N/∂h_l
-            g = torch.mm(dp, scaled[layer - 1][0])  # ∂N/∂h_{l−1}
-            if keep:
-                dps[layer] = dp
-                gs[layer - 1] = g
-        return n, g, hs, cs, gs, dps
+        g = self.out.weight.expand(B, -1)
+        for layer in range(self.n_layers - 1, -1, -1):
+            dp = torch.mul(cs[layer], g, out=out(("dp", layer)))   # δ'_l = cos(a_l) ⊙ ∂N/∂h_l
+            g = torch.mm(dp, scaled[layer][0], out=out(("g", layer)) if layer else None)   # ∂N/∂h_{l−1}
+        return n, g
 
     def value_and_input_grad(self, x: torch.Tensor):
         """``N [B]`` and ``∇_x N [B, d_in]`` without autograd (exact)."""
         with torch.no_grad():
-            n, g, *_ = self._sweeps(x.detach(), self._scaled(), keep=False)
-        return n, g
+            return self._sweeps(x.detach(), reuse=False)
+
+    def input_grad_reusing_buffers(self, x: torch.Tensor) -> torch.Tensor:
+        """``∇_x N [B, d_in]``, bitwise :meth:`value_and_input_grad`'s, its ``[B, hidden]``
+        intermediates in reused workspace buffers (no fresh large allocation per call)."""
+        with torch.no_grad():
+            return self._sweeps(x.detach(), reuse=True)[1]
 
     # ---- fused training backward ----------------------------------------------------------
     def _buffer(self, key, shape, like: torch.Tensor) -> torch.Tensor:
-        """Reusable workspace tensor (fresh large CPU allocations cost page faults each time)."""
+        """Reusable workspace tensor of ``shape`` (fresh large CPU allocations cost page faults
+        each time): the first ``shape[0]`` rows, a contiguous view, of a buffer that only grows,
+        so calls with varying batch sizes reuse it too."""
         ws = self.__dict__.setdefault("_workspace", {})
         buf = ws.get(key)
-        if buf is None or buf.shape != shape or buf.dtype != like.dtype or buf.device != like.device:
-            buf = torch.empty(shape, dtype=like.dtype, device=like.device)
+        if buf is None or buf.shape[1:] != shape[1:] or buf.dtype != like.dtype or buf.device != like.device:
+            buf = None
+        if buf is None or buf.shape[0] < shape[0]:
+            buf = torch.empty((shape[0], *shape[1:]), dtype=like.dtype, device=like.device)
             ws[key] = buf
-        return buf
+        return buf[: shape[0]]
 
     def accumulate_loss_grad(
         self, x: torch.Tensor,

@@ -17,8 +17,10 @@ feasible). Where ``V̂(z_max) > 0`` (unsafe): ``z* = z_max``, ``feasible = False
 budgets and gradients are bitwise those of the search it replaced in issue 48, which ran every
 halving on every agent (``benchmarks/zsearch_reference.py``, ``tests/test_zsearch_exact.py``). Every feasible answer ``i`` is a crossing of the grid,
 ``V̂(z_i) ≤ 0`` and ``V̂(z_{i−1}) > 0`` (``i = 1``: ``z_0 = 0`` is never evaluated). It also
-returns the control gradient ``∂V̂/∂o`` at ``(t = 0, o, z*)``, so a search's cost is counted in
-network rows: ``value_rows`` (V̂ only) and ``grad_rows`` (V̂ and its gradient).
+returns the control gradient, V̂'s gradient with respect to the observed velocities at
+``(t = 0, o, z*)`` (:func:`velocity_grad`: for a :class:`VHat` the network's input gradient alone,
+bitwise the velocity block of ``value_and_grad``), so a search's cost is counted in network rows:
+``value_rows`` (V̂ only) and ``grad_rows`` (V̂ or its gradient).
 """
 
 from __future__ import annotations
@@ -62,13 +64,14 @@ class ZGrid:
 @dataclass
 class ZSearchResult:
     """``index [B]`` (long), ``z [B]``, ``feasible [B]`` (False: ``V̂(z_max) > 0``, z* = z_max),
-    ``grad [B, D]`` = ∂V̂/∂o at z* (None where the caller asked for none), ``hit [B]`` (warm:
+    ``velocity_grad [B, n+1, d]`` = ∂V̂/∂v_a at z*, what the control reads (None where the caller
+    asked for none), ``hit [B]`` (warm:
     answer = prediction, 2 rows or fewer), network rows evaluated: ``value_rows``, ``grad_rows``."""
 
     index: torch.Tensor
     z: torch.Tensor
     feasible: torch.Tensor
-    grad: torch.Tensor | None
+    velocity_grad: torch.Tensor | None
     hit: torch.Tensor
     value_rows: int
     grad_rows: int
@@ -80,8 +83,8 @@ def grid_value(vhat, obs: torch.Tensor, grid: ZGrid, idx: torch.Tensor) -> torch
 
 
 def search_result(vhat, obs, grid: ZGrid, idx, feasible, hit, value_rows, grad_rows, grad=None, todo=None):
-    """The :class:`ZSearchResult` of answers ``idx``: fills the gradient at ``z_idx`` for rows
-    ``todo`` (all rows when ``grad`` is None)."""
+    """The :class:`ZSearchResult` of answers ``idx``: fills the gradient ``grad [B, D]`` (∂V̂/∂o)
+    at ``z_idx`` for rows ``todo`` (all rows when ``grad`` is None) and keeps its velocity block."""
     if grad is None:
         _, grad, _ = vhat.value_and_grad(obs, grid.z(idx, obs.dtype), 0.0)
         grad_rows += obs.shape[0]
@@ -90,7 +93,7 @@ def search_result(vhat, obs, grid: ZGrid, idx, feasible, hit, value_rows, grad_r
         grad = grad.clone()
         grad[todo] = g
         grad_rows += int(todo.numel())
-    return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, grad, hit, value_rows, grad_rows)
+    return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, vhat.system.velocity_grad(grad), hit, value_rows, grad_rows)
 
 
 def bisect(vhat, obs, grid: ZGrid, lo, hi):
@@ -153,6 +156,16 @@ def observation_values(vhat, obs: torch.Tensor):
     return vhat.at_observations(obs, 0.0) if isinstance(vhat, VHat) else _Values(vhat, obs)
 
 
+def velocity_grad(vhat, obs: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+    """``∂V̂/∂v_a`` ``[B, n+1, d]`` at ``(0, o, z)`` for ``obs [B, D]``, ``z [B]``:
+    :meth:`VHat.velocity_grad` (the network's gradient alone) for a
+    :class:`~madpinn.value_functions.model.VHat`, the velocity block of ``value_and_grad`` for any
+    other (a symmetrised or levelled V̂, whose ``velocity_grad`` attribute would be its base's)."""
+    if isinstance(vhat, VHat):
+        return vhat.velocity_grad(obs, z, 0.0)
+    return vhat.system.velocity_grad(vhat.value_and_grad(obs, z, 0.0)[1])
+
+
 def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True) -> ZSearchResult:
     """The paper's bisection (see module docstring); ``obs [B, D]``. ``V̂(z_max)`` on every row,
     then the ``steps`` halvings on the feasible rows only (:func:`padded_rows`): an infeasible
@@ -175,10 +188,9 @@ def cold_search(vhat, obs: torch.Tensor, grid: ZGrid, with_grad: bool = True) ->
     idx = top.clone()
     idx[rows] = torch.where(feasible[rows], lo + 1, top[rows])
     value_rows = B + grid.steps * rows.numel()
-    hit = torch.zeros_like(feasible)
-    if not with_grad:
-        return ZSearchResult(idx, grid.z(idx, obs.dtype), feasible, None, hit, value_rows, 0)
-    return search_result(vhat, obs, grid, idx, feasible, hit, value_rows, 0)
+    z = grid.z(idx, obs.dtype)
+    grad = velocity_grad(vhat, obs, z) if with_grad else None
+    return ZSearchResult(idx, z, feasible, grad, torch.zeros_like(feasible), value_rows, B if with_grad else 0)
 
 
 def min_feasible_z(vhat, obs: torch.Tensor, z_tolerance: float):
