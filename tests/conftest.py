@@ -71,8 +71,9 @@ def run_snakemake(workdir: Path, *args: str, configfiles=(SMOKE,), env: dict | N
     return proc
 
 
-# Longest files first, so that `pytest -n 2 --dist loadfile` (README) starts them at once instead
-# of leaving one to run alone at the end; order within a file is kept.
+# Longest files first, so that `pytest -n 2 --dist loadfile --no-loadscope-reorder` (README) starts
+# them at once instead of leaving one to run alone at the end (xdist's default reorder would sort the
+# files by their number of tests); order within a file is kept.
 LONG_FIRST = ("test_workflow.py", "test_workflow_recovery.py", "test_workflow_reruns.py", "test_mlflow_server.py",
               "test_workflow_profiles.py", "test_shipped_faults.py")
 
