@@ -80,19 +80,24 @@ def _non_finite(node: Any, path: str = "") -> list[tuple[str, float]]:
 
 def _vf_variant_errors(cfg: Mapping[str, Any], validator) -> list[str]:
     """Schema errors of each value-function variant merged over its base (a variant is a partial
-    section: what it yields must be a valid ``value_functions.<kind>``)."""
+    section: what it yields must be a valid ``value_functions.<kind>``). Only that section is
+    validated (against its own schema node, the root's ``$defs`` beside it): the rest of the merged
+    config is the base's, already valid."""
     lines = []
+    root = validator.schema
     for kind, section in VF_VARIANTS.items():
-        for variant in cfg["value_functions"].get(section) or {}:
-            merged = with_vf_variant(cfg, kind, variant)
-            for err in validator.iter_errors(merged):
-                path = list(map(str, err.absolute_path))
-                if path[:2] != ["value_functions", kind]:
-                    continue
-                key = ".".join(["value_functions", section, variant, *path[2:]])
+        variants = cfg["value_functions"].get(section) or {}
+        if not variants:
+            continue
+        node = root["properties"]["value_functions"]["properties"][kind]
+        sub = validator.evolve(schema={**node, "$defs": root["$defs"]})
+        for variant in variants:
+            merged = with_vf_variant(cfg, kind, variant)["value_functions"][kind]
+            for err in sub.iter_errors(merged):
+                key = ".".join(["value_functions", section, variant, *map(str, err.absolute_path)])
                 message = err.message
                 if err.validator == "unevaluatedProperties":
-                    unknown = _unknown_keys(err, validator.schema)
+                    unknown = _unknown_keys(err, root)
                     if not unknown:   # only a sibling error (reported on its own) left the known keys unevaluated
                         continue
                     message = f"unknown keys {', '.join(map(repr, unknown))}"
