@@ -5,7 +5,7 @@ Runs each named cell through the workflow's job function (:func:`madpinn.command
 shipped models, no tracking) on every device of ``--devices``, and prints one JSON line per run:
 the device, wall time ``elapsed_s``, process CPU time ``cpu_s``, policy µs per agent-step, and the
 cell's figures (safety, safe scenarios, cost ÷ T), then for each cell its figures' differences
-between devices. GPU and CPU cells are keyed apart in the output cache (``madpinn.device.planned_device``),
+between devices. GPU and CPU cells are keyed apart in the output cache (``madpinn.machine.planned_device``),
 so the comparison states how far they differ; it decides nothing about which is kept.
 
     # on a lent GPU (one command, well under 10 minutes with --scenarios 2):

@@ -12,7 +12,7 @@ import yaml
 from conftest import REPO, SMOKE, run_snakemake, subprocess_env
 from madpinn.config import load_config
 from madpinn.commands.evaluate import evaluate
-from madpinn.device import planned_device
+from madpinn.machine import planned_device
 
 
 def test_the_planned_device_follows_the_setting_and_the_machine():

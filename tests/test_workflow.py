@@ -10,7 +10,7 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from conftest import REPO, SMOKE, run_snakemake
-from madpinn.device import planned_device
+from madpinn.machine import planned_device
 
 
 def _job_counts(workdir: Path) -> Counter:

@@ -35,7 +35,7 @@ def evaluate(
     cell into its summary also where the study does not ask for it (the study's
     ``collision_events`` does for its cells; an ad-hoc diagnosis of one cell). ``device``: ``cpu`` or
     ``cuda`` in place of the config's ``device`` (the workflow passes the device the cell is keyed
-    under: :func:`madpinn.device.planned_device`); CUDA on a machine without it is one line, before any file."""
+    under: :func:`madpinn.machine.planned_device`); CUDA on a machine without it is one line, before any file."""
     from dataclasses import replace
 
     from madpinn.commands.cell_runs import cell_metrics, cell_record

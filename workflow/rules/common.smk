@@ -9,7 +9,7 @@ from madpinn.config import ConfigError, method_config, study_backend, study_patt
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.commands.seed_guard import WORKFLOW_ENV
-from madpinn.device import pinned_job_environment, planned_device
+from madpinn.machine import pinned_job_environment, planned_device
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.output_cache import cache_layers, install as install_output_cache
 from madpinn.provenance import plugin_module, registry
@@ -27,7 +27,7 @@ os.environ.setdefault("SOURCE_DATE_EPOCH", "0")
 # Marks the workflow's own jobs: `evaluate` run by hand refuses protocol seeds without a reason
 # (madpinn/commands/seed_guard.py); an environment variable keeps the rules' text unchanged.
 os.environ[WORKFLOW_ENV] = "1"
-# What follows the machine and not the job is pinned for every job (madpinn/device.py); a user's
+# What follows the machine and not the job is pinned for every job (madpinn/machine.py); a user's
 # own setting of a variable wins.
 for _var, _value in pinned_job_environment().items():
     os.environ.setdefault(_var, _value)
@@ -38,7 +38,7 @@ BACKEND = config["sim"]["backend"]
 LOGS = f"{RESULTS}/logs"
 # Training rules ask the cluster for one GPU when the config asks for CUDA (`device: cuda`).
 TRAIN_GPU = {"gpu": 1} if config["device"] == "cuda" else {}
-# Evaluation cells run on the device they are keyed under (madpinn.device.planned_device): a param
+# Evaluation cells run on the device they are keyed under (madpinn.machine.planned_device): a param
 # of rule evaluate, so GPU and CPU cells are separate output-cache entries.
 CELL_DEVICE = planned_device(config["device"])
 
