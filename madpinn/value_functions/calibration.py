@@ -26,8 +26,8 @@ import torch
 
 from madpinn.value_functions.conformal import assert_disjoint, certify, check_levels, check_risk, fingerprint, held_out
 from madpinn.value_functions.safety_level import SafetyLevel, at_level, bin_labels, check_edges, closing_speed, speed_bin
-from madpinn.value_functions.sampling import ConflictSamplingSettings, place_conflicts
-from madpinn.value_functions.verification import ScenarioSettings, rollout
+from madpinn.value_functions.verification import ScenarioSettings, rollout, verification_sampling
+from madpinn.value_functions.verification import draw_states as verification_states
 from madpinn.value_functions.z_search import ZGrid, cold_search
 
 DISTRIBUTIONS = ("uniform", "conflict")
@@ -92,9 +92,7 @@ def draw_states(system, n: int, conflict: bool, radius: float, generator: torch.
     :mod:`.verification` draws the same ones before its rejection step): uniform over V̂'s domain,
     or (``conflict``) every state with one pair on a near-collision course reaching the disk of
     ``radius`` (m) within the horizon."""
-    sampling = ConflictSamplingSettings(fraction=1.0 if conflict else 0.0, radius=radius, tau=(0.0, 1.0), closing_speed=None)
-    obs, _ = system.sample(n, generator, dtype=dtype)
-    return place_conflicts(obs, system.spec.n_neighbours, system.horizon, system.spec.offset_range, sampling, generator)
+    return verification_states(system, n, verification_sampling(conflict, radius), generator, dtype)
 
 
 def stream_seeds(seed: int, distribution: str) -> dict[str, int]:

@@ -69,6 +69,19 @@ def epsilon_bound(violations: int, samples: int, beta: float) -> float:
     return float(beta_dist.ppf(1.0 - beta, violations + 1, samples - violations))
 
 
+def verification_sampling(conflict: bool, radius: float) -> ConflictSamplingSettings:
+    """The verification's distribution: uniform over V̂'s domain, or (``conflict``) every state with
+    one pair on a near-collision course reaching the disk of ``radius`` (m) within the horizon."""
+    return ConflictSamplingSettings(fraction=1.0 if conflict else 0.0, radius=radius, tau=(0.0, 1.0), closing_speed=None)
+
+
+def draw_states(system, n: int, sampling: ConflictSamplingSettings, generator: torch.Generator, dtype) -> torch.Tensor:
+    """``n`` observations ``[n, D]`` uniform over V̂'s domain, rewritten by ``sampling``
+    (:func:`verification_sampling`)."""
+    obs, _ = system.sample(n, generator, dtype=dtype)
+    return place_conflicts(obs, system.spec.n_neighbours, system.horizon, system.spec.offset_range, sampling, generator)
+
+
 def draw_safe_states(vhat, n: int, conflict: ConflictSamplingSettings, generator: torch.Generator, max_draws: int,
                      z_tolerance: float):
     """Rejection sampling: ``(obs [n, D], z* [n], acceptance rate)`` of states with
@@ -82,9 +95,7 @@ def draw_safe_states(vhat, n: int, conflict: ConflictSamplingSettings, generator
             raise RuntimeError(f"only {sum(o.shape[0] for o in kept_o)} of {n} V̂-safe states in {drawn} draws: "
                                "V̂ calls almost nothing safe; check the model")
         b = max(1024, n)
-        obs, _ = system.sample(b, generator, dtype=p.dtype)
-        obs = place_conflicts(obs, system.spec.n_neighbours, system.horizon, system.spec.offset_range, conflict, generator)
-        obs = obs.to(p.device)
+        obs = draw_states(system, b, conflict, generator, p.dtype).to(p.device)
         z_star, feasible = min_feasible_z(vhat, obs, z_tolerance)
         kept_o.append(obs[feasible])
         kept_z.append(z_star[feasible])
@@ -134,8 +145,7 @@ def verify(vhat, settings: ScenarioSettings, conflict: bool, z_tolerance: float,
     distribution (every state on a near-collision course of radius ``settings.conflict_radius``),
     at the budgets of the deployed search on the grid of ``z_tolerance`` (the policy's
     ``z_tolerance``, a fraction of z_max)."""
-    sampling = ConflictSamplingSettings(fraction=1.0 if conflict else 0.0, radius=settings.conflict_radius,
-                                        tau=(0.0, 1.0), closing_speed=None)
+    sampling = verification_sampling(conflict, settings.conflict_radius)
     gen = torch.Generator().manual_seed(int(settings.seed) * 7919 + (1 if conflict else 0))
     obs, z, acceptance = draw_safe_states(vhat, settings.samples, sampling, gen,
                                           settings.max_draws_factor * settings.samples, z_tolerance)
