@@ -163,3 +163,23 @@ def test_figure_command_draws_a_panel_per_study_from_real_cells(tmp_path, capsys
     # a run without its V̂ is refused, naming the missing option
     assert main([a for a in args if not a.startswith("madpinn-b15=")]) != 0
     assert "--vhat madpinn-b15=PATH" in capsys.readouterr().err
+
+
+def test_training_seed_replicates_are_a_range_not_a_budget():
+    """A run whose V̂ repeats the base recipe with another training seed (issue 60 item 3) is drawn
+    as the base budget's range over seeds and left out of every trend."""
+    runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000, ANNEALED), BudgetRun("madpinn", "1x", 4096 * 60000, ANNEALED),
+            BudgetRun("madpinn-s1", "seed 1", 4096 * 60000, ANNEALED, replicates="madpinn"),
+            BudgetRun("madpinn-b3x", "3x", 4096 * 180000, ANNEALED)]
+    safety = {("madpinn-b05", 64): 0.60, ("madpinn", 64): 0.65, ("madpinn-s1", 64): 0.72, ("madpinn-b3x", 64): 0.70}
+    frames = {"vhat_budget": _agg(safety)}
+    panels = [budget_panel("vhat_budget", "large", "uniform", [64])]
+    table = budget_table(frames, runs, panels).set_index("run")
+    assert table.at["madpinn", "seed_range_lo"] == pytest.approx(65.0) and table.at["madpinn", "seed_range_hi"] == pytest.approx(72.0)
+    assert table.at["madpinn-s1", "schedule"] == "training seed of madpinn"
+    # the trend runs through the three budgets only: the replicate's 72 % would steepen it
+    without = budget_table({"vhat_budget": _agg({k: v for k, v in safety.items() if k[0] != "madpinn-s1"})},
+                           [r for r in runs if r.replicates is None], panels).set_index("run")
+    assert table.at["madpinn", "slope_per_decade"] == pytest.approx(without.at["madpinn", "slope_per_decade"])
+    fig = draw_vhat_budget(frames, runs, panels)
+    assert fig.axes[0].get_legend_handles_labels()[1].count("training-seed range") == 1

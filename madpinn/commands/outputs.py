@@ -64,13 +64,18 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
         raise ConfigError(f"fig_vhat_budget needs --study STUDY... of this configuration, got {studies!r}")
     models, reports = parse_models(args.vhat or [], "--vhat"), parse_models(args.verify or [], "--verify")
     runs = []
-    for run in dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]):
+    names = list(dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]))
+    base = next((run for run in names if method_config(cfg, run)[1].get("vhat") is None), None)   # the shipped recipe's run
+    for run in names:
         if run not in models:
             raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
         meta = read_checkpoint(models[run], "vhat")["meta"]
         report = json.loads(Path(reports[run]).read_text()) if run in reports else None
+        variant = method_config(cfg, run)[1].get("vhat")
+        reseeded = variant is not None and set(cfg["value_functions"]["vhat_variants"][variant]) == {"seed"}
         runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta),
-                              schedule=model_schedule(meta), verification=report))
+                              schedule=model_schedule(meta), verification=report,
+                              replicates=base if reseeded and base is not None else None))
     panels = [budget_panel(st, cfg["studies"][st]["arena"], cfg["studies"][st]["pattern"], cfg["studies"][st]["agent_counts"])
               for st in studies]
     return plot_vhat_budget(args.inputs, runs, panels, Path(args.out_dir) / args.name)

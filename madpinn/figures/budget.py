@@ -36,6 +36,8 @@ PAPER_SAMPLES = 65536 * 100000
 PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_scaling"}
 """the paper's table of its own method in each arena (Table II, Table I of paper_values.yaml)"""
 PAPER_RUN = "madpinn"
+SEED_RANGE_LABEL = "training-seed range"
+"""legend entry of a budget's range over training seeds (issue 60 item 3)"""
 ANNEALED, CONSTANT = "annealed lr", "constant lr (paper's)"
 """the two learning-rate schedules of the budgets: ours (decaying lr → lr_final) and the paper's constant rate"""
 SCHEDULE_STYLE = {ANNEALED: dict(fmt="o-", mfc="white"), CONSTANT: dict(fmt="s-.", mfc=None)}
@@ -55,6 +57,9 @@ class BudgetRun:
     """:data:`ANNEALED` or :data:`CONSTANT` (:func:`model_schedule`): trends are fitted within one"""
     verification: Mapping | None = None
     """the model's ``verify-vhat`` report (ε on uniform and conflict states), when given"""
+    replicates: str | None = None
+    """the run whose V̂ recipe this one repeats with another training seed (issue 60 item 3): no
+    budget of its own, drawn as that budget's training-seed range and left out of the trends"""
 
 
 @dataclass(frozen=True)
@@ -132,8 +137,21 @@ def schedule_points(group: pd.DataFrame, by_run: Mapping[str, BudgetRun]) -> dic
     """The rows of one (study, N), per schedule, sorted by samples: ``{schedule: [(samples, row)]}``."""
     points: dict[str, list[tuple[int, pd.Series]]] = {}
     for _, r in group.iterrows():
-        points.setdefault(by_run[r["run"]].schedule, []).append((by_run[r["run"]].samples, r))
+        if by_run[r["run"]].replicates is None:   # a training-seed replicate is no budget (seed_ranges)
+            points.setdefault(by_run[r["run"]].schedule, []).append((by_run[r["run"]].samples, r))
     return {sched: sorted(pts, key=lambda p: p[0]) for sched, pts in points.items()}
+
+
+def seed_ranges(group: pd.DataFrame, by_run: Mapping[str, BudgetRun]) -> dict[str, tuple[float, float, int]]:
+    """The training-seed range of each budget of one (study, N) that has replicates among the rows:
+    ``{base run: (lowest safety %, highest safety %, seeds)}`` over the base and its replicates."""
+    safety = {r["run"]: 100 * r["safety_rate_mean"] for _, r in group.iterrows()}
+    out = {}
+    for base in {by_run[run].replicates for run in safety} - {None}:
+        values = [v for run, v in safety.items() if run == base or by_run[run].replicates == base]
+        if base in safety and len(values) > 1:
+            out[base] = (min(values), max(values), len(values))
+    return out
 
 
 def infeasible_by_cell(result_paths: Iterable[str | Path]) -> dict[tuple[str, str, int], float]:
@@ -157,6 +175,15 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
         for n, group in frames[panel.study].groupby("n_agents"):
             target = panel.paper.get(int(n), math.nan)
             rows_n = []
+            ranges = seed_ranges(group, by_run)
+            for _, r in group.iterrows():
+                base = by_run[r["run"]].replicates
+                if base is not None:
+                    lo, hi = _interval(r, "safety_rate", 100.0)
+                    safety = 100 * r["safety_rate_mean"]
+                    rows_n.append({"study": panel.study, "n_agents": int(n), "run": r["run"], "schedule": f"training seed of {base}",
+                                   "samples": by_run[r["run"]].samples, "safety": safety, "safety_lo": safety - lo,
+                                   "safety_hi": safety + hi, "paper_safety": target})
             for sched, pts in schedule_points(group, by_run).items():
                 xs, ys = [p[0] for p in pts], [100 * r["safety_rate_mean"] for _, r in pts]
                 _, slope, needed = (trend(xs, ys, target) if math.isfinite(target) and len(set(xs)) > 1
@@ -170,8 +197,11 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
                                    "paper_safety": target, "slope_per_decade": slope,
                                    "samples_to_paper": needed if needed is not None else math.nan,
                                    "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
-                                   "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan})
-            rows += sorted(rows_n, key=lambda row: row["samples"])
+                                   "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan,
+                                   "seed_range_lo": ranges.get(r["run"], (math.nan,) * 3)[0],
+                                   "seed_range_hi": ranges.get(r["run"], (math.nan,) * 3)[1],
+                                   "seeds": ranges.get(r["run"], (math.nan, math.nan, 1))[2]})
+            rows += sorted(rows_n, key=lambda row: (row["samples"], row["schedule"].startswith("training seed")))
     return pd.DataFrame(rows)
 
 
@@ -208,7 +238,8 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     meaning and each trend's verdict below the panels."""
     style.setup()
     by_run = {r.run: r for r in runs}
-    tags = budget_tags(runs)
+    budgets = [r for r in runs if r.replicates is None]
+    tags = budget_tags(budgets)
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4), sharex=True, sharey=True, squeeze=False)
@@ -229,6 +260,10 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                 fmt, mfc = SCHEDULE_STYLE[sched]["fmt"], SCHEDULE_STYLE[sched]["mfc"] or c
                 ax.errorbar(xs, ys, yerr=err, fmt=fmt, color=c, capsize=2.5, ms=6, mfc=mfc, mew=1.5,
                             label=f"{n} agents" if i == 0 else None)
+            for base, (lo, hi, k) in seed_ranges(agg[agg["n_agents"] == n], by_run).items():
+                ax.vlines(by_run[base].samples, lo, hi, color=c, lw=7, alpha=0.3, zorder=0, label=SEED_RANGE_LABEL)
+                notes.append(f"{panel.title}, {n} agents: training-seed range at {tags[base]}: {lo:.1f}–{hi:.1f} % "
+                             f"({k} seeds); a budget step smaller than it reads as no effect")
                 if target is None or len(set(xs)) < 2:
                     continue
                 a, b, needed = trend(xs, ys, target)
@@ -243,18 +278,22 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
         ax.set_xscale("log")
         ax.set_xlim(x_lo, x_hi)
         top = ax.secondary_xaxis("top")
-        top.set_xticks([r.samples for r in runs], [tags[r.run] for r in runs], fontsize=7.5)
+        top.set_xticks([r.samples for r in budgets], [tags[r.run] for r in budgets], fontsize=7.5)
         top.tick_params(axis="x", which="minor", top=False, labeltop=False)
         ax.set_title(panel.title + ("" if panel.paper else " (no paper value)"), fontsize=10, pad=16)
         ax.set_xlabel("V̂ training samples (batch × iterations)")
         schedules = [s for s in SCHEDULE_STYLE if s in {r.schedule for r in runs}]
-        handles = ax.get_legend_handles_labels()[0] + [
+        drawn = dict(zip(*reversed(ax.get_legend_handles_labels())))   # label -> handle, one seed-range entry
+        handles = list(drawn.values()) + [
             plt.Line2D([], [], color="0.3", marker=SCHEDULE_STYLE[s]["fmt"][0], ls=SCHEDULE_STYLE[s]["fmt"][1:],
                        mfc=SCHEDULE_STYLE[s]["mfc"] or "0.3", label=s) for s in schedules]
         ax.legend(handles=handles, loc="best", fontsize=7.5, frameon=True)
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
-    legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(runs, key=lambda r: r.samples))
+    legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
+    replicas = [f"{r.label} (training seed of {tags[r.replicates]})" for r in runs if r.replicates is not None]
+    if replicas:
+        legend += "; " + ", ".join(replicas)
     fig.text(0.01, -0.02, "\n".join([f"Top axis: {legend}", *notes]), fontsize=7.5, va="top")
     fig.tight_layout()
     return fig
