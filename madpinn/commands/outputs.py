@@ -187,8 +187,9 @@ def _table_ii_readings(args) -> int:
     record = JobRecord(job_key="table/table_ii_readings", rule="table_ii_readings", params={"inputs": len(args.inputs)})
     with job(cfg, record, not args.no_track) as run:
         anchor, large, baselines = load_frames(args.inputs, settings)
-        files = write_table_ii_readings(anchor, large, baselines, settings, paper, args.out_dir)
-        files += plot_table_ii_readings(reading_rows(large), paper, settings.labels, Path(args.out_dir) / "fig_table_ii_readings")
+        rows = reading_rows(large)   # once: the page's tables and the figure
+        files = write_table_ii_readings(anchor, large, rows, baselines, settings, paper, args.out_dir)
+        files += plot_table_ii_readings(rows, paper, settings.labels, Path(args.out_dir) / "fig_table_ii_readings")
         record.artifacts = files
         return finish(run, record, echo=list(record.artifacts))
 

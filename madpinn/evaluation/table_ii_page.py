@@ -46,6 +46,11 @@ def _pct(x: float) -> str:
     return "–" if not np.isfinite(x) else f"{100 * x:.1f}"
 
 
+def _safety_text(c) -> str:
+    """A cell's safety % with its 95 % interval and its safe scenarios %."""
+    return f"{_pct(c['safety'])} [{_pct(c['safety_lo'])}, {_pct(c['safety_hi'])}] / {_pct(c['safe_scenarios'])}"
+
+
 def _reading_name(r, settings: ReadingsSettings) -> str:
     return f"{r['study']} ({r['pattern']}) · {settings.labels.get(r['run'], r['run'])} · T = {r['horizon_s']:g} s"
 
@@ -63,8 +68,7 @@ def readings_display(rows: pd.DataFrame, judged: pd.DataFrame, paper: PaperRow, 
                 row[f"N={n}"] = "–"
                 continue
             c = g.loc[n]
-            row[f"N={n}"] = (f"{_pct(c['safety'])} [{_pct(c['safety_lo'])}, {_pct(c['safety_hi'])}] / {_pct(c['safe_scenarios'])}"
-                             f" / {c['cost']:.2f} / {c['cost_time_avg']:.2f}")
+            row[f"N={n}"] = f"{_safety_text(c)} / {c['cost']:.2f} / {c['cost_time_avg']:.2f}"
         row["checks"] = checks.get(key, "not every N")
         out.append(row)
     return pd.DataFrame(out)
@@ -117,20 +121,18 @@ def baselines_display(rows: pd.DataFrame, protocol: pd.DataFrame, paper: PaperRo
         row = {"method": f"{settings.labels.get(run, run)} ({study})"}
         for n in sorted(set(paper.cells) | set(g.index)):
             c = g.loc[n] if n in g.index else None
-            row[f"N={n}"] = "–" if c is None else (f"{_pct(c['safety'])} [{_pct(c['safety_lo'])}, {_pct(c['safety_hi'])}]"
-                                                   f" / {_pct(c['safe_scenarios'])} / {c['cost_time_avg']:.2f}")
+            row[f"N={n}"] = "–" if c is None else f"{_safety_text(c)} / {c['cost_time_avg']:.2f}"
         out.append(row)
     return pd.DataFrame(out)
 
 
-def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, baselines: pd.DataFrame, settings: ReadingsSettings,
-                            paper: PaperRow, out_dir: str | Path) -> list[Path]:
-    """From :func:`load_frames`' scenario rows, write ``table_ii_readings.csv`` (one row per reading
+def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.DataFrame, baselines: pd.DataFrame,
+                            settings: ReadingsSettings, paper: PaperRow, out_dir: str | Path) -> list[Path]:
+    """From :func:`load_frames`' scenario rows and the readings' :func:`reading_rows` ``rows``, write ``table_ii_readings.csv`` (one row per reading
     and N), ``.md`` / ``.html`` (the verdict, the readings, the law rule, the speed bins),
     ``verdict.json`` and ``laws.csv``; returns the paths."""
     from madpinn.evaluation.html import markdown_page
 
-    rows = reading_rows(large)
     judged, verdict = verdict_of(rows, paper, settings)
     rule = law_rule(anchor, large, settings.anchor_agents) if len(anchor) else pd.DataFrame()
     verdict["law_rule"] = law_reading(rule) if len(rule) else "no anchor cells"
