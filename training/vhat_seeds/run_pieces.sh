@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Issue 60 item 3, training variance and the recipe: the shipped V̂'s recipe trained from scratch with
-# training seeds 1 and 2 (value_functions.vhat_variants.s1 / s2), the shipped recipe itself again with
-# its own seed 0 (does the workflow reproduce models/vhat.pt?), then the 4x-batch uniform constant-rate
-# V̂ (vhat_variants.bs16k). One after another, each in resumable 20-minute pieces (exit 75 = paused);
-# the checkpoints under training/vhat_<name>/ are committed, so any machine resumes where the last piece
+# training seeds 1 and 2 (value_functions.vhat_variants.s1 / s2); the base recipe with uniform states
+# (vhat_variants.nocs, issue 61 item 4: the recipe re-chosen on validation seeds,
+# docs/findings/2026-11-29-vhat-recipe-preregistered.md); the shipped recipe itself again with its own
+# seed 0 (does the workflow reproduce models/vhat.pt?); then the 4x-batch uniform constant-rate V̂
+# (vhat_variants.bs16k). One after another, each in resumable pieces (exit 75 = paused); the
+# checkpoints under training/vhat_<name>/ are committed, so any machine resumes where the last piece
 # stopped (the batch of iteration k is a function of (seed, k)). One torch thread, as the shipped V̂ was
 # trained (models/manifest.json: "cpu, 1 torch thread"). Usage (repository root):
-#   NICE=0 training/vhat_seeds/run_pieces.sh          # all four in turn
+#   NICE=0 training/vhat_seeds/run_pieces.sh          # all five in turn
 #   training/vhat_seeds/run_pieces.sh s2               # one of them
 set -u
 cd "$(dirname "$0")/../.."
@@ -18,10 +20,10 @@ train() {   # name variant...
   training/run_pieces.sh train-value "${common[@]}" "$@" --out "training/vhat_$name/vhat.pt" \
       --checkpoint "training/vhat_$name/vhat.ckpt.pt"
 }
-for name in ${@:-s1 s2 s0 bs16k}; do
+for name in ${@:-s1 s2 nocs s0 bs16k}; do
   case $name in
     s0) train s0 ;;                          # the base recipe, its own seed: models/vhat.pt again?
-    s1|s2|bs16k) train "$name" --variant "$name" ;;
-    *) echo "unknown run '$name' (s0 s1 s2 bs16k)" >&2; exit 2 ;;
+    s1|s2|nocs|bs16k) train "$name" --variant "$name" ;;
+    *) echo "unknown run '$name' (s0 s1 s2 nocs bs16k)" >&2; exit 2 ;;
   esac || exit $?
 done
