@@ -7,7 +7,7 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job, write_commit_record
-from madpinn.commands.reads import governors, keys, labels, study_sim_override, table_ii_readings
+from madpinn.commands.reads import governors, keys, labels, study_sim_override, table_ii_readings, vhat_recipe
 from madpinn.config import hashed_agents
 
 
@@ -147,7 +147,7 @@ def _claims(args) -> int:
     record = JobRecord(job_key="report/claims", rule="claims_table", params={"report": str(args.report)})
     with job(cfg, record, not args.no_track) as run:
         record.artifacts = write_claims(args.report, args.out_dir, timing_path=args.timing, heatmap_path=args.heatmap,
-                                        readings_path=args.table_ii_verdict)
+                                        readings_path=args.table_ii_verdict, recipe_path=args.vhat_recipe)
         write_commit_record(cfg, record.job_key, record.artifacts)
         return finish(run, record, echo=list(record.artifacts))
 
@@ -194,6 +194,20 @@ def _table_ii_readings(args) -> int:
         return finish(run, record, echo=list(record.artifacts))
 
 
+def _vhat_recipe(args) -> int:
+    from madpinn.config import ConfigError
+    from madpinn.evaluation.recipe_page import write_recipe_page
+    from madpinn.evaluation.recipe_settings import RecipeSettings
+
+    cfg = config_of(args)
+    if not cfg["vhat_recipe"]:
+        raise ConfigError("vhat-recipe needs the vhat_recipe section (e.g. workflow/configs/vhat_recipe.yaml)")
+    record = JobRecord(job_key="table/vhat_recipe", rule="vhat_recipe", params={"inputs": len(args.inputs)})
+    with job(cfg, record, not args.no_track) as run:
+        record.artifacts = write_recipe_page(args.inputs, RecipeSettings.from_config(cfg), args.out_dir)
+        return finish(run, record, echo=list(record.artifacts))
+
+
 def register(sub) -> None:
     p = sub.add_parser("table", help="assemble a paper table from result files")
     add_config_arg(p)
@@ -222,6 +236,7 @@ def register(sub) -> None:
     p.add_argument("--timing", default=None, help="neighbour_timing.json (python -m madpinn neighbour-timing)")
     p.add_argument("--heatmap", default=None, help="fig_value_heatmap.json (python -m madpinn fig-value-heatmap)")
     p.add_argument("--table-ii-verdict", default=None, help="verdict.json of the Table II readings (python -m madpinn table-ii-readings)")
+    p.add_argument("--vhat-recipe", default=None, help="vhat_recipe.json: the V̂ recipe's choice (python -m madpinn vhat-recipe)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_claims, reads=keys("experiment"))
@@ -250,6 +265,13 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table_ii_readings, reads=table_ii_readings)
+
+    p = sub.add_parser("vhat-recipe", help="V̂'s recipe re-chosen on validation seeds by the pre-registered rule (issue 61)")
+    add_config_arg(p)
+    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of vhat_recipe's studies")
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--no-track", action="store_true")
+    p.set_defaults(func=_vhat_recipe, reads=vhat_recipe)
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)
