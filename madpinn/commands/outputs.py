@@ -51,7 +51,9 @@ def _figure(args) -> int:
 
 def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     """fig_vhat_budget: a panel per ``--study``, each run with the samples of the V̂ it loads (``--vhat
-    RUN=PATH``) and, with ``--verify RUN=JSON``, that V̂'s scenario verification."""
+    RUN=PATH``) and, with ``--verify RUN=JSON``, that V̂'s scenario verification. A V̂ variant that only
+    reseeds the base recipe is a training-seed replicate; one at the base's samples and schedule that
+    changes its recipe (e.g. ``nocs``) is a recipe variant: neither is a budget point."""
     import json
 
     from madpinn.config import ConfigError, method_config
@@ -66,19 +68,34 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     runs = []
     names = list(dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]))
     base = next((run for run in names if method_config(cfg, run)[1].get("vhat") is None), None)   # the shipped recipe's run
+    missing = [run for run in names if run not in models]
+    if missing:
+        raise ConfigError(f"fig_vhat_budget: pass --vhat {missing[0]}=PATH (the V̂ model run '{missing[0]}' loads)")
+    metas = {run: read_checkpoint(models[run], "vhat")["meta"] for run in names}
+    budget_of = {run: (model_samples(m), model_schedule(m)) for run, m in metas.items()}
+    roles = _budget_roles(cfg, base, budget_of)
     for run in names:
-        if run not in models:
-            raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
-        meta = read_checkpoint(models[run], "vhat")["meta"]
         report = json.loads(Path(reports[run]).read_text()) if run in reports else None
-        variant = method_config(cfg, run)[1].get("vhat")
-        reseeded = variant is not None and set(cfg["value_functions"]["vhat_variants"][variant]) == {"seed"}
-        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta),
-                              schedule=model_schedule(meta), verification=report,
-                              replicates=base if reseeded and base is not None else None))
+        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=budget_of[run][0],
+                              schedule=budget_of[run][1], verification=report, **roles[run]))
     panels = [budget_panel(st, cfg["studies"][st]["arena"], cfg["studies"][st]["pattern"], cfg["studies"][st]["agent_counts"])
               for st in studies]
     return plot_vhat_budget(args.inputs, runs, panels, Path(args.out_dir) / args.name)
+
+
+def _budget_roles(cfg: dict, base: str | None, budget_of: dict[str, tuple[int, str]]) -> dict[str, dict]:
+    """Per run of fig_vhat_budget (``budget_of``: run -> its V̂'s (samples, schedule)), the base run it
+    is no budget of: ``replicates`` when its V̂ variant only reseeds the recipe, ``recipe_of`` when the
+    variant keeps the base's samples and schedule and changes the recipe (e.g. uniform states)."""
+    from madpinn.config import method_config
+
+    out = {}
+    for run, budget in budget_of.items():
+        variant = method_config(cfg, run)[1].get("vhat")
+        reseeded = variant is not None and set(cfg["value_functions"]["vhat_variants"][variant]) == {"seed"}
+        recipe = variant is not None and not reseeded and base is not None and budget == budget_of[base]
+        out[run] = {"replicates": base if reseeded and base is not None else None, "recipe_of": base if recipe else None}
+    return out
 
 
 def _oracle(args) -> int:
