@@ -180,3 +180,16 @@ def test_the_claims_page_states_the_choice_or_that_it_is_being_remade(settings):
                            "vhat_budget_circle at 16 agents)")
     assert "the fine-tuning stage (F) is harmful, so dropped; conflict sampling (C) is needed, so kept" in line
     assert "provisional" not in line
+
+
+def test_the_overlay_plans_the_page_and_hands_it_to_the_claims(tmp_path):
+    """Dry run of config.yaml + the overlay: the page's rule reads the s2 and nocs cells of the budget
+    studies, and the claims job reads its choice."""
+    from conftest import run_snakemake
+
+    proc = run_snakemake(tmp_path, "-n", "-j1", "vhat_recipe", "claims_table", configfiles=(OVERLAY,))
+    out = proc.stdout + proc.stderr
+    assert "python -m madpinn vhat-recipe" in out and "--vhat-recipe results/paper_figures/vhat_recipe/vhat_recipe.json" in out
+    for study in ("vhat_budget_small", "vhat_budget_circle"):
+        for run in ("madpinn-s2", "madpinn-nocs"):
+            assert f"eval/mujoco/{study}/{run}/n16_seed100.parquet" in out, (study, run)

@@ -61,6 +61,9 @@ RUNS = {
     ("reproduction",): ["evaluation/reproduction.py", "evaluation/paper_values.yaml", "evaluation/tables.py"],
     ("render-clip",): ["simulation/mujoco/render.py", "simulation/mujoco/model.py"],
     ("gap-decomposition",): ["evaluation/gap.py", "evaluation/collisions.py"],
+    ("vhat-recipe",): ["evaluation/recipe_page.py", "evaluation/recipe_choice.py", "evaluation/recipe_settings.py",
+                       "evaluation/tables.py", "evaluation/metrics.py"],
+    ("claims",): ["evaluation/claims.py", "evaluation/recipe_choice.py"],   # the seed-provenance line
 }
 
 
