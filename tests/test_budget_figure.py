@@ -226,13 +226,14 @@ def test_the_figure_command_gives_each_v_hat_variant_its_role():
     """The config decides: a variant that only reseeds (s1) replicates the base; one at the base's
     samples and schedule with another recipe (nocs: uniform states) is a recipe variant; a variant at
     other samples (b05) or at the base's samples under another schedule is a budget."""
-    from madpinn.commands.outputs import _budget_roles
     from madpinn.config import load_config
+    from madpinn.figures.budget import budget_roles
 
-    cfg = load_config([REPO / "config.yaml", REPO / "workflow" / "configs" / "vhat_recipe.yaml"])
+    variants = load_config([REPO / "config.yaml"])["value_functions"]["vhat_variants"]
+    entries = {"madpinn": None, **{f"madpinn-{v}": variants[v] for v in ("s1", "nocs", "b05", "b2x")}}
     base = (4096 * 60000, ANNEALED)
-    roles = _budget_roles(cfg, "madpinn", {"madpinn": base, "madpinn-s1": base, "madpinn-nocs": base,
-                                           "madpinn-b05": (4096 * 30000, ANNEALED), "madpinn-b2x": (4096 * 60000, CONSTANT)})
+    roles = budget_roles("madpinn", entries, {"madpinn": base, "madpinn-s1": base, "madpinn-nocs": base,
+                                              "madpinn-b05": (4096 * 30000, ANNEALED), "madpinn-b2x": (4096 * 60000, CONSTANT)})
     assert roles["madpinn-s1"] == {"replicates": "madpinn", "recipe_of": None}
     assert roles["madpinn-nocs"] == {"replicates": None, "recipe_of": "madpinn"}
     for budget in ("madpinn", "madpinn-b05", "madpinn-b2x"):

@@ -118,7 +118,10 @@ def test_settings_come_from_the_config_and_bad_declarations_fail_early(cfg, sett
     assert settings.band_runs == ("madpinn", "madpinn-s1", "madpinn-s2")
     assert settings.components == {"F": "madpinn-b05", "C": "madpinn-nocs"}
     assert settings.deciding == tuple(DECIDING) and settings.margin_points == 2.0 and settings.quorum == 2
-    assert load_config([REPO / "config.yaml"])["vhat_recipe"] is None   # off unless configured
+    bare = load_config([REPO / "config.yaml"])
+    assert bare["vhat_recipe"] is None   # off unless configured
+    with pytest.raises(ConfigError, match="'vhat_recipe': not configured"):
+        RecipeSettings.from_config(bare)
     for change, message in [
         ({"vhat_recipe": {"replicates": ["madpinn-s9"]}}, "'vhat_recipe.replicates': unknown run 'madpinn-s9'"),
         ({"vhat_recipe": {"components": {"C": "madpinn-s1"}}}, "must be distinct runs"),
@@ -131,8 +134,10 @@ def test_settings_come_from_the_config_and_bad_declarations_fail_early(cfg, sett
         ({"vhat_recipe": {"quorum": 4}}, "'vhat_recipe.quorum': 4 exceeds the 3 deciding cells"),
         ({"vhat_recipe": {"margin_points": 0}}, "vhat_recipe.margin_points"),
     ]:
+        changed = deep_merge(cfg, change)
         with pytest.raises(ConfigError, match=message):
-            validate_config(deep_merge(cfg, change))
+            validate_config(changed)   # the schema's bounds
+            RecipeSettings.from_config(changed)   # the section's rules
 
 
 def _write_cells(frame: pd.DataFrame, root) -> list[str]:
@@ -164,7 +169,7 @@ def test_the_command_writes_the_page_the_choice_and_the_rows(tmp_path):
     assert "## Reported beside (decide nothing)" in md and "93.0 ▼" in md
     # without the section the command says what is missing
     bare = subprocess.run(cmd[:6] + cmd[7:], cwd=REPO, capture_output=True, text=True, timeout=300)
-    assert bare.returncode != 0 and "needs the vhat_recipe section" in bare.stderr
+    assert bare.returncode != 0 and "'vhat_recipe': not configured" in bare.stderr
 
 
 def test_the_claims_page_states_the_choice_or_that_it_is_being_remade(settings):
@@ -193,3 +198,9 @@ def test_the_overlay_plans_the_page_and_hands_it_to_the_claims(tmp_path):
     for study in ("vhat_budget_small", "vhat_budget_circle"):
         for run in ("madpinn-s2", "madpinn-nocs"):
             assert f"eval/mujoco/{study}/{run}/n16_seed100.parquet" in out, (study, run)
+    # a broken section stops the plan in one line, before any job
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("vhat_recipe: {quorum: 4}\n")
+    proc = run_snakemake(tmp_path, "-n", "-j1", "vhat_recipe", configfiles=(OVERLAY, bad), check=False)
+    assert proc.returncode != 0 and "'vhat_recipe.quorum': 4 exceeds the 3 deciding cells" in proc.stderr
+    assert "Traceback" not in proc.stderr

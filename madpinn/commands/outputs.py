@@ -7,7 +7,7 @@ from pathlib import Path
 
 from madpinn.commands.args import add_config_arg, config_of, parse_models
 from madpinn.commands.finish import JobRecord, finish, job, write_commit_record
-from madpinn.commands.reads import governors, keys, labels, study_sim_override, table_ii_readings, vhat_recipe
+from madpinn.commands.reads import governors, keys, labels, study_sim_override, table_ii_readings
 from madpinn.config import hashed_agents
 
 
@@ -57,7 +57,7 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     import json
 
     from madpinn.config import ConfigError, method_config
-    from madpinn.figures.budget import BudgetRun, budget_panel, model_samples, model_schedule, plot_vhat_budget
+    from madpinn.figures.budget import BudgetRun, budget_panel, budget_roles, model_samples, model_schedule, plot_vhat_budget
     from madpinn.value_functions.model import read_checkpoint
 
     studies = args.study or []
@@ -73,7 +73,9 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
         raise ConfigError(f"fig_vhat_budget: pass --vhat {missing[0]}=PATH (the V̂ model run '{missing[0]}' loads)")
     metas = {run: read_checkpoint(models[run], "vhat")["meta"] for run in names}
     budget_of = {run: (model_samples(m), model_schedule(m)) for run, m in metas.items()}
-    roles = _budget_roles(cfg, base, budget_of)
+    variants = {run: method_config(cfg, run)[1].get("vhat") for run in names}
+    entries = {run: None if v is None else cfg["value_functions"]["vhat_variants"][v] for run, v in variants.items()}
+    roles = budget_roles(base, entries, budget_of)
     for run in names:
         report = json.loads(Path(reports[run]).read_text()) if run in reports else None
         runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=budget_of[run][0],
@@ -81,21 +83,6 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     panels = [budget_panel(st, cfg["studies"][st]["arena"], cfg["studies"][st]["pattern"], cfg["studies"][st]["agent_counts"])
               for st in studies]
     return plot_vhat_budget(args.inputs, runs, panels, Path(args.out_dir) / args.name)
-
-
-def _budget_roles(cfg: dict, base: str | None, budget_of: dict[str, tuple[int, str]]) -> dict[str, dict]:
-    """Per run of fig_vhat_budget (``budget_of``: run -> its V̂'s (samples, schedule)), the base run it
-    is no budget of: ``replicates`` when its V̂ variant only reseeds the recipe, ``recipe_of`` when the
-    variant keeps the base's samples and schedule and changes the recipe (e.g. uniform states)."""
-    from madpinn.config import method_config
-
-    out = {}
-    for run, budget in budget_of.items():
-        variant = method_config(cfg, run)[1].get("vhat")
-        reseeded = variant is not None and set(cfg["value_functions"]["vhat_variants"][variant]) == {"seed"}
-        recipe = variant is not None and not reseeded and base is not None and budget == budget_of[base]
-        out[run] = {"replicates": base if reseeded and base is not None else None, "recipe_of": base if recipe else None}
-    return out
 
 
 def _oracle(args) -> int:
@@ -211,20 +198,6 @@ def _table_ii_readings(args) -> int:
         return finish(run, record, echo=list(record.artifacts))
 
 
-def _vhat_recipe(args) -> int:
-    from madpinn.config import ConfigError
-    from madpinn.evaluation.recipe_page import write_recipe_page
-    from madpinn.evaluation.recipe_settings import RecipeSettings
-
-    cfg = config_of(args)
-    if not cfg["vhat_recipe"]:
-        raise ConfigError("vhat-recipe needs the vhat_recipe section (e.g. workflow/configs/vhat_recipe.yaml)")
-    record = JobRecord(job_key="table/vhat_recipe", rule="vhat_recipe", params={"inputs": len(args.inputs)})
-    with job(cfg, record, not args.no_track) as run:
-        record.artifacts = write_recipe_page(args.inputs, RecipeSettings.from_config(cfg), args.out_dir)
-        return finish(run, record, echo=list(record.artifacts))
-
-
 def register(sub) -> None:
     p = sub.add_parser("table", help="assemble a paper table from result files")
     add_config_arg(p)
@@ -283,12 +256,9 @@ def register(sub) -> None:
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table_ii_readings, reads=table_ii_readings)
 
-    p = sub.add_parser("vhat-recipe", help="V̂'s recipe re-chosen on validation seeds by the pre-registered rule (issue 61)")
-    add_config_arg(p)
-    p.add_argument("--inputs", nargs="+", required=True, help="result .parquet files of vhat_recipe's studies")
-    p.add_argument("--out-dir", required=True)
-    p.add_argument("--no-track", action="store_true")
-    p.set_defaults(func=_vhat_recipe, reads=vhat_recipe)
+    from madpinn.commands.recipe import register as register_recipe   # vhat-recipe: its own module (its page's hash only)
+
+    register_recipe(sub)
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)

@@ -56,15 +56,6 @@ def table_ii_readings(cfg: Mapping, **_) -> dict:
     return {"experiment": cfg["experiment"], **dataclasses.asdict(ReadingsSettings.from_config(cfg))}
 
 
-def vhat_recipe(cfg: Mapping, **_) -> dict:
-    """What the recipe page reads besides its cells (:class:`madpinn.evaluation.recipe_settings.RecipeSettings`)."""
-    import dataclasses
-
-    from madpinn.evaluation.recipe_settings import RecipeSettings
-
-    return {"experiment": cfg["experiment"], **dataclasses.asdict(RecipeSettings.from_config(cfg))}
-
-
 def cell(cfg: Mapping, study: str, run: str) -> dict:
     from madpinn.config import RunSettings
 

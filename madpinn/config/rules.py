@@ -122,44 +122,6 @@ def _table_ii_errors(cfg: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def _vhat_recipe_errors(cfg: Mapping[str, Any]) -> list[str]:
-    """V̂'s recipe choice (issue 61 item 4): its runs exist and are distinct, its cells' studies exist
-    on validation seeds (≥ 100) with those agent counts, each deciding study runs every model of the
-    rule, and the quorum can be met by the deciding cells."""
-    sec = cfg["vhat_recipe"]
-    if not sec:
-        return []
-    lines, studies, methods = [], cfg["studies"], cfg["methods"]
-    runs = {"base": [sec["base"]], "replicates": sec["replicates"],
-            **{f"components.{x}": [r] for x, r in sec["components"].items()}}
-    every = [r for rs in runs.values() for r in rs]
-    for key, names in runs.items():
-        for run in names:
-            method, _, variant = run.partition("-")
-            if method not in methods or (variant and variant not in methods[method]["variants"]):
-                lines.append(f"  - 'vhat_recipe.{key}': unknown run '{run}'")
-    if len(set(every)) < len(every):
-        lines.append(f"  - 'vhat_recipe': the base, replicates and components must be distinct runs, got {every}")
-    for part in ("deciding", "reported"):
-        for name, counts in sec[part].items():
-            st = studies.get(name)
-            if st is None:
-                lines.append(f"  - 'vhat_recipe.{part}': unknown study '{name}'")
-                continue
-            if min(st["seeds"]) < 100:
-                lines.append(f"  - 'studies.{name}.seeds': the recipe is chosen on validation seeds ≥ 100 only, got {st['seeds']}")
-            absent = [n for n in counts if n not in st["agent_counts"]]
-            if absent:
-                lines.append(f"  - 'vhat_recipe.{part}.{name}': study '{name}' has no agent counts {absent} (has {st['agent_counts']})")
-            lacking = [r for r in every if r not in st["runs"]] if part == "deciding" else []
-            if lacking:
-                lines.append(f"  - 'vhat_recipe.deciding.{name}': study '{name}' does not run {lacking}")
-    cells = sum(len(c) for c in sec["deciding"].values())
-    if sec["quorum"] > cells:
-        lines.append(f"  - 'vhat_recipe.quorum': {sec['quorum']} exceeds the {cells} deciding cells")
-    return lines
-
-
 def _variant_errors(cfg: Mapping[str, Any]) -> list[str]:
     """Deployment overrides of MAD-PINN runs name an existing V̂ variant and only lower the speed
     bound (a governor: V̂ and V_s are trained at ``agents.v_max``)."""
@@ -196,7 +158,6 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
                 lines.append(f"  - 'studies.{name}.runs': unknown variant '{variant}' of method '{method}'")
     lines += _gap_errors(cfg)
     lines += _table_ii_errors(cfg)
-    lines += _vhat_recipe_errors(cfg)
     lines += _variant_errors(cfg)
     lines += _stop_at_errors(cfg)
     lines += _horizon_errors(cfg)

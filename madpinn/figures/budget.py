@@ -94,6 +94,20 @@ def paper_safety(arena: str, pattern: str | None, counts: Iterable[int]) -> dict
     return {int(n): 100 * cells[int(n)]["safety"] for n in counts if int(n) in cells}
 
 
+def budget_roles(base: str | None, variants: Mapping[str, Mapping | None],
+                 budgets: Mapping[str, tuple[int, str]]) -> dict[str, dict[str, str | None]]:
+    """Per run (``variants``: run -> its V̂ variant's entry, None for the base recipe; ``budgets``: run ->
+    its V̂'s (samples, schedule)), the :class:`BudgetRun` roles: ``replicates`` the base when the variant
+    only reseeds the recipe, ``recipe_of`` the base when it keeps the base's samples and schedule and
+    changes the recipe (e.g. uniform states); both None for a budget."""
+    out = {}
+    for run, entry in variants.items():
+        reseeded = entry is not None and set(entry) == {"seed"}
+        recipe = entry is not None and not reseeded and base is not None and budgets[run] == budgets[base]
+        out[run] = {"replicates": base if reseeded and base is not None else None, "recipe_of": base if recipe else None}
+    return out
+
+
 def budget_panel(study: str, arena: str, pattern: str | None, counts: Iterable[int]) -> BudgetPanel:
     """The panel of one study: titled by its setting, with the paper's values where it has any."""
     structured = (pattern or UNIFORM) != UNIFORM

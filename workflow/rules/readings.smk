@@ -117,6 +117,12 @@ if config["table_ii_readings"]:
 # before the cells (docs/findings/2026-11-29-vhat-recipe-preregistered.md). Defined when configured
 # (workflow/configs/vhat_recipe.yaml); not part of all:  snakemake -j2 vhat_recipe
 if config["vhat_recipe"]:
+    from madpinn.evaluation.recipe_settings import RecipeSettings
+
+    try:   # the section's cross-field rules (madpinn/evaluation/recipe_settings.py), before any job
+        RecipeSettings.from_config(config)
+    except Exception as exc:
+        stop_workflow(exc)
     RECIPE_STUDIES = list(dict.fromkeys([*config["vhat_recipe"]["deciding"], *config["vhat_recipe"]["reported"]]))
 
     rule vhat_recipe:
