@@ -17,7 +17,6 @@ safety rate, scenarios pooled over the cell's seeds; intervals are 95 % bootstra
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from madpinn.evaluation.metrics import bootstrap_interval
@@ -43,14 +42,13 @@ TOLERANCE = 1e-9
 def cell_safety(frame: pd.DataFrame) -> pd.DataFrame:
     """One row per (study, n_agents, run) of scenario rows ``frame``: ``safety`` (%), its 95 %
     bootstrap interval ``safety_lo`` / ``safety_hi``, ``scenarios`` and ``seeds`` (space-separated)."""
-    g = frame.groupby(["study", "n_agents", "run"], sort=False)["safety_rate"]
-    out = g.agg(safety="mean", scenarios="size").reset_index()
+    g = frame.groupby(["study", "n_agents", "run"], sort=False)
+    out = g["safety_rate"].agg(safety="mean", scenarios="size")
     out["safety"] *= 100.0
-    ci = g.apply(lambda v: bootstrap_interval(v.to_numpy(dtype=float)))
-    out["safety_lo"] = [100.0 * ci[k][0] for k in zip(out["study"], out["n_agents"], out["run"])]
-    out["safety_hi"] = [100.0 * ci[k][1] for k in zip(out["study"], out["n_agents"], out["run"])]
-    seeds = frame.groupby(["study", "n_agents", "run"], sort=False)["seed"].agg(lambda s: " ".join(map(str, sorted(set(map(int, s))))))
-    out["seeds"] = [seeds[k] for k in zip(out["study"], out["n_agents"], out["run"])]
+    ci = g["safety_rate"].apply(lambda v: bootstrap_interval(v.to_numpy(dtype=float)))
+    out["safety_lo"], out["safety_hi"] = 100.0 * ci.str[0], 100.0 * ci.str[1]
+    out["seeds"] = g["seed"].agg(lambda s: " ".join(map(str, sorted(set(map(int, s))))))
+    out = out.reset_index()
     out["n_agents"] = out["n_agents"].astype(int)
     return out
 
