@@ -41,8 +41,8 @@ PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_sc
 PAPER_RUN = "madpinn"
 SEED_RANGE_LABEL = "training-seed range"
 """legend entry of a budget's range over training seeds (issue 60 item 3)"""
-RECIPE_MARKERS = ("D", "P", "X", "^", "v")
-"""markers of the recipe variants (issue 61 item 4), in the order of the runs"""
+RECIPE_MARKERS = {"D": "diamond", "P": "plus", "X": "cross", "^": "triangle", "v": "down-triangle"}
+"""markers of the recipe variants (issue 61 item 4), in the order of the runs, and their names in the legend text"""
 ANNEALED, CONSTANT = "annealed lr", "constant lr (paper's)"
 """the two learning-rate schedules of the budgets: ours (decaying lr → lr_final) and the paper's constant rate"""
 SCHEDULE_STYLE = {ANNEALED: dict(fmt="o-", mfc="white"), CONSTANT: dict(fmt="s-.", mfc=None)}
@@ -281,7 +281,7 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     by_run = {r.run: r for r in runs}
     budgets = [r for r in runs if r.budget]
     tags = budget_tags(budgets)
-    recipes = {r.run: RECIPE_MARKERS[i % len(RECIPE_MARKERS)] for i, r in enumerate(r for r in runs if r.recipe_of is not None)}
+    recipes = {r.run: list(RECIPE_MARKERS)[i % len(RECIPE_MARKERS)] for i, r in enumerate(r for r in runs if r.recipe_of is not None)}
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4), sharex=True, sharey=True, squeeze=False)
@@ -340,7 +340,7 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
     replicas = [f"{r.label} (training seed of {tags[r.replicates]})" for r in runs if r.replicates is not None]
-    replicas += [f"{r.label} (marker {recipes[r.run]}: the recipe of {tags[r.recipe_of]} changed at its budget)"
+    replicas += [f"{r.label} ({RECIPE_MARKERS[recipes[r.run]]}: the recipe of {tags[r.recipe_of]} changed at its budget)"
                  for r in runs if r.recipe_of is not None]
     if replicas:
         legend += "; " + ", ".join(replicas)
