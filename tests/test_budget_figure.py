@@ -183,3 +183,58 @@ def test_training_seed_replicates_are_a_range_not_a_budget():
     assert table.at["madpinn", "slope_per_decade"] == pytest.approx(without.at["madpinn", "slope_per_decade"])
     fig = draw_vhat_budget(frames, runs, panels)
     assert fig.axes[0].get_legend_handles_labels()[1].count("training-seed range") == 1
+
+
+def test_a_recipe_variant_at_the_base_budget_is_a_marker_not_a_second_budget():
+    """A V̂ that keeps the base's samples and schedule but changes its recipe (issue 61 item 4: uniform
+    states) is no second 1× point: its own rows, a labelled marker, out of the trends; the base's trend
+    and tags are those without it."""
+    runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000, ANNEALED), BudgetRun("madpinn", "1x", 4096 * 60000, ANNEALED),
+            BudgetRun("madpinn-s1", "seed 1", 4096 * 60000, ANNEALED, replicates="madpinn"),
+            BudgetRun("madpinn-nocs", "uniform states", 4096 * 60000, ANNEALED, recipe_of="madpinn"),
+            BudgetRun("madpinn-b3x", "3x", 4096 * 180000, ANNEALED)]
+    safety = {("madpinn-b05", 64): 0.60, ("madpinn", 64): 0.65, ("madpinn-s1", 64): 0.70, ("madpinn-nocs", 64): 0.95,
+              ("madpinn-b3x", 64): 0.70}
+    panels = [budget_panel("vhat_budget", "large", "uniform", [64])]
+    table = budget_table({"vhat_budget": _agg(safety)}, runs, panels).set_index("run")
+    assert table.at["madpinn-nocs", "schedule"] == "recipe variant of madpinn"
+    assert table.at["madpinn-nocs", "safety"] == pytest.approx(95.0)
+    assert table.at["madpinn-nocs", "seed_range_lo"] == pytest.approx(65.0) and table.at["madpinn-nocs", "seed_range_hi"] == pytest.approx(70.0)
+    assert list(table.index) == ["madpinn-b05", "madpinn", "madpinn-s1", "madpinn-nocs", "madpinn-b3x"]
+    # as a budget its 95 % would bend the trend; as a recipe variant the trend is the budgets' alone
+    without = budget_table({"vhat_budget": _agg({k: v for k, v in safety.items() if k[0] != "madpinn-nocs"})},
+                           [r for r in runs if r.run != "madpinn-nocs"], panels).set_index("run")
+    assert table.at["madpinn", "slope_per_decade"] == pytest.approx(without.at["madpinn", "slope_per_decade"])
+    as_budget = budget_table({"vhat_budget": _agg(safety)},
+                             [BudgetRun(r.run, r.label, r.samples, r.schedule, replicates=r.replicates) for r in runs], panels)
+    assert (as_budget["schedule"] == ANNEALED).sum() == 4   # the failure this role prevents: a second 1× point
+    fig = draw_vhat_budget({"vhat_budget": _agg(safety)}, runs, panels)
+    ax = fig.axes[0]
+    assert "uniform states" in {t.get_text() for t in ax.get_legend().get_texts()}
+    assert [t.get_text() for t in ax.child_axes[0].get_xticklabels()] == ["0.5×", "1×", "3×"]   # tags of the budgets only
+    assert any(line.get_linestyle() == ":" for line in ax.lines)   # the budgets' trend is drawn
+
+
+def test_trends_are_drawn_without_replicates():
+    runs = [BudgetRun("madpinn-b05", "0.5x", 4096 * 30000, ANNEALED), BudgetRun("madpinn", "1x", 4096 * 60000, ANNEALED)]
+    fig = draw_vhat_budget({"vhat_budget": _agg({("madpinn-b05", 64): 0.6, ("madpinn", 64): 0.7})}, runs,
+                           [budget_panel("vhat_budget", "large", "uniform", [64])])
+    assert any(line.get_linestyle() == ":" for line in fig.axes[0].lines)
+
+
+def test_the_figure_command_gives_each_v_hat_variant_its_role():
+    """The config decides: a variant that only reseeds (s1) replicates the base; one at the base's
+    samples and schedule with another recipe (nocs: uniform states) is a recipe variant; a variant at
+    other samples (b05) or at the base's samples under another schedule is a budget."""
+    from madpinn.config import load_config
+    from madpinn.figures.budget import budget_roles
+
+    variants = load_config([REPO / "config.yaml"])["value_functions"]["vhat_variants"]
+    entries = {"madpinn": None, **{f"madpinn-{v}": variants[v] for v in ("s1", "nocs", "b05", "b2x")}}
+    base = (4096 * 60000, ANNEALED)
+    roles = budget_roles("madpinn", entries, {"madpinn": base, "madpinn-s1": base, "madpinn-nocs": base,
+                                              "madpinn-b05": (4096 * 30000, ANNEALED), "madpinn-b2x": (4096 * 60000, CONSTANT)})
+    assert roles["madpinn-s1"] == {"replicates": "madpinn", "recipe_of": None}
+    assert roles["madpinn-nocs"] == {"replicates": None, "recipe_of": "madpinn"}
+    for budget in ("madpinn", "madpinn-b05", "madpinn-b2x"):
+        assert roles[budget] == {"replicates": None, "recipe_of": None}, budget

@@ -49,6 +49,7 @@ from madpinn.simulation.settings import SimSettings
 from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.settings import MujocoSettings
 from madpinn.evaluation.cell import CellSettings
+from madpinn.evaluation.recipe_settings import RecipeSettings
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 from madpinn.tracking.settings import TrackingSettings
 from madpinn.value_functions.grid_reference import GridSettings
@@ -140,6 +141,9 @@ SETTINGS = [
           keys={"anchor": "anchor.study", "anchor_agents": "anchor.n_agents", "collision_radius": "/agents.collision_radius"},
           not_config=("patterns", "episodes", "labels", "protocol"),   # read from the studies and runs it names; protocol: two keys
           overlay=(REPO / "workflow" / "configs" / "scenario_laws.yaml",)),
+    Entry(RecipeSettings, "vhat_recipe", RecipeSettings.from_config,
+          not_config=("deciding", "reported", "seeds", "labels"),   # deciding / reported: study -> counts, held as (study, N) cells; the rest read from the studies and runs it names
+          overlay=(REPO / "workflow" / "configs" / "vhat_recipe.yaml",)),
     Entry(CellSettings, "studies.main", lambda c: CellSettings.from_config(c, "main", "madpinn"),
           not_config=tuple(f.name for f in dataclasses.fields(CellSettings))),   # composite: study, run and parsed parts
 ]

@@ -61,6 +61,9 @@ RUNS = {
     ("reproduction",): ["evaluation/reproduction.py", "evaluation/paper_values.yaml", "evaluation/tables.py"],
     ("render-clip",): ["simulation/mujoco/render.py", "simulation/mujoco/model.py"],
     ("gap-decomposition",): ["evaluation/gap.py", "evaluation/collisions.py"],
+    ("vhat-recipe",): ["evaluation/recipe_page.py", "evaluation/recipe_choice.py", "evaluation/recipe_settings.py",
+                       "evaluation/tables.py", "evaluation/metrics.py"],
+    ("claims",): ["evaluation/claims.py", "evaluation/recipe_choice.py"],   # the seed-provenance line
 }
 
 
@@ -197,8 +200,9 @@ def test_the_closure_covers_what_a_real_job_imports(tmp_path):
     # the command line imports every command module to build its parser: their module-level imports
     # (e.g. value_functions.build for the choices of train-value) define names, run no job code
     # (a plugin registry: each job hashes its own); calibrate-vhat's module is registered from inside
-    # value_functions.register (issue 62: its own module, so no other value-function job's hash moves)
-    parser = closure([f"{m}:" for m in (*COMMAND_MODULES, "madpinn.commands.calibration")])
+    # value_functions.register (issue 62: its own module, so no other value-function job's hash moves),
+    # vhat-recipe's from inside outputs.register (issue 61, likewise for the output jobs)
+    parser = closure([f"{m}:" for m in (*COMMAND_MODULES, "madpinn.commands.calibration", "madpinn.commands.recipe")])
     assert {"madpinn.evaluation.cell", "madpinn.policies.nominal", "madpinn.simulation.simulator"} <= loaded, loaded
     assert not loaded - hashed - parser, sorted(loaded - hashed - parser)
 

@@ -51,11 +51,13 @@ def _figure(args) -> int:
 
 def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     """fig_vhat_budget: a panel per ``--study``, each run with the samples of the V̂ it loads (``--vhat
-    RUN=PATH``) and, with ``--verify RUN=JSON``, that V̂'s scenario verification."""
+    RUN=PATH``) and, with ``--verify RUN=JSON``, that V̂'s scenario verification. A V̂ variant that only
+    reseeds the base recipe is a training-seed replicate; one at the base's samples and schedule that
+    changes its recipe (e.g. ``nocs``) is a recipe variant: neither is a budget point."""
     import json
 
     from madpinn.config import ConfigError, method_config
-    from madpinn.figures.budget import BudgetRun, budget_panel, model_samples, model_schedule, plot_vhat_budget
+    from madpinn.figures.budget import BudgetRun, budget_panel, budget_roles, model_samples, model_schedule, plot_vhat_budget
     from madpinn.value_functions.model import read_checkpoint
 
     studies = args.study or []
@@ -66,16 +68,18 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     runs = []
     names = list(dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]))
     base = next((run for run in names if method_config(cfg, run)[1].get("vhat") is None), None)   # the shipped recipe's run
+    missing = [run for run in names if run not in models]
+    if missing:
+        raise ConfigError(f"fig_vhat_budget: pass --vhat {missing[0]}=PATH (the V̂ model run '{missing[0]}' loads)")
+    metas = {run: read_checkpoint(models[run], "vhat")["meta"] for run in names}
+    budget_of = {run: (model_samples(m), model_schedule(m)) for run, m in metas.items()}
+    variants = {run: method_config(cfg, run)[1].get("vhat") for run in names}
+    entries = {run: None if v is None else cfg["value_functions"]["vhat_variants"][v] for run, v in variants.items()}
+    roles = budget_roles(base, entries, budget_of)
     for run in names:
-        if run not in models:
-            raise ConfigError(f"fig_vhat_budget: pass --vhat {run}=PATH (the V̂ model run '{run}' loads)")
-        meta = read_checkpoint(models[run], "vhat")["meta"]
         report = json.loads(Path(reports[run]).read_text()) if run in reports else None
-        variant = method_config(cfg, run)[1].get("vhat")
-        reseeded = variant is not None and set(cfg["value_functions"]["vhat_variants"][variant]) == {"seed"}
-        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=model_samples(meta),
-                              schedule=model_schedule(meta), verification=report,
-                              replicates=base if reseeded and base is not None else None))
+        runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=budget_of[run][0],
+                              schedule=budget_of[run][1], verification=report, **roles[run]))
     panels = [budget_panel(st, cfg["studies"][st]["arena"], cfg["studies"][st]["pattern"], cfg["studies"][st]["agent_counts"])
               for st in studies]
     return plot_vhat_budget(args.inputs, runs, panels, Path(args.out_dir) / args.name)
@@ -147,7 +151,7 @@ def _claims(args) -> int:
     record = JobRecord(job_key="report/claims", rule="claims_table", params={"report": str(args.report)})
     with job(cfg, record, not args.no_track) as run:
         record.artifacts = write_claims(args.report, args.out_dir, timing_path=args.timing, heatmap_path=args.heatmap,
-                                        readings_path=args.table_ii_verdict)
+                                        readings_path=args.table_ii_verdict, recipe_path=args.vhat_recipe)
         write_commit_record(cfg, record.job_key, record.artifacts)
         return finish(run, record, echo=list(record.artifacts))
 
@@ -222,6 +226,7 @@ def register(sub) -> None:
     p.add_argument("--timing", default=None, help="neighbour_timing.json (python -m madpinn neighbour-timing)")
     p.add_argument("--heatmap", default=None, help="fig_value_heatmap.json (python -m madpinn fig-value-heatmap)")
     p.add_argument("--table-ii-verdict", default=None, help="verdict.json of the Table II readings (python -m madpinn table-ii-readings)")
+    p.add_argument("--vhat-recipe", default=None, help="vhat_recipe.json: the V̂ recipe's choice (python -m madpinn vhat-recipe)")
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_claims, reads=keys("experiment"))
@@ -250,6 +255,10 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True)
     p.add_argument("--no-track", action="store_true")
     p.set_defaults(func=_table_ii_readings, reads=table_ii_readings)
+
+    from madpinn.commands.recipe import register as register_recipe   # vhat-recipe: its own module (its page's hash only)
+
+    register_recipe(sub)
 
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)

@@ -25,9 +25,9 @@ from madpinn.evaluation.claim_checks import (  # noqa: F401  (the verdict scale,
 )
 
 VHAT_PROVENANCE = ("the shipped V̂'s recipe (fine-tune, conflict sampling) was chosen on protocol seeds 0 and 1 "
-                   "(docs/findings/2026-11-21-vhat-training-results.md); re-making that choice on validation seeds "
-                   "(≥ 100) with the rule written first is a compute job not yet run (issue 61)")
-"""where the V̂ recipe was chosen: the claims page states it"""
+                   "(docs/findings/2026-11-21-vhat-training-results.md) and is being re-made on validation seeds (≥ 100) "
+                   "by the rule written first (docs/findings/2026-11-29-vhat-recipe-preregistered.md; issue 61)")
+"""where the V̂ recipe was chosen, until the recipe page's choice is given (:func:`recipe_provenance`)"""
 
 
 @dataclass(frozen=True)
@@ -141,12 +141,20 @@ def table2_readings_claim() -> Claim:
                  readings_checks)
 
 
+def recipe_provenance(recipe: Mapping | None) -> str:
+    """The seed-provenance line: the recipe page's choice (``vhat_recipe.json``) when given, else :data:`VHAT_PROVENANCE`."""
+    from madpinn.evaluation.recipe_choice import choice_sentence
+
+    return choice_sentence(recipe) if recipe else VHAT_PROVENANCE
+
+
 def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, heatmap: Mapping | None = None,
-                 readings: Mapping | None = None) -> dict:
+                 readings: Mapping | None = None, recipe: Mapping | None = None) -> dict:
     """``{"claims": [...], "verdicts": {id: verdict}, "counts": {scale word: n}, "values": [...],
     "consistency": [...], "provenance": {...}}`` from a reproduction report, the neighbour-timing
     measurement, the heatmap's reading and Table II's readings (``timing``, ``heatmap``, ``readings``: their
-    JSON; None: that claim is left out)."""
+    JSON; None: that claim is left out); ``recipe``: the V̂ recipe's choice (``vhat_recipe.json``), stated in
+    the provenance."""
     from madpinn.evaluation.claim_values import value_rows
     from madpinn.evaluation.paper_consistency import check_paper
 
@@ -173,7 +181,7 @@ def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, 
             "counts": {w: sum(scale_of(v) == w for v in verdicts.values()) for w in SCALE},
             "values": value_rows(report), "consistency": check_paper(),
             "provenance": {"config_hash": prov.get("config_hash"), "collisions": prov.get("collisions"),
-                           "intervals": prov.get("intervals"), "vhat_recipe": VHAT_PROVENANCE,
+                           "intervals": prov.get("intervals"), "vhat_recipe": recipe_provenance(recipe),
                            "rule": "per reading: every check passes: holds; k of n: partly (k of n); a failed essential "
                                    "check or none passing: does not hold; the claim pools the paper's own readings, and "
                                    f"reads \"{UNSTATED}\" when each paper row it tests holds under its own or one of "
@@ -186,8 +194,10 @@ def readme_lines(claims: dict) -> list[str]:
 
 
 def write_claims(report_path: str | Path, out_dir: str | Path, timing_path: str | Path | None = None,
-                 heatmap_path: str | Path | None = None, readings_path: str | Path | None = None) -> list[Path]:
-    """Read ``reproduction.json`` at ``report_path`` (and the neighbour timing, the heatmap's reading);
+                 heatmap_path: str | Path | None = None, readings_path: str | Path | None = None,
+                 recipe_path: str | Path | None = None) -> list[Path]:
+    """Read ``reproduction.json`` at ``report_path`` (and the neighbour timing, the heatmap's reading, Table II's
+    readings, the V̂ recipe's choice);
     write ``claims.json``, ``claims.md`` and ``claims.html`` (the page the Snakemake report shows) into ``out_dir``."""
     from madpinn.evaluation.claims_page import to_markdown
     from madpinn.evaluation.html import markdown_page
@@ -196,7 +206,8 @@ def write_claims(report_path: str | Path, out_dir: str | Path, timing_path: str 
     if not isinstance(report, dict) or "provenance" not in report:
         raise ValueError(f"{report_path} is not a reproduction report (no provenance)")
     read = lambda p: json.loads(Path(p).read_text()) if p else None   # noqa: E731
-    claims = build_claims(report, timing=read(timing_path), heatmap=read(heatmap_path), readings=read(readings_path))
+    claims = build_claims(report, timing=read(timing_path), heatmap=read(heatmap_path), readings=read(readings_path),
+                          recipe=read(recipe_path))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     js, md, page = out_dir / "claims.json", out_dir / "claims.md", out_dir / "claims.html"

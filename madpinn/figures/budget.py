@@ -10,7 +10,10 @@ per N and schedule (at least two budgets of it) is extended to where it would re
 value, and the budget it would need is printed (none when the trend does not rise). Error bars: 95 % bootstrap intervals over
 scenarios (one seed), else ± one standard deviation over seeds. With each V̂'s scenario verification
 (``verify-vhat``), the CSV also carries its ε on uniform and on conflict states; each point has its
-interval and its infeasible share (agent-steps with no feasible budget) there too.
+interval and its infeasible share (agent-steps with no feasible budget) there too. Two kinds of run are
+no budget and stay out of the trends: a training-seed replicate of a budget (drawn as that budget's
+range over seeds) and a recipe variant at a budget's samples and schedule (e.g. uniform states
+instead of conflict sampling; a labelled marker at its samples, its own CSV rows).
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_sc
 PAPER_RUN = "madpinn"
 SEED_RANGE_LABEL = "training-seed range"
 """legend entry of a budget's range over training seeds (issue 60 item 3)"""
+RECIPE_MARKERS = {"D": "diamond", "P": "plus", "X": "cross", "^": "triangle", "v": "down-triangle"}
+"""markers of the recipe variants (issue 61 item 4), in the order of the runs, and their names in the legend text"""
 ANNEALED, CONSTANT = "annealed lr", "constant lr (paper's)"
 """the two learning-rate schedules of the budgets: ours (decaying lr → lr_final) and the paper's constant rate"""
 SCHEDULE_STYLE = {ANNEALED: dict(fmt="o-", mfc="white"), CONSTANT: dict(fmt="s-.", mfc=None)}
@@ -60,6 +65,14 @@ class BudgetRun:
     replicates: str | None = None
     """the run whose V̂ recipe this one repeats with another training seed (issue 60 item 3): no
     budget of its own, drawn as that budget's training-seed range and left out of the trends"""
+    recipe_of: str | None = None
+    """the run whose budget and schedule this one keeps with another recipe (e.g. uniform states, issue
+    61 item 4): no budget of its own, a labelled marker at its samples, left out of the trends"""
+
+    @property
+    def budget(self) -> bool:
+        """Whether this run is a point of the budget trends (neither a replicate nor a recipe variant)."""
+        return self.replicates is None and self.recipe_of is None
 
 
 @dataclass(frozen=True)
@@ -79,6 +92,20 @@ def paper_safety(arena: str, pattern: str | None, counts: Iterable[int]) -> dict
         return {}
     cells = paper_values()[PAPER_TABLE_OF_ARENA[arena]]["runs"][PAPER_RUN]["n"]
     return {int(n): 100 * cells[int(n)]["safety"] for n in counts if int(n) in cells}
+
+
+def budget_roles(base: str | None, variants: Mapping[str, Mapping | None],
+                 budgets: Mapping[str, tuple[int, str]]) -> dict[str, dict[str, str | None]]:
+    """Per run (``variants``: run -> its V̂ variant's entry, None for the base recipe; ``budgets``: run ->
+    its V̂'s (samples, schedule)), the :class:`BudgetRun` roles: ``replicates`` the base when the variant
+    only reseeds the recipe, ``recipe_of`` the base when it keeps the base's samples and schedule and
+    changes the recipe (e.g. uniform states); both None for a budget."""
+    out = {}
+    for run, entry in variants.items():
+        reseeded = entry is not None and set(entry) == {"seed"}
+        recipe = entry is not None and not reseeded and base is not None and budgets[run] == budgets[base]
+        out[run] = {"replicates": base if reseeded and base is not None else None, "recipe_of": base if recipe else None}
+    return out
 
 
 def budget_panel(study: str, arena: str, pattern: str | None, counts: Iterable[int]) -> BudgetPanel:
@@ -137,7 +164,7 @@ def schedule_points(group: pd.DataFrame, by_run: Mapping[str, BudgetRun]) -> dic
     """The rows of one (study, N), per schedule, sorted by samples: ``{schedule: [(samples, row)]}``."""
     points: dict[str, list[tuple[int, pd.Series]]] = {}
     for _, r in group.iterrows():
-        if by_run[r["run"]].replicates is None:   # a training-seed replicate is no budget (seed_ranges)
+        if by_run[r["run"]].budget:   # a replicate (seed_ranges) or a recipe variant is no budget
             points.setdefault(by_run[r["run"]].schedule, []).append((by_run[r["run"]].samples, r))
     return {sched: sorted(pts, key=lambda p: p[0]) for sched, pts in points.items()}
 
@@ -167,7 +194,9 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
     scenarios with one seed, else ± one std over seeds), the infeasible share (``infeasible``:
     :func:`infeasible_by_cell`; NaN where not given) and, per (study, N, schedule), the trend's slope
     (points per decade; NaN with one budget or no paper value) and the samples at which it reaches the
-    paper's safety (NaN: never, or no paper value); the V̂'s verification ε where given."""
+    paper's safety (NaN: never, or no paper value); the V̂'s verification ε where given. A replicate's
+    rows read ``training seed of <base>``, a recipe variant's ``recipe variant of <base>`` (with its
+    base's training-seed range); neither enters a trend."""
     infeasible = infeasible or {}
     by_run = {r.run: r for r in runs}
     rows = []
@@ -177,13 +206,24 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
             rows_n = []
             ranges = seed_ranges(group, by_run)
             for _, r in group.iterrows():
-                base = by_run[r["run"]].replicates
-                if base is not None:
+                b = by_run[r["run"]]
+                if b.replicates is not None:
                     lo, hi = _interval(r, "safety_rate", 100.0)
                     safety = 100 * r["safety_rate_mean"]
-                    rows_n.append({"study": panel.study, "n_agents": int(n), "run": r["run"], "schedule": f"training seed of {base}",
-                                   "samples": by_run[r["run"]].samples, "safety": safety, "safety_lo": safety - lo,
+                    rows_n.append({"study": panel.study, "n_agents": int(n), "run": r["run"], "schedule": f"training seed of {b.replicates}",
+                                   "samples": b.samples, "safety": safety, "safety_lo": safety - lo,
                                    "safety_hi": safety + hi, "paper_safety": target})
+                elif b.recipe_of is not None:   # beside its base's point and training-seed range, in no trend
+                    lo, hi = _interval(r, "safety_rate", 100.0)
+                    safety, v = 100 * r["safety_rate_mean"], b.verification
+                    rows_n.append({"study": panel.study, "n_agents": int(n), "run": r["run"], "schedule": f"recipe variant of {b.recipe_of}",
+                                   "samples": b.samples, "safety": safety, "safety_lo": safety - lo, "safety_hi": safety + hi,
+                                   "infeasible": infeasible.get((panel.study, r["run"], int(n)), math.nan), "paper_safety": target,
+                                   "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
+                                   "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan,
+                                   "seed_range_lo": ranges.get(b.recipe_of, (math.nan,) * 3)[0],
+                                   "seed_range_hi": ranges.get(b.recipe_of, (math.nan,) * 3)[1],
+                                   "seeds": ranges.get(b.recipe_of, (math.nan, math.nan, 1))[2]})
             for sched, pts in schedule_points(group, by_run).items():
                 xs, ys = [p[0] for p in pts], [100 * r["safety_rate_mean"] for _, r in pts]
                 _, slope, needed = (trend(xs, ys, target) if math.isfinite(target) and len(set(xs)) > 1
@@ -201,7 +241,8 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
                                    "seed_range_lo": ranges.get(r["run"], (math.nan,) * 3)[0],
                                    "seed_range_hi": ranges.get(r["run"], (math.nan,) * 3)[1],
                                    "seeds": ranges.get(r["run"], (math.nan, math.nan, 1))[2]})
-            rows += sorted(rows_n, key=lambda row: (row["samples"], row["schedule"].startswith("training seed")))
+            rows += sorted(rows_n, key=lambda row: (row["samples"], row["schedule"].startswith(("training seed", "recipe variant")),
+                                                    row["schedule"].startswith("recipe variant")))
     return pd.DataFrame(rows)
 
 
@@ -238,8 +279,9 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     meaning and each trend's verdict below the panels."""
     style.setup()
     by_run = {r.run: r for r in runs}
-    budgets = [r for r in runs if r.replicates is None]
+    budgets = [r for r in runs if r.budget]
     tags = budget_tags(budgets)
+    recipes = {r.run: list(RECIPE_MARKERS)[i % len(RECIPE_MARKERS)] for i, r in enumerate(r for r in runs if r.recipe_of is not None)}
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4), sharex=True, sharey=True, squeeze=False)
@@ -260,10 +302,6 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                 fmt, mfc = SCHEDULE_STYLE[sched]["fmt"], SCHEDULE_STYLE[sched]["mfc"] or c
                 ax.errorbar(xs, ys, yerr=err, fmt=fmt, color=c, capsize=2.5, ms=6, mfc=mfc, mew=1.5,
                             label=f"{n} agents" if i == 0 else None)
-            for base, (lo, hi, k) in seed_ranges(agg[agg["n_agents"] == n], by_run).items():
-                ax.vlines(by_run[base].samples, lo, hi, color=c, lw=7, alpha=0.3, zorder=0, label=SEED_RANGE_LABEL)
-                notes.append(f"{panel.title}, {n} agents: training-seed range at {tags[base]}: {lo:.1f}–{hi:.1f} % "
-                             f"({k} seeds); a budget step smaller than it reads as no effect")
                 if target is None or len(set(xs)) < 2:
                     continue
                 a, b, needed = trend(xs, ys, target)
@@ -272,6 +310,14 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                 notes.append(f"{panel.title}, {n} agents, {sched}, {len(xs)} budgets: paper {target:.4g} %; "
                              + (f"trend +{b:.1f} pts/decade, reaches it at {needed:.2g} samples" if needed is not None
                                 else "no rising trend"))
+            for base, (lo, hi, k) in seed_ranges(agg[agg["n_agents"] == n], by_run).items():
+                ax.vlines(by_run[base].samples, lo, hi, color=c, lw=7, alpha=0.3, zorder=0, label=SEED_RANGE_LABEL)
+                notes.append(f"{panel.title}, {n} agents: training-seed range at {tags[base]}: {lo:.1f}–{hi:.1f} % "
+                             f"({k} seeds); a budget step smaller than it reads as no effect")
+            for _, r in agg[(agg["n_agents"] == n) & agg["run"].isin(list(recipes))].iterrows():
+                ax.errorbar([by_run[r["run"]].samples], [100 * r["safety_rate_mean"]],
+                            yerr=np.array([_interval(r, "safety_rate", 100.0)]).T, fmt=recipes[r["run"]], color=c,
+                            capsize=2.5, ms=6, mfc="white", mew=1.5, zorder=3)
         ax.axvline(PAPER_SAMPLES, color="0.4", lw=0.8)
         ax.text(PAPER_SAMPLES, 0.55, "paper's recipe ", transform=ax.get_xaxis_transform(), fontsize=7.5, va="center",
                 ha="right", rotation=90, color="0.3")
@@ -286,12 +332,16 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
         drawn = dict(zip(*reversed(ax.get_legend_handles_labels())))   # label -> handle, one seed-range entry
         handles = list(drawn.values()) + [
             plt.Line2D([], [], color="0.3", marker=SCHEDULE_STYLE[s]["fmt"][0], ls=SCHEDULE_STYLE[s]["fmt"][1:],
-                       mfc=SCHEDULE_STYLE[s]["mfc"] or "0.3", label=s) for s in schedules]
+                       mfc=SCHEDULE_STYLE[s]["mfc"] or "0.3", label=s) for s in schedules] + [
+            plt.Line2D([], [], color="0.3", marker=m, ls="none", mfc="white", label=by_run[run].label)
+            for run, m in recipes.items() if run in set(agg["run"])]
         ax.legend(handles=handles, loc="best", fontsize=7.5, frameon=True)
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
     replicas = [f"{r.label} (training seed of {tags[r.replicates]})" for r in runs if r.replicates is not None]
+    replicas += [f"{r.label} ({RECIPE_MARKERS[recipes[r.run]]}: the recipe of {tags[r.recipe_of]} changed at its budget)"
+                 for r in runs if r.recipe_of is not None]
     if replicas:
         legend += "; " + ", ".join(replicas)
     fig.text(0.01, -0.02, "\n".join([f"Top axis: {legend}", *notes]), fontsize=7.5, va="top")

@@ -110,3 +110,41 @@ if config["table_ii_readings"]:
         shell:
             "python -m madpinn table-ii-readings --config {params.config:q}"
             " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
+
+
+# V̂'s recipe re-chosen on validation seeds (issue 61 item 4): per deciding cell the training band over
+# the base and its training-seed replicates, each component's verdict and the action the rule fixed
+# before the cells (docs/findings/2026-11-29-vhat-recipe-preregistered.md). Defined when configured
+# (workflow/configs/vhat_recipe.yaml); not part of all:  snakemake -j2 vhat_recipe
+if config["vhat_recipe"]:
+    from madpinn.evaluation.recipe_settings import RecipeSettings
+
+    try:   # the section's cross-field rules (madpinn/evaluation/recipe_settings.py), before any job
+        RecipeSettings.from_config(config)
+    except Exception as exc:
+        stop_workflow(exc)
+    RECIPE_STUDIES = list(dict.fromkeys([*config["vhat_recipe"]["deciding"], *config["vhat_recipe"]["reported"]]))
+
+    rule vhat_recipe:
+        input:
+            tracking=TRACKING,
+            results=sorted({p for s in RECIPE_STUDIES for p in study_results(s)}),
+        output:
+            csv=kept(f"{FIGURES}/vhat_recipe/vhat_recipe.csv"),
+            md=kept(f"{FIGURES}/vhat_recipe/vhat_recipe.md"),
+            json=kept(f"{FIGURES}/vhat_recipe/vhat_recipe.json"),
+        params:
+            config=RESOLVED,
+            settings=settings_hash("vhat-recipe"),
+            source=source_hash("vhat-recipe"),
+            out_dir=out_dir_of("csv"),
+        resources:
+            mem_mb=2000,
+            runtime=10,
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/vhat_recipe.log",
+        shell:
+            "python -m madpinn vhat-recipe --config {params.config:q}"
+            " --inputs {input.results:q} --out-dir {params.out_dir:q} 2>&1 | tee {log:q}"
