@@ -83,3 +83,14 @@ def gap_rows(cfg: Mapping) -> dict:
 
 VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
 Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search
+
+
+def agent_model_rows(cfg: Mapping) -> dict:
+    """What the agent-model table reads besides its cells: the section, each study's agent model,
+    backend and runs (with their labels and planar references)."""
+    from madpinn.config import describe_model, study_agents, study_backend
+
+    sec = cfg["agent_models"]
+    return {"experiment": cfg["experiment"], "agent_models": sec, "labels": labels(cfg, *sec["studies"]),
+            "studies": {s: {"model": describe_model(study_agents(cfg, s)), "backend": study_backend(cfg, s),
+                            "runs": cfg["studies"][s]["runs"]} for s in sec["studies"]}}
