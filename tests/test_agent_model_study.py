@@ -236,3 +236,9 @@ def test_overflights_count_pairs_within_r_in_the_plane_and_apart_in_space(tmp_pa
     assert got["overflights"] == 1 and got["altitude_p90"] == pytest.approx(np.percentile([0, 0, 0, 0.2, 0.2, 0], 90))
     np.savez(traj, positions=positions[..., :2], collision_radius=0.1)
     assert np.isnan(recorded_passes(traj)["overflights"])
+
+
+def test_the_3d_variants_ship_as_their_kind():
+    from madpinn.value_functions.shipping import model_kind
+
+    assert (model_kind("vhat_3d"), model_kind("vs_3d"), model_kind("safemarl_nominal")) == ("vhat", "vs", "safemarl_nominal")
