@@ -114,6 +114,10 @@ def test_the_methods_that_fly_a_model_are_the_policies_that_accept_it():
     from policy_models import smoke_config_3d
 
     cfg = smoke_config_3d()
+    from madpinn.config.schema import node_at
+    from madpinn.dynamics import MODELS, PAPER_MODEL
+
+    assert set(MODEL_METHODS) == set(node_at("agents.model")["enum"]) - {PAPER_MODEL} == set(MODELS) - {PAPER_MODEL}
     assert set(MODEL_METHODS["double_integrator_3d"]) < set(registry("madpinn.policies.base"))
     assert set(registry("madpinn.policies.base")) - set(MODEL_METHODS["double_integrator_3d"]) == {"mppi", "safemarl", "defmarl"}
     model = DoubleIntegrator3D(4.0, 4.0, (0.5, 1.5))
@@ -130,7 +134,8 @@ def test_the_methods_that_fly_a_model_are_the_policies_that_accept_it():
 
 @pytest.mark.parametrize("extra,message", [
     ({"studies": {"model_3d": {"runs": ["madpinn-3d", "mppi"]}}},
-     r"'studies.model_3d.runs': run 'mppi' cannot fly the study's agent model double_integrator_3d \(the methods that do: madpinn, nominal\)"),
+     r"'studies.model_3d.runs': run 'mppi' cannot fly the study's agent model double_integrator_3d \(the methods that do: madpinn, nominal; "
+     r"madpinn.config.models.MODEL_METHODS\)"),
     ({"studies": {"model_3d": {"runs": ["madpinn"]}}},
      r"run 'madpinn' loads a V̂ trained for double_integrator, but the study flies double_integrator_3d"),
     ({"methods": {"madpinn": {"variants": {"3d": {"vs": None}}}}},

@@ -11,10 +11,10 @@ from madpinn.config.hashing import AGENT_MODEL_KEYS, PAPER_AGENT_MODEL
 from madpinn.config.merge import deep_merge
 
 MODEL_METHODS = {"double_integrator_3d": ("madpinn", "nominal")}
-"""agent model -> the methods whose policies fly it (the paper's planar model: every method). The
-others refuse it in one line when they are built: MPPI plans planar rollouts, the MARL baselines
-(SafeMARL, DEF-MARL) read planar features (``tests/test_agent_model_study.py`` ties this table to
-the policies)"""
+"""agent model -> the methods whose policies fly it; the paper's planar model: every method, another
+model not listed here: none. The others refuse it in one line when they are built: MPPI plans
+planar rollouts, the MARL baselines (SafeMARL, DEF-MARL) read planar features
+(``tests/test_agent_model_study.py`` ties this table to the policies and to the schema's models)"""
 
 
 def with_model(agents: Mapping[str, Any], overlay: Mapping[str, Any] | None) -> dict:
@@ -44,5 +44,6 @@ def describe_model(agents: Mapping[str, Any]) -> str:
 
 
 def methods_flying(model: str) -> tuple[str, ...] | None:
-    """The methods that fly ``model`` (None: every method, the paper's planar model)."""
-    return MODEL_METHODS.get(model)
+    """The methods that fly ``model`` (None: every method, the paper's planar model; a model
+    :data:`MODEL_METHODS` does not list: none)."""
+    return None if model == PAPER_AGENT_MODEL else MODEL_METHODS.get(model, ())

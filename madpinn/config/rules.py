@@ -162,7 +162,7 @@ def _model_errors(cfg: Mapping[str, Any]) -> list[str]:
                 continue   # reported by _cross_field_errors
             if flying is not None and method not in flying:
                 lines.append(f"  - 'studies.{name}.runs': run '{run}' cannot fly the study's agent model {agents['model']} "
-                             f"(the methods that do: {', '.join(flying)})")
+                             f"(the methods that do: {', '.join(flying) or 'none'}; madpinn.config.models.MODEL_METHODS)")
                 continue
             if method != "madpinn":
                 continue
