@@ -28,6 +28,7 @@ import pandas as pd
 
 from madpinn.config import describe_model, study_agents, study_backend
 from madpinn.config.hashing import PAPER_AGENT_MODEL
+from madpinn.dynamics import DoubleIntegrator3D
 from madpinn.evaluation.intervals import paired_differences, seed_figures
 from madpinn.evaluation.tables import label_of, load_results, per_seed, to_markdown
 
@@ -42,11 +43,12 @@ def recorded_passes(traj: str | Path) -> dict:
     of one cell's recorded scenario; NaN for planar positions."""
     with np.load(traj) as z:
         pos, r = np.asarray(z["positions"], dtype=float), float(z["collision_radius"])   # [T, N, d]
-    if pos.shape[-1] < 3:
+    k = DoubleIntegrator3D.ALTITUDE   # the altitude's coordinate; the others span the plane
+    if pos.shape[-1] <= k:
         return {"altitude_p90": np.nan, "overflights": np.nan}
-    climb = np.abs(pos[..., 2] - pos[:1, :, 2])
+    climb = np.abs(pos[..., k] - pos[:1, :, k])
     diff = pos[:, :, None, :] - pos[:, None, :, :]                       # [T, N, N, d]
-    plane, space = np.linalg.norm(diff[..., :2], axis=-1), np.linalg.norm(diff, axis=-1)
+    plane, space = np.linalg.norm(np.delete(diff, k, axis=-1), axis=-1), np.linalg.norm(diff, axis=-1)
     over = ((plane <= r) & (space > r)).any(axis=0)
     return {"altitude_p90": float(np.percentile(climb, 90)), "overflights": int(np.triu(over, k=1).sum())}
 
