@@ -70,10 +70,10 @@ def study_sim_override(cfg: Mapping, study: str) -> dict | None:
 def gap_rows(cfg: Mapping) -> dict:
     """What names the gap decomposition's rows (its cells are its inputs): the section, the
     configured carrot margin, each gap study's backend and its runs' settings."""
-    from madpinn.config import method_config, study_backend
+    from madpinn.config import hashed_method, method_config, study_backend
 
     def settings(run):
-        return method_config(cfg, run)[1]
+        return hashed_method(method_config(cfg, run)[1])   # as a cell's hash reads them (a base V_s: no `vs`)
 
     gap = cfg["gap_decomposition"]
     return {"gap_decomposition": gap, "carrot_margin": cfg["observation"]["carrot_margin"],
