@@ -180,8 +180,9 @@ def _model_errors(cfg: Mapping[str, Any]) -> list[str]:
 
 def _agent_models_errors(cfg: Mapping[str, Any]) -> list[str]:
     """The agent-model table's studies exist, share their scenarios (arena, pattern, agent counts,
-    validation seeds ≥ 100, scenario count) and, per backend, one flies the planar model (the
-    reference) and at least one another model."""
+    validation seeds ≥ 100, scenario count; a study cannot change the start separation) and, per
+    backend, one flies the planar model (the reference) and at least one another model, with a run
+    of each method of the others."""
     from madpinn.config.hashing import PAPER_AGENT_MODEL
 
     sec = cfg["agent_models"]
