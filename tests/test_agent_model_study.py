@@ -232,6 +232,26 @@ def test_the_table_from_smoke_budget_cells(tmp_path):
     assert agent_models_table(cells, cfg).shape[0] == 2
 
 
+@pytest.mark.slow
+def test_the_workflow_builds_the_table_on_both_backends(tmp_path):
+    """`snakemake table_agent_models` at smoke size: the 3-D variants trained by their rules, the
+    four studies' cells (MuJoCo: the drones fly the altitude setpoint), the table (≈ 3 min)."""
+    pytest.importorskip("mujoco")
+    from workflow_helpers import NO_TRACKING, copy_repo, run_in, write_overlay
+
+    copy = copy_repo(tmp_path / "repo")
+    write_overlay(copy / "am.yaml", smoke_overlay(scenarios=2, seeds=(100, 101)), NO_TRACKING)
+    run_in(copy, "-j1", "table_agent_models", configfiles=("smoke.yaml", "am.yaml"))
+    out = copy / "results" / "agent_models" / "paper_figures" / "agent_models"
+    table = pd.read_csv(out / "table_agent_models.csv")
+    assert list(zip(table["backend"], table["study"])) == [("double_integrator", "model_planar"), ("double_integrator", "model_3d"),
+                                                          ("mujoco", "model_planar_mujoco"), ("mujoco", "model_3d_mujoco")]
+    three = table[table["study"].str.startswith("model_3d")]
+    assert (three["altitude_p90"] > 0).all() and three["cost_time_avg_diff"].notna().all()
+    assert list(three["reference"]) == ["model_planar/madpinn", "model_planar_mujoco/madpinn"]
+    assert TITLE in (out / "table_agent_models.md").read_text()
+
+
 def test_overflights_count_pairs_within_r_in_the_plane_and_apart_in_space(tmp_path):
     traj = tmp_path / "t_traj.npz"
     positions = np.array([[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [3.0, 0.0, 1.0]],
