@@ -68,6 +68,7 @@ include: "workflow/rules/conflicts.smk"  # structured-conflict tables, after the
 include: "workflow/rules/report.smk"
 include: "workflow/rules/readings.smk"  # collision readings table, when contact studies are configured (issue 38)
 include: "workflow/rules/gap.smk"  # gap_decomposition target, not part of all (issue 14)
+include: "workflow/rules/agent_models.smk"  # table_agent_models target, not part of all (issue 63)
 
 
 if workflow.workflow_settings.cache is not None:

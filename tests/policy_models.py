@@ -22,11 +22,18 @@ MODEL_3D = {"agents": {"model": "double_integrator_3d"}}
 
 
 def smoke_config_3d() -> dict:
-    """The smoke configuration with the 3-D agent model."""
+    """The smoke configuration with the 3-D agent model for every study: each keeps the runs whose
+    methods fly it (``madpinn.config.MODEL_METHODS``; the config check refuses the others)."""
     import yaml
 
+    from madpinn.config import MODEL_METHODS
+
+    flying = MODEL_METHODS[MODEL_3D["agents"]["model"]]
+    planar = load_config([REPO / "config.yaml", SMOKE])
+    runs = {name: {"runs": [r for r in st["runs"] if r.partition("-")[0] in flying] or ["nominal"]}
+            for name, st in planar["studies"].items()}
     overlay = Path(tempfile.mkdtemp(prefix="madpinn-3d-")) / "model_3d.yaml"
-    overlay.write_text(yaml.safe_dump(MODEL_3D))
+    overlay.write_text(yaml.safe_dump({**MODEL_3D, "studies": runs}))
     return load_config([REPO / "config.yaml", SMOKE, overlay])
 
 

@@ -29,6 +29,7 @@ _MODULES = {   # job family -> its module (a plugin registry: a job's hash follo
     "safemarl": "madpinn.commands.safemarl",  # train-safemarl-nominal
     "defmarl": "madpinn.commands.defmarl",  # train-defmarl
     "gap": "madpinn.commands.gap",  # gap-decomposition
+    "agent_models": "madpinn.commands.agent_models",  # agent-models
     "timing": "madpinn.commands.timing",  # neighbour-timing
 }
 COMMAND_MODULES = tuple(_MODULES.values())

@@ -70,10 +70,10 @@ def study_sim_override(cfg: Mapping, study: str) -> dict | None:
 def gap_rows(cfg: Mapping) -> dict:
     """What names the gap decomposition's rows (its cells are its inputs): the section, the
     configured carrot margin, each gap study's backend and its runs' settings."""
-    from madpinn.config import method_config, study_backend
+    from madpinn.config import hashed_method, method_config, study_backend
 
     def settings(run):
-        return method_config(cfg, run)[1]
+        return hashed_method(method_config(cfg, run)[1])   # as a cell's hash reads them (a base V_s: no `vs`)
 
     gap = cfg["gap_decomposition"]
     return {"gap_decomposition": gap, "carrot_margin": cfg["observation"]["carrot_margin"],
@@ -83,3 +83,14 @@ def gap_rows(cfg: Mapping) -> dict:
 
 VF_RUN = ("value_functions.seed", "dtype")   # a value-function job's seeding and precision
 Z_TOL = "methods.madpinn.z_tolerance"         # the deployed z* grid, which verify-vhat and the heatmap search
+
+
+def agent_model_rows(cfg: Mapping) -> dict:
+    """What the agent-model table reads besides its cells: the section, each study's agent model,
+    backend and runs (with their labels and planar references)."""
+    from madpinn.config import describe_model, study_agents, study_backend
+
+    sec = cfg["agent_models"]
+    return {"experiment": cfg["experiment"], "agent_models": sec, "labels": labels(cfg, *sec["studies"]),
+            "studies": {s: {"model": describe_model(study_agents(cfg, s)), "backend": study_backend(cfg, s),
+                            "runs": cfg["studies"][s]["runs"]} for s in sec["studies"]}}

@@ -75,7 +75,7 @@ def _train(args) -> int:
     cfg = with_vf_variant(config_of(args), kind, variant)   # the variant's settings, before anything reads them
     name = vf_model_name(kind, variant)
     vcfg = _training_settings(cfg, kind)
-    record = JobRecord(job_key=f"train/{name}", rule="train_vhat_variant" if variant else f"train_{kind}",
+    record = JobRecord(job_key=f"train/{name}", rule=f"train_{kind}_variant" if variant else f"train_{kind}",
                        wildcards={"kind": kind, **({"variant": variant} if variant else {})},
                        params={"settings": {**vcfg, "seed": training_seed(cfg, kind)},
                                "config_hash": training_hash(cfg, kind),
@@ -358,8 +358,9 @@ def register(sub) -> None:
     common(p, None)
     p.add_argument("--kind", required=True, choices=KINDS)
     p.add_argument("--variant", default=None, metavar="NAME",
-                   help="train V̂ variant NAME: value_functions.vhat_variants.NAME deep-merged over value_functions.vhat "
-                        "(its settings and training hash; issue 33)")
+                   help="train variant NAME of --kind: value_functions.<kind>_variants.NAME deep-merged over "
+                        "value_functions.<kind>, its `agents` (an agent model) over agents (its settings and training hash; "
+                        "issues 33, 63)")
     p.add_argument("--out", required=True, help="final model file (.pt)")
     p.add_argument("--checkpoint", default=None, help="resume checkpoint (default <out dir>/checkpoints/<out stem>.ckpt.pt)")
     p.add_argument("--stop-after", type=int, default=None, help="stop after this many iterations (testing resume)")

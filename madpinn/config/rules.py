@@ -1,10 +1,12 @@
 """Cross-field rules of a configuration that its schema cannot state: names that must exist,
-agent counts that must fit their arena, the gap decomposition's and the deployment overrides' limits."""
+agent counts that must fit their arena, the gap decomposition's and the deployment overrides' limits,
+the agent model a study flies against its runs and their value functions."""
 
 from __future__ import annotations
 
 from typing import Any, Mapping
 
+from madpinn.config.models import describe_model, methods_flying, model_identity, study_agents
 from madpinn.config.runs import method_config, study_backend, study_pattern, study_sim
 
 
@@ -123,23 +125,97 @@ def _table_ii_errors(cfg: Mapping[str, Any]) -> list[str]:
 
 
 def _variant_errors(cfg: Mapping[str, Any]) -> list[str]:
-    """Deployment overrides of MAD-PINN runs name an existing V̂ variant and only lower the speed
+    """Deployment overrides of MAD-PINN runs name an existing V̂ / V_s variant and only lower the speed
     bound (a governor: V̂ and V_s are trained at ``agents.v_max``)."""
     lines = []
     madpinn = cfg["methods"].get("madpinn")
     if madpinn is None:
         return lines
-    known = sorted(cfg["value_functions"]["vhat_variants"])
     for variant in [None, *madpinn["variants"]]:
         where = "methods.madpinn" + (f".variants.{variant}" if variant else "")
         mcfg = madpinn if variant is None else madpinn["variants"][variant]
-        if mcfg.get("vhat") is not None and mcfg["vhat"] not in known:   # a variant: absent keeps the base's
-            lines.append(f"  - '{where}.vhat': unknown V̂ variant '{mcfg['vhat']}' (value_functions.vhat_variants: "
-                         f"{', '.join(known) or 'none'})")
+        for kind, name in (("vhat", "V̂"), ("vs", "V_s")):
+            known = sorted(cfg["value_functions"][f"{kind}_variants"])
+            if mcfg.get(kind) is not None and mcfg[kind] not in known:   # a variant: absent keeps the base's
+                lines.append(f"  - '{where}.{kind}': unknown {name} variant '{mcfg[kind]}' (value_functions.{kind}_variants: "
+                             f"{', '.join(known) or 'none'})")
         v_max = (mcfg.get("agents") or {}).get("v_max")
         if v_max is not None and v_max > cfg["agents"]["v_max"]:
             lines.append(f"  - '{where}.agents.v_max': {v_max} exceeds agents.v_max = {cfg['agents']['v_max']} "
                          "(a run may only lower the speed bound its models were trained with)")
+    return lines
+
+
+def _model_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """Each study's agent model (``agents``, with the study's own ``agents`` merged over it) is flown by
+    every run's method (:data:`madpinn.config.models.MODEL_METHODS`), and each MAD-PINN run loads a V̂
+    and a V_s trained for it (the base ones: ``agents``; a variant: its own ``agents`` merged over it)."""
+    from madpinn.config.vf_variants import with_vf_variant
+
+    lines, methods = [], cfg["methods"]
+    for name, st in cfg["studies"].items():
+        agents = study_agents(cfg, name)
+        flying = methods_flying(agents["model"])
+        for run in st["runs"]:
+            method, _, variant = run.partition("-")
+            if method not in methods or (variant and variant not in methods[method]["variants"]):
+                continue   # reported by _cross_field_errors
+            if flying is not None and method not in flying:
+                lines.append(f"  - 'studies.{name}.runs': run '{run}' cannot fly the study's agent model {agents['model']} "
+                             f"(the methods that do: {', '.join(flying) or 'none'}; madpinn.config.models.MODEL_METHODS)")
+                continue
+            if method != "madpinn":
+                continue
+            mcfg = method_config(cfg, run)[1]
+            for kind, label in (("vhat", "V̂"), ("vs", "V_s")):
+                if mcfg.get(kind) is not None and mcfg[kind] not in cfg["value_functions"][f"{kind}_variants"]:
+                    continue   # reported by _variant_errors
+                trained = with_vf_variant(cfg, kind, mcfg.get(kind))["agents"]
+                if model_identity(trained) != model_identity(agents):
+                    lines.append(f"  - 'studies.{name}.runs': run '{run}' loads a {label} trained for {describe_model(trained)}, "
+                                 f"but the study flies {describe_model(agents)} (give the run a {kind} variant trained for "
+                                 f"it: value_functions.{kind}_variants.<name>.agents, `{kind}: <name>`)")
+    return lines
+
+
+def _agent_models_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """The agent-model table's studies exist, share their scenarios (arena, pattern, agent counts,
+    validation seeds ≥ 100, scenario count; a study cannot change the start separation) and, per
+    backend, one flies the planar model (the reference) and at least one another model, with a run
+    of each method of the others."""
+    from madpinn.config.hashing import PAPER_AGENT_MODEL
+
+    sec = cfg["agent_models"]
+    if not sec:
+        return []
+    lines, studies = [], cfg["studies"]
+    known = [s for s in sec["studies"] if s in studies]
+    lines += [f"  - 'agent_models.studies': unknown study '{s}'" for s in sec["studies"] if s not in studies]
+    if not known:
+        return lines
+    first = studies[known[0]]
+    for name in known:
+        st = studies[name]
+        if min(st["seeds"]) < 100:
+            lines.append(f"  - 'studies.{name}.seeds': the agent-model table runs on validation seeds ≥ 100 only, got {st['seeds']}")
+        differ = [k for k in ("arena", "pattern", "agent_counts", "seeds", "scenarios") if st[k] != first[k]]
+        if differ:
+            lines.append(f"  - 'studies.{name}': the agent-model table pairs the same scenarios; its {', '.join(differ)} "
+                         f"differ from studies.{known[0]}'s")
+    for backend in sorted({study_backend(cfg, s) for s in known}):
+        on = [s for s in known if study_backend(cfg, s) == backend]
+        models = [study_agents(cfg, s)["model"] for s in on]
+        if models.count(PAPER_AGENT_MODEL) != 1 or len(models) < 2:
+            lines.append(f"  - 'agent_models.studies': on backend {backend} one study must fly the planar model "
+                         f"{PAPER_AGENT_MODEL} (the reference) and at least one another model, got {models}")
+            continue
+        planar = on[models.index(PAPER_AGENT_MODEL)]
+        methods = {r.partition("-")[0] for r in studies[planar]["runs"]}
+        for name in on:
+            for run in studies[name]["runs"]:
+                if run.partition("-")[0] not in methods:
+                    lines.append(f"  - 'studies.{name}.runs': run '{run}' has no planar reference in studies.{planar} "
+                                 "(a run of the same method, paired on the same scenarios)")
     return lines
 
 
@@ -159,6 +235,8 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
     lines += _gap_errors(cfg)
     lines += _table_ii_errors(cfg)
     lines += _variant_errors(cfg)
+    lines += _model_errors(cfg)
+    lines += _agent_models_errors(cfg)
     lines += _stop_at_errors(cfg)
     lines += _horizon_errors(cfg)
     traj = cfg["figures"]["trajectories"]

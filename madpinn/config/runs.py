@@ -1,5 +1,6 @@
 """A study's and a run's resolved settings: a run ``method[-variant]`` merged over its method,
-a study's ``sim`` overrides merged over ``sim``, and the config part an evaluation cell depends on."""
+a study's ``sim`` overrides merged over ``sim`` and its agent model over ``agents``, and the config
+part an evaluation cell depends on."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from typing import Any, Mapping
 from madpinn.config.errors import ConfigError
 from madpinn.config.hashing import hashed_agents
 from madpinn.config.merge import deep_merge
+from madpinn.config.models import study_agents
 from madpinn.config.vf_variants import vf_model_name
 
 
@@ -36,6 +38,9 @@ WORKFLOW_ONLY_KEYS = ("in_all",)
 """study keys only the workflow reads (which targets build the study's cells): not in the cells' hash"""
 TRAINING_ONLY_KEYS = ("validation",)
 """method keys that only a training job reads (its validation curve): not in the cells' hash"""
+HASHED_WHEN_SET = ("vs",)
+"""method keys added after the cells were first hashed: in a cell's hash only when set (null, the
+base model, hashes as the key's absence did, so those cells keep their hashes)"""
 
 # ``observation`` keys that only change the deployment mapping, not what V̂ / V_s are trained on
 # (value_functions.build.training_hash leaves them out); here, not in madpinn.observation, so that
@@ -70,6 +75,18 @@ def run_vhat(cfg: Mapping[str, Any], run: str) -> str:
     return vf_model_name("vhat", method_config(cfg, run)[1].get("vhat"))
 
 
+def run_vs(cfg: Mapping[str, Any], run: str) -> str:
+    """The V_s model a MAD-PINN run loads: ``vs``, or ``vs_<name>`` when its settings select a V_s
+    variant (``vs: <name>``, a key of ``value_functions.vs_variants``)."""
+    return vf_model_name("vs", method_config(cfg, run)[1].get("vs"))   # a run of another method has no such key
+
+
+def hashed_method(mcfg: Mapping[str, Any]) -> dict:
+    """A run's merged method settings as a cell's hash reads them: without the training-only keys,
+    and without the :data:`HASHED_WHEN_SET` keys left at null."""
+    return {k: v for k, v in mcfg.items() if k not in TRAINING_ONLY_KEYS and not (k in HASHED_WHEN_SET and v is None)}
+
+
 def study_backend(cfg: Mapping[str, Any], study: str) -> str:
     """The backend a study's cells run on: its own ``sim.backend`` (e.g. the gap decomposition's
     double-integrator study), else ``sim.backend``."""
@@ -98,8 +115,11 @@ class RunSettings:
     """``sim`` with the study's own overrides merged over it (:func:`study_sim`)"""
     observation: dict
     """``observation`` with the run's deployment overrides merged over it (:func:`run_observation`)"""
+    study_agents: dict
+    """``agents`` with the study's agent model merged over it (:func:`madpinn.config.models.study_agents`):
+    the model its cells fly and its value functions must be trained for"""
     agents: dict
-    """``agents`` with the run's deployment override merged over it (:func:`run_agents`)"""
+    """:attr:`study_agents` with the run's deployment override merged over it (:func:`run_agents`)"""
     job_config: dict
     """the part of the config the run's cells depend on (:func:`job_config`)"""
 
@@ -112,22 +132,29 @@ class RunSettings:
         method, mcfg = method_config(cfg, run)
         st = cfg["studies"][study]
         sim, observation = study_sim(cfg, study), _merged(cfg["observation"], mcfg.get("observation"))
+        agents = study_agents(cfg, study)   # the study's model (its own `agents` is in the hashed study too)
         hashed = {
             "study": {k: v for k, v in st.items() if k not in FAN_OUT_KEYS + WORKFLOW_ONLY_KEYS},
             "arena": cfg["arenas"][st["arena"]],
-            "agents": hashed_agents(cfg["agents"]),
+            "agents": hashed_agents(agents),
             "sim": sim,
             "observation": observation,
             "method": method,
-            "method_config": {k: v for k, v in mcfg.items() if k not in TRAINING_ONLY_KEYS},
+            "method_config": hashed_method(mcfg),
         }
         return cls(study=study, run=run, method=method, method_config=mcfg, study_config=st, arena=cfg["arenas"][st["arena"]],
-                   sim=sim, observation=observation, agents=_merged(cfg["agents"], mcfg.get("agents")), job_config=hashed)
+                   sim=sim, observation=observation, study_agents=agents, agents=_merged(agents, mcfg.get("agents")),
+                   job_config=hashed)
 
     @property
     def vhat(self) -> str:
         """The V̂ model a MAD-PINN run loads (:func:`run_vhat`)."""
         return vf_model_name("vhat", self.method_config.get("vhat"))   # a run of another method has no such key
+
+    @property
+    def vs(self) -> str:
+        """The V_s model a MAD-PINN run loads (:func:`run_vs`)."""
+        return vf_model_name("vs", self.method_config.get("vs"))
 
 
 def _merged(section: Mapping[str, Any], override: Mapping[str, Any] | None) -> dict:

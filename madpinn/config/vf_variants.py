@@ -1,5 +1,5 @@
-"""Value-function variants (``value_functions.vhat_variants``): model names and the merged
-settings a variant trains with."""
+"""Value-function variants (``value_functions.vhat_variants``, ``value_functions.vs_variants``):
+model names and the merged settings a variant trains with (its own agent model among them)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,10 @@ from typing import Any, Mapping
 
 from madpinn.config.errors import ConfigError
 from madpinn.config.merge import deep_merge
+from madpinn.config.models import with_model
 
 
-VF_VARIANTS = {"vhat": "vhat_variants"}
+VF_VARIANTS = {"vhat": "vhat_variants", "vs": "vs_variants"}
 """value-function kind -> its section of variants (``value_functions.<section>.<name>``, each
 deep-merged over ``value_functions.<kind>``; trained model ``<kind>_<name>``)"""
 
@@ -29,7 +30,7 @@ def vf_model_name(kind: str, variant: str | None = None) -> str:
 
 def split_vf_model(name: str) -> tuple[str, str | None] | None:
     """``(kind, variant)`` of a value-function model name (``vhat`` -> ``("vhat", None)``,
-    ``vhat_h04`` -> ``("vhat", "h04")``); None for any other name."""
+    ``vhat_h04`` -> ``("vhat", "h04")``, ``vs_3d`` -> ``("vs", "3d")``); None for any other name."""
     if name in ("vhat", "vs"):
         return name, None
     kind, _, variant = name.partition("_")
@@ -38,8 +39,9 @@ def split_vf_model(name: str) -> tuple[str, str | None] | None:
 
 def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> dict:
     """``cfg`` with ``value_functions.<kind>`` replaced by variant ``variant`` deep-merged over it
-    (``variant`` None: ``cfg`` itself). What a variant's training, its training hash and its checks
-    read: every other key is the base configuration's."""
+    and, where the variant names an agent model (its ``agents``: issue 63), ``agents`` with that model
+    merged over it (``variant`` None: ``cfg`` itself). What a variant's training, its training hash
+    and its checks read: every other key is the base configuration's."""
     if not variant:
         return cfg
     section = VF_VARIANTS.get(kind)
@@ -47,5 +49,7 @@ def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> d
     if variant not in variants:
         raise ConfigError(f"unknown {kind} variant '{variant}' (value_functions.{section or kind + '_variants'}: "
                           f"{sorted(variants) or 'none'})")
-    vf = {**cfg["value_functions"], kind: deep_merge(cfg["value_functions"][kind], variants[variant])}
-    return {**cfg, "value_functions": vf}
+    settings = {k: v for k, v in variants[variant].items() if k != "agents"}
+    vf = {**cfg["value_functions"], kind: deep_merge(cfg["value_functions"][kind], settings)}
+    model = variants[variant].get("agents")   # an overlay: absent = the configuration's model
+    return {**cfg, "value_functions": vf, **({"agents": with_model(cfg["agents"], model)} if model else {})}

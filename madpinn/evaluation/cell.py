@@ -89,16 +89,17 @@ class CellSettings:
 
     @classmethod
     def from_run(cls, cfg: Mapping, r: RunSettings) -> "CellSettings":
-        """From the run resolved once (:class:`madpinn.config.RunSettings`) and the config's shared
-        sections (``agents``, ``device``, ``dtype``)."""
+        """From the run resolved once (:class:`madpinn.config.RunSettings`: its study's agent model
+        among them) and the config's shared sections (``device``, ``dtype``)."""
         st, mcfg = r.study_config, r.method_config
         if st["collision_events"] and r.method != "madpinn":
             raise ConfigError(f"studies.{r.study}.collision_events classifies MAD-PINN collisions; run '{r.run}' is not a MAD-PINN run")
         sim = SimSettings.from_section(r.sim)
+        flown = {**cfg, "agents": r.study_agents}   # the study's agent model (studies.<s>.agents over agents)
         return cls(
             study=r.study, run=r.run, method=r.method, method_settings=policy_settings(r.method, mcfg),
-            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st["pattern"]), scenarios=int(st["scenarios"]), limits=run_limits(cfg, mcfg),
-            sim=sim, observation=ObservationSettings.from_config({**cfg, "observation": r.observation}),
+            arena=Arena.from_config(cfg, st["arena"]), pattern=str(st["pattern"]), scenarios=int(st["scenarios"]), limits=run_limits(flown, mcfg),
+            sim=sim, observation=ObservationSettings.from_config({**flown, "observation": r.observation}),
             policy_period=sim.policy_period_steps if mcfg["policy_period_steps"] is None else int(mcfg["policy_period_steps"]),
             device=str(cfg["device"]), dtype=str(cfg["dtype"]), job_config_hash=config_hash(r.job_config),
             horizon_steps=horizon_steps(st["cost_horizons_s"], float(cfg["arenas"][st["arena"]]["episode_s"]), sim.dt),

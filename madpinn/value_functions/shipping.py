@@ -38,12 +38,12 @@ MARL_FORMAT = "madpinn-marl-ppo"           # = marl.checkpoint.FORMAT
 
 def model_kind(name: str) -> str | None:
     """The kind of checkpoint model ``name`` must hold: ``vhat``, ``vs``, ``safemarl_nominal``,
-    ``defmarl`` (any ``defmarl_<variant>``), ``vhat`` also for a V̂ variant ``vhat_<variant>``,
-    or None for another name (not checked)."""
+    ``defmarl`` (any ``defmarl_<variant>``), ``vhat`` / ``vs`` also for a variant ``vhat_<variant>`` /
+    ``vs_<variant>``, or None for another name (not checked)."""
     if name in ("vhat", "vs", "safemarl_nominal"):
         return name
-    if name.startswith("vhat_"):
-        return "vhat"
+    if name.startswith(("vhat_", "vs_")):
+        return name.partition("_")[0]
     return "defmarl" if name.startswith("defmarl_") else None
 
 

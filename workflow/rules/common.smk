@@ -447,25 +447,39 @@ def init_arg(kind, variant=None):
 def vhat_variants_used():
     """The V̂ variants (value_functions.vhat_variants) that a configured study's MAD-PINN run loads:
     only their trainings are planned."""
-    return sorted({run_vhat_variant(run) for st in config["studies"].values() for run in st["runs"]
+    return vf_variants_used("vhat")
+
+
+def vf_variants_used(kind):
+    """The variants of value function ``kind`` (vhat | vs: value_functions.<kind>_variants) that a
+    configured study's MAD-PINN run loads (`<kind>: <name>`): only their trainings are planned."""
+    return sorted({run_vf_variant(kind, run) for st in config["studies"].values() for run in st["runs"]
                    if run.partition("-")[0] == "madpinn"} - {None})
 
 
 def run_vhat_variant(run):
     """The V̂ variant (value_functions.vhat_variants) a MAD-PINN run loads; None for the base V̂."""
-    from madpinn.config import run_vhat, split_vf_model
+    return run_vf_variant("vhat", run)
 
-    return split_vf_model(run_vhat(config, run))[1]
+
+def run_vf_variant(kind, run):
+    """The variant of value function ``kind`` (vhat | vs) a MAD-PINN run loads; None for the base one."""
+    from madpinn.config import run_vhat, run_vs, split_vf_model
+
+    return split_vf_model({"vhat": run_vhat, "vs": run_vs}[kind](config, run))[1]
 
 
 def madpinn_models(wildcards):
-    """The trained files a MAD-PINN run loads: its V̂ (the base's, or the variant's its settings name)
-    and V_s; a run that deploys a calibrated level (`conformal`, issue 62) also the calibrate-vhat
-    report of its V̂ (rule calibrate_vhat), so its cells depend on the calibration. Plain strings (run_models)."""
-    variant = run_vhat_variant(wildcards.run)
+    """The trained files a MAD-PINN run loads: its V̂ and V_s (the base ones, or the variants its
+    settings name: `vhat: <name>`, `vs: <name>`, e.g. those of a study's 3-D model); a run that deploys
+    a calibrated level (`conformal`, issue 62) also the calibrate-vhat report of its V̂ (rule
+    calibrate_vhat), so its cells depend on the calibration. Plain strings (run_models)."""
+    variant, vs_variant = run_vhat_variant(wildcards.run), run_vf_variant("vs", wildcards.run)
     vhat = (str(rules.train_vhat_variant.output.model).format(variant=variant) if variant
             else str(rules.train_vhat.output.model))
-    models = {"vhat": vhat, "vs": str(rules.train_vs.output.model)}
+    vs = (str(rules.train_vs_variant.output.model).format(variant=vs_variant) if vs_variant
+          else str(rules.train_vs.output.model))
+    models = {"vhat": vhat, "vs": vs}
     if run_conformal(wildcards.run):
         models["calibration"] = calibration_report(vf_model_name("vhat", variant))
     return models

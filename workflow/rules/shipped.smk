@@ -45,6 +45,10 @@ if SHIPPED["enabled"] and SHIPPED["names"]:
 
         ruleorder: install_shipped_model > train_vhat_variant
 
+    if vf_variants_used("vs") and any(n.startswith("vs_") for n in SHIPPED["names"]):   # rule train_vs_variant exists
+
+        ruleorder: install_shipped_model > train_vs_variant
+
     if "safemarl_nominal" in SHIPPED["names"]:
 
         ruleorder: install_shipped_model > train_safemarl_nominal

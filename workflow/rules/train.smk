@@ -99,6 +99,43 @@ if VHAT_VARIANTS:
             " 2>&1 | tee {log:q}"
 
 
+# V_s variants (issue 63; value_functions.vs_variants, each merged over value_functions.vs, e.g. one
+# trained for a study's 3-D agent model: its `agents`): one training per variant a configured
+# MAD-PINN run loads (`vs: <name>`), by the same command with --variant.
+VS_VARIANTS = vf_variants_used("vs")
+if VS_VARIANTS:
+
+    rule train_vs_variant:
+        input:
+            tracking=TRACKING,
+            init=lambda wildcards: init_model("vs", wildcards.variant),
+        output:
+            model=f"{RESULTS}/models/vs_{{variant}}.pt",
+            loss=f"{RESULTS}/models/vs_{{variant}}_loss.csv",
+            summary=f"{RESULTS}/models/vs_{{variant}}_train.json",
+        wildcard_constraints:
+            variant="|".join(VS_VARIANTS),
+        params:
+            config=RESOLVED,
+            init=lambda wildcards: init_arg("vs", wildcards.variant),
+            settings=settings_hash("train-value", "variant", kind="vs"),
+            source=source_hash("train-value"),
+        threads: VF_THREADS
+        resources:
+            mem_mb=4000,
+            runtime=lambda wildcards: train_runtime("vs", wildcards.variant),
+            **TRAIN_GPU,
+        priority: 50
+        conda:
+            CONDA_ENV
+        log:
+            f"{LOGS}/train_vs_{{variant}}.log",
+        shell:
+            "python -m madpinn train-value --config {params.config:q} --kind vs --variant {wildcards.variant:q}"
+            " --out {output.model:q} {params.init:q} --threads {threads}"
+            " 2>&1 | tee {log:q}"
+
+
 rule validate_vs:
     input:
         tracking=TRACKING,
