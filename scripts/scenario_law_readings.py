@@ -1,7 +1,9 @@
 """The scenario-law study's readings (issue 60 item 1): per cell, safety, load (straight-line
 encounters per agent), the failure hazard per encounter with its 95 % scenario-bootstrap interval,
 and the mean encounter speed; then the agents of all cells by encounter speed (collided share per
-bin). The rule that reads them: docs/findings/2026-11-28-table-ii-readings-preregistered.md.
+bin); last, per (study, N), the scenarios pooled over the seeds present: safety, the share of
+collision-free scenarios and the paper's cost (collision-free agents) over the episode and ÷T. The
+rule that reads them: docs/findings/2026-11-28-table-ii-readings-preregistered.md.
 
     PYTHONPATH=$PWD python scripts/scenario_law_readings.py results/scenario_laws/eval [--edges 0 1 2 3 4 6]
 """
@@ -37,6 +39,12 @@ def main() -> None:
     print(pd.DataFrame(rows).to_string(index=False, float_format=lambda v: f"{v:.4f}"))
     print()
     print(hazard_by_speed(pd.concat(frames, ignore_index=True), args.edges, R).to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    print()
+    cells = pd.concat([df.assign(study=f.parts[-3], run=f.parts[-2]) for f, df in zip(files, frames)], ignore_index=True)
+    pooled = cells.groupby(["study", "run", "n_agents"]).agg(
+        seeds=("seed", "nunique"), scenarios=("scenario", "size"), safety=("safety_rate", "mean"),
+        safe_scenarios=("safe", "mean"), cost=("cost_safe_mean", "mean"), cost_per_s=("cost_safe_time_avg", "mean"))
+    print(pooled.reset_index().to_string(index=False, float_format=lambda v: f"{v:.4f}"))
 
 
 if __name__ == "__main__":
