@@ -146,14 +146,10 @@ def format_table(table: pd.DataFrame) -> pd.DataFrame:
 def write_agent_models(result_paths: Iterable[str | Path], cfg: Mapping, out_dir: str | Path,
                        name: str = "table_agent_models") -> list[Path]:
     """Write ``<name>.csv`` (numbers), ``.md`` and ``.html`` (display, titled :data:`TITLE`)."""
-    from madpinn.evaluation.html import markdown_page
+    from madpinn.evaluation.html import write_table_files
 
     table = agent_models_table(result_paths, cfg)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
-    table.to_csv(csv, index=False)
-    md.write_text(
+    text = (
         f"## {TITLE}\n\n"
         "Does passing over each other change safety and cost? The same scenarios (starts and goals in the plane, every\n"
         "agent starting and ending at the middle of the altitude band) flown by the paper's planar double integrator and\n"
@@ -162,6 +158,4 @@ def write_agent_models(result_paths: Iterable[str | Path], cfg: Mapping, out_dir
         "(bootstrap over scenarios with one seed); Δ: paired on the same scenarios, the 3-D row minus the planar one.\n"
         "Altitude change and overflights (pairs within r in the plane, more than r apart in space) read the cell's\n"
         f"recorded scenario. Experiment {cfg['experiment']}; validation seeds only.\n\n" + to_markdown(format_table(table)))
-    page = out_dir / f"{name}.html"
-    page.write_text(markdown_page(md.read_text(), name))
-    return [csv, md, page]
+    return write_table_files(table, text, out_dir, name)

@@ -97,20 +97,14 @@ def format_table(table: pd.DataFrame) -> pd.DataFrame:
 def write_controller_readings(result_paths: Iterable[str | Path], cfg: dict, out_dir: str | Path,
                               name: str = "table_controller_readings") -> list[Path]:
     """Write ``<name>.csv`` (numbers), ``.md`` and ``.html`` (display with the readings' definitions)."""
-    from madpinn.evaluation.html import markdown_page
+    from madpinn.evaluation.html import write_table_files
 
     table = readings_table(result_paths, cfg)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
-    table.to_csv(csv, index=False)
-    md.write_text(
+    text = (
         "Every cell under each reading of the paper's tracking loop (issue 46; docs/reference/mujoco.md, \"Controller readings\"):\n"
         "cascaded = ours (the firmware PID's structure, v_d and a_ff fed forward, raised gains, 45°); mellinger = the\n"
         "firmware's Mellinger controller with its gains; firmware_pid = the firmware's PID stack in absolute-position mode\n"
         "(1.1 m/s, 20°). Safety at d ≤ r; cost ÷T over the collision-free agents; infeasible = MAD-PINN agent-steps with\n"
         "no feasible budget; speeds: planar speed percentiles (m/s) of the recorded scenario. "
         f"Experiment {cfg['experiment']}; validation seeds only.\n\n" + to_markdown(format_table(table)))
-    page = out_dir / f"{name}.html"
-    page.write_text(markdown_page(md.read_text(), name))
-    return [csv, md, page]
+    return write_table_files(table, text, out_dir, name)

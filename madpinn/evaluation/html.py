@@ -114,3 +114,18 @@ def markdown_page(md: str, title: str) -> str:
             body.append(f"<p>{_inline(' '.join(para))}</p>")
     return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
             f"<style>{STYLE}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
+
+
+def write_table_files(table, markdown: str, out_dir, name: str) -> list:
+    """Write a table's three files into ``out_dir`` (created): ``<name>.csv`` (the numbers of the
+    DataFrame ``table``), ``<name>.md`` (the display text ``markdown``) and ``<name>.html`` (that
+    text as a standalone page, titled ``name``); returns their paths in that order."""
+    from pathlib import Path
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv, md, page = (out_dir / f"{name}.{ext}" for ext in ("csv", "md", "html"))
+    table.to_csv(csv, index=False)
+    md.write_text(markdown)
+    page.write_text(markdown_page(markdown, name))
+    return [csv, md, page]

@@ -139,16 +139,12 @@ def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
                    out_dir: str | Path, name: str = "table_collision_readings") -> list[Path]:
     """Write ``<name>.csv`` (numbers), ``<name>.md`` and ``<name>.html`` (display, with the reading
     definitions; the HTML page is what the Snakemake report shows)."""
-    from madpinn.evaluation.html import markdown_page
+    from madpinn.evaluation.html import write_table_files
 
     table = readings_table(result_paths, cfg, table_of)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
-    table.to_csv(csv, index=False)
     seeds = sorted({int(x) for row in table["seeds"] for x in row.split()})
     r = float(cfg["agents"]["collision_radius"])
-    md.write_text(
+    text = (
         "Safety rate per paper cell under each collision reading (SPEC §1; madpinn/evaluation/readings.py).\n"
         f"Here r = {r:g} m (agents.collision_radius). r · pass: d ≤ r, agents pass through; 2r · pass: discs\n"
         f"of radius r touching (d ≤ 2r), same episodes; {CONTACT_COL}: the airframes' collision cylinders touching\n"
@@ -156,6 +152,4 @@ def write_readings(result_paths: Iterable[str | Path], cfg: dict, table_of: Mapp
         "(sim.contacts). Every method's collision terms (V̂, V_s, MPPI's penalty, DEF-MARL's constraint) use r.\n"
         f"Cost ÷T over all agents. Experiment {cfg['experiment']}, seeds {seeds}.\n\n"
         + to_markdown(format_readings(table)))
-    page = out_dir / f"{name}.html"
-    page.write_text(markdown_page(md.read_text(), name))
-    return [csv, md, page]
+    return write_table_files(table, text, out_dir, name)
