@@ -250,14 +250,14 @@ def report_studies():
 def reading_tables():
     """Configured tables whose study also has a `<study>_contacts` collision reading (issue 38,
     readings.smk): name -> base study."""
-    from madpinn.evaluation.readings import CONTACTS_SUFFIX
+    from madpinn.evaluation.contact_studies import CONTACTS_SUFFIX
 
     return {n: s for n, s in configured_tables().items() if f"{s}{CONTACTS_SUFFIX}" in config["studies"]}
 
 
 def reading_studies():
     """The base studies of :func:`reading_tables` and their contact readings."""
-    from madpinn.evaluation.readings import CONTACTS_SUFFIX
+    from madpinn.evaluation.contact_studies import CONTACTS_SUFFIX
 
     return sorted({st for s in reading_tables().values() for st in (s, f"{s}{CONTACTS_SUFFIX}")})
 
@@ -512,7 +512,7 @@ def budget_verify_args(wildcards):
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
     from madpinn.config import with_vf_variant
-    from madpinn.value_functions.train import TrainSettings, stage_iterations
+    from madpinn.value_functions.train_settings import TrainSettings, stage_iterations
 
     vf = with_vf_variant(config, kind, variant)["value_functions"]
     v = vf[kind]
