@@ -12,6 +12,7 @@ from madpinn.commands.seed_guard import WORKFLOW_ENV
 from madpinn.machine import pinned_job_environment, planned_device
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.output_cache import cache_layers, install as install_output_cache
+from madpinn import source_cache
 from madpinn.provenance import plugin_module, registry
 from madpinn.commands import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
@@ -298,18 +299,22 @@ def settings_hash(command, *wildcard_names, **job):
 # key): the speed governor's module is hashed into the cells of runs with an `agents` override only.
 POLICY_REGISTRY = "madpinn.policies.base"
 CELL_REGISTRY = "madpinn.evaluation.cell"
-_SOURCE_HASHES = {}
+# Kept between snakemake starts under the digest of the package's files (madpinn/source_cache.py):
+# a start (a dry run, a Slurm job step) of an unchanged package reads them instead of computing them.
+_PACKAGE_DIGEST = source_cache.package_digest()
+_SOURCE_HASHES = source_cache.load(_PACKAGE_DIGEST)
 
 
 def source_hash(command, *methods, plugins=()):
     """sha256 (12 hex) of the package files `python -m madpinn <command>` runs, with the policy
     modules of ``methods`` (a method the registry lacks: every policy) and the ``plugins`` modules."""
-    key = (command, *methods, *plugins)
+    key = " ".join((command, *methods, *plugins))
     if key not in _SOURCE_HASHES:
         policies = [plugin_module(POLICY_REGISTRY, m) for m in methods]
         if None in policies:
             policies = list(registry(POLICY_REGISTRY).values())
         _SOURCE_HASHES[key] = package_source_hash(handler_entry(command), *policies, *plugins)
+        source_cache.save(_PACKAGE_DIGEST, _SOURCE_HASHES)
     return _SOURCE_HASHES[key]
 
 
