@@ -167,7 +167,9 @@ def test_ctrl_c_on_a_job_run_by_hand_is_one_line_and_keeps_the_checkpoint(tmp_pa
     ckpt = out.parent / "checkpoints" / "vs.ckpt.pt"
     proc = subprocess.Popen([sys.executable, "-m", "madpinn", "train-value", "--config", str(REPO / "config.yaml"),
                              str(SMOKE), str(long), "--kind", "vs", "--out", str(out), "--no-progress"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=subprocess_env(), cwd=tmp_path)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=subprocess_env(), cwd=tmp_path,
+                            # as a terminal's shell starts it: a suite started with `nohup … &` passes SIGINT ignored
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 300
     while not ckpt.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.1)

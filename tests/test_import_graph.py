@@ -34,6 +34,7 @@ LAYERS = [
     {"figures", "tracking"},
     {"commands"},
     {"provenance"},                  # names the command layer's packages (GLUE) and the training hashes
+    {"source_cache"},                # keeps provenance's source hashes between snakemake starts
     {"__main__"},
 ]
 """areas (``madpinn.<area>``; ``madpinn``: the package's ``__init__``) from the bottom up"""

@@ -111,7 +111,8 @@ def _train_job(cfg: dict, kind: str, args, run, record: JobRecord) -> int:
     from madpinn.tracking.mlflow_store import git_commit
     from madpinn.value_functions import figures
     from madpinn.value_functions.build import problem_from_config, training_seed
-    from madpinn.value_functions.train import TrainSettings, save_trained_model, stage_iterations, train_stages
+    from madpinn.value_functions.train import save_trained_model, train_stages
+    from madpinn.value_functions.train_settings import TrainSettings, stage_iterations
 
     seed = training_seed(cfg, kind)
     device, dtype = _setup(cfg, args.threads, seed)

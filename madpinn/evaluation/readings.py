@@ -33,10 +33,10 @@ import pandas as pd
 
 from madpinn.config import ConfigError, study_sim
 from madpinn.evaluation.contact import contact_distance
+from madpinn.evaluation.contact_studies import CONTACTS_SUFFIX
 from madpinn.evaluation.reproduction import paper_row_of, paper_values
 from madpinn.evaluation.tables import label_of, load_results, per_seed, run_order, to_markdown
 
-CONTACTS_SUFFIX = "_contacts"
 CONTACT_COL = f"{contact_distance():g} m"
 """column stem of the airframe-contact distance (issue 47: the CF2X cylinders touch at d ≤ 0.12 m)"""
 READINGS = {   # column -> (contacts study?, seed figure)

@@ -12,6 +12,7 @@ from madpinn.commands.seed_guard import WORKFLOW_ENV
 from madpinn.machine import pinned_job_environment, planned_device
 from madpinn.marl_hash import is_marl_model, marl_training_hash
 from madpinn.output_cache import cache_layers, install as install_output_cache
+from madpinn import source_cache
 from madpinn.provenance import plugin_module, registry
 from madpinn.commands import settings_hash as package_settings_hash
 from madpinn.provenance import source_hash as package_source_hash
@@ -250,14 +251,14 @@ def report_studies():
 def reading_tables():
     """Configured tables whose study also has a `<study>_contacts` collision reading (issue 38,
     readings.smk): name -> base study."""
-    from madpinn.evaluation.readings import CONTACTS_SUFFIX
+    from madpinn.evaluation.contact_studies import CONTACTS_SUFFIX
 
     return {n: s for n, s in configured_tables().items() if f"{s}{CONTACTS_SUFFIX}" in config["studies"]}
 
 
 def reading_studies():
     """The base studies of :func:`reading_tables` and their contact readings."""
-    from madpinn.evaluation.readings import CONTACTS_SUFFIX
+    from madpinn.evaluation.contact_studies import CONTACTS_SUFFIX
 
     return sorted({st for s in reading_tables().values() for st in (s, f"{s}{CONTACTS_SUFFIX}")})
 
@@ -298,18 +299,22 @@ def settings_hash(command, *wildcard_names, **job):
 # key): the speed governor's module is hashed into the cells of runs with an `agents` override only.
 POLICY_REGISTRY = "madpinn.policies.base"
 CELL_REGISTRY = "madpinn.evaluation.cell"
-_SOURCE_HASHES = {}
+# Kept between snakemake starts under the digest of the package's files (madpinn/source_cache.py):
+# a start (a dry run, a Slurm job step) of an unchanged package reads them instead of computing them.
+_PACKAGE_DIGEST = source_cache.package_digest()
+_SOURCE_HASHES = source_cache.load(_PACKAGE_DIGEST)
 
 
 def source_hash(command, *methods, plugins=()):
     """sha256 (12 hex) of the package files `python -m madpinn <command>` runs, with the policy
     modules of ``methods`` (a method the registry lacks: every policy) and the ``plugins`` modules."""
-    key = (command, *methods, *plugins)
+    key = " ".join((command, *methods, *plugins))
     if key not in _SOURCE_HASHES:
         policies = [plugin_module(POLICY_REGISTRY, m) for m in methods]
         if None in policies:
             policies = list(registry(POLICY_REGISTRY).values())
         _SOURCE_HASHES[key] = package_source_hash(handler_entry(command), *policies, *plugins)
+        source_cache.save(_PACKAGE_DIGEST, _SOURCE_HASHES)
     return _SOURCE_HASHES[key]
 
 
@@ -526,7 +531,7 @@ def budget_verify_args(wildcards):
 def train_runtime(kind, variant=None):
     """Slurm time limit (min): ~1.7 min per 1000 iterations of 4 096 samples on one core, ×2 margin."""
     from madpinn.config import with_vf_variant
-    from madpinn.value_functions.train import TrainSettings, stage_iterations
+    from madpinn.value_functions.train_settings import TrainSettings, stage_iterations
 
     vf = with_vf_variant(config, kind, variant)["value_functions"]
     v = vf[kind]

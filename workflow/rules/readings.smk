@@ -3,7 +3,7 @@
 # Defined when a contact study is configured (workflow/configs/collision_readings.yaml); its inputs
 # are functions of the registered tables, so the include order does not matter.
 # reading_tables / reading_studies: common.smk.
-from madpinn.evaluation.readings import CONTACTS_SUFFIX
+from madpinn.evaluation.contact_studies import CONTACTS_SUFFIX
 
 if any(s.endswith(CONTACTS_SUFFIX) for s in config["studies"]):
 
