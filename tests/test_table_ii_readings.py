@@ -164,6 +164,7 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
         f = f.drop(columns=["pattern"])
         f["agent_encounter_speed"] = [rng.uniform(0, 5, int(n)) for n in f["n_agents"]]
         f["agent_min_separation"] = [np.full(int(n), 0.5) for n in f["n_agents"]]
+        f["final_distance_mean"] = 0.5
         for (n, seed), g in f.groupby(["n_agents", "seed"]):
             p = tmp_path / "cells" / study / f"n{n}_seed{seed}.parquet"
             p.parent.mkdir(parents=True, exist_ok=True)
@@ -183,7 +184,7 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     md = (out / "table_ii_readings.md").read_text()
     assert "holds only under readings the paper does not state" in md and "law_within_1m (goals_within_1m)" in md
     assert verdict["baselines"] == {"reading": "hard for every method tried", "reaching": []}
-    assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 |" in md
+    assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 / 0.50 m |" in md
     for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf"):
         assert (out / name).stat().st_size > 0
 

@@ -87,7 +87,8 @@ def _column(frame: pd.DataFrame, name: str, horizon: float, episode_s: float) ->
 def reading_rows(frame: pd.DataFrame) -> pd.DataFrame:
     """One row per (study, run, horizon, N) of large-arena scenario rows ``frame`` (cells of any
     seeds, concatenated, with a ``pattern`` column: the study's start/goal law): scenarios pooled over seeds; safety, safe scenarios, the four costs with
-    95 % bootstrap intervals for safety and cost ÷T, load and hazard per encounter."""
+    95 % bootstrap intervals for safety and cost ÷T, the mean goal distance at the episode's end (m;
+    NaN at earlier horizons), load and hazard per encounter."""
     rows = []
     for (study, run, n), g in frame.groupby(["study", "run", "n_agents"], sort=False):
         episode_s = float(g["episode_s"].iloc[0])
@@ -103,6 +104,8 @@ def reading_rows(frame: pd.DataFrame) -> pd.DataFrame:
                 row[name] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
             row["cost_time_avg_lo"], row["cost_time_avg_hi"] = bootstrap_interval(
                 _column(g, COST_COLUMNS["cost_time_avg"], h, episode_s))
+            row["goal_distance"] = (float(g["final_distance_mean"].mean())
+                                    if h == episode_s and "final_distance_mean" in g else float("nan"))
             row["encounters_per_agent"] = load.get("encounters_per_agent", float("nan"))
             row["hazard"] = load.get("hazard", float("nan")) if h == episode_s else float("nan")
             rows.append(row)
