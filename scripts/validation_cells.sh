@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Run the cells of a validation-seed overlay in batches and keep each batch: after every batch the
+# run's new cells are published into the overlay's committed cache (validation_cache/, see its
+# README) and, with COMMIT=1, committed, so a session stopped mid-queue loses at most the batch in
+# flight. A later run of the same command restores what was kept and computes the rest.
+#
+#   scripts/validation_cells.sh OVERLAY BATCH_SIZE TARGET...
+#   COMMIT=1 scripts/validation_cells.sh workflow/configs/scenario_laws.yaml 3 \
+#       results/scenario_laws/eval/mujoco/grid_uniform/madpinn-wide/n{64,128,256}_seed100.parquet
+#
+# One job at a time (-j1: the other core is for a training); JOBS=2 for both cores.
+set -u
+cd "$(dirname "$0")/.."
+[ $# -ge 3 ] || { echo "usage: $0 OVERLAY BATCH_SIZE TARGET..." >&2; exit 2; }
+overlay=$1 batch=$2; shift 2
+[ -f "$overlay" ] || { echo "no overlay '$overlay'" >&2; exit 2; }
+configs=(config.yaml workflow/configs/shipped.yaml "$overlay")
+py=${PYTHON:-.venv/bin/python}
+targets=("$@")
+for ((i = 0; i < ${#targets[@]}; i += batch)); do
+  part=("${targets[@]:i:batch}")
+  echo "== batch $((i / batch + 1)): ${part[*]}"
+  "$py" -m snakemake -j"${JOBS:-1}" --keep-going --configfile "${configs[@]}" --profile profiles/shipped -- "${part[@]}"
+  rc=$?
+  "$py" -m madpinn publish --config "${configs[@]}" || exit $?
+  if [ "${COMMIT:-0}" = 1 ] && [ -n "$(git status --porcelain --ignored -- validation_cache)" ]; then
+    git add -f validation_cache && git commit -q -m "validation cells: ${part[*]}" -- validation_cache || exit $?
+  fi
+  [ $rc -eq 0 ] || exit $rc
+done
