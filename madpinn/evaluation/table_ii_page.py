@@ -122,7 +122,7 @@ def baselines_display(rows: pd.DataFrame, protocol: pd.DataFrame, paper: PaperRo
         row = {"method": f"{settings.labels.get(run, run)} ({study})"}
         for n in sorted(set(paper.cells) | set(g.index)):
             c = g.loc[n] if n in g.index else None
-            row[f"N={n}"] = "–" if c is None else f"{_safety_text(c)} / {c['cost_time_avg']:.2f} / {c.get('goal_distance', float('nan')):.2f} m"
+            row[f"N={n}"] = "–" if c is None else f"{_safety_text(c)} / {c['cost_time_avg']:.2f} / {c['goal_distance']:.2f} m"
         out.append(row)
     return pd.DataFrame(out)
 
