@@ -63,6 +63,10 @@ def test_a_reading_at_the_paper_values_reproduces_and_one_short_point_fails_one_
     assert not j.at["law_b", "reproduces"] and j.at["law_b", "checks_passed"] == 7   # safety and safe scenarios at 128
     assert not j.at["law_b", "safety_ok_128"] and j.at["law_b", "safety_ok_256"]
     assert not j.at["law_c", "reproduces"] and j.at["law_c", "cost_reading"] == "none"   # 30 % off, in both readings
+    # each failed check is named with its value and line (cost in the best-matching reading)
+    assert j.at["law_a", "failed"] == ""
+    assert j.at["law_b", "failed"] == "safety at N=128: 96.0 % < 96.75 %; safe scenarios at N=128: 0.0 % < 80.00 %"
+    assert j.at["law_c", "failed"].count("cost integral at N=") == 3 and "+30 % (band ±25 %)" in j.at["law_c", "failed"]
 
 
 def test_the_time_averaged_cost_reading_counts_when_the_integral_does_not():
@@ -93,6 +97,7 @@ def test_the_verdict_names_the_readings_it_rests_on():
     only_bad = judge(reading_rows(bad), PAPER)
     v = claim_verdict(only_bad, ("law_uniform", "madpinn", T))
     assert v["verdict"] == "not reproduced under any reading tried" and v["closest"]["study"] == "law_uniform"
+    assert v["closest"]["failed"].startswith("safety at N=64: 65.0 % < 98.00 %")
     with pytest.raises(ValueError, match="protocol's reading"):
         claim_verdict(only_bad, ("law_local", "madpinn", T))
 
@@ -198,6 +203,7 @@ def test_the_claims_page_reads_the_verdict_of_the_readings():
     judged = judge(reading_rows(pd.concat([good, bad], ignore_index=True)), PAPER)
     checks = readings_checks(claim_verdict(judged, ("law_uniform", "madpinn", T)))
     assert [c.stated for c in checks] == [False, True]
+    assert checks[0].observed == "9 of 9 checks" and checks[1].observed.startswith("3 of 9 checks; failed: safety at N=64: 65.0 %")
     assert page_verdict(checks) == UNSTATED            # the readings page's words, on the claims page's scale
     only_bad = readings_checks(claim_verdict(judge(reading_rows(bad), PAPER), ("law_uniform", "madpinn", T)))
     assert page_verdict(only_bad) == "does not hold"

@@ -26,7 +26,8 @@ def readings_checks(verdict: Mapping | None) -> list[Check]:
         stated = reading_name(r) == proto
         out.append(Check("every check of the pre-registered scale at 64 / 128 / 256 agents (safety − 2 points, safe "
                          "scenarios − 15 points, cost ± 25 % in one cost reading)",
-                         f"{r['checks_passed']} of {r['checks']} checks", (f"table_ii_readings/{reading_name(r)}",),
+                         f"{r['checks_passed']} of {r['checks']} checks" + (f"; failed: {r['failed']}" if r.get("failed") else ""),
+                         (f"table_ii_readings/{reading_name(r)}",),
                          bool(r["reproduces"]), "Table II", r["pattern"], essential=stated,
                          reading=STATED if stated else reading_name(r), stated=stated, row="madpinn" if stated else "",
                          margin=(r["checks_passed"] - r["checks"]) / r["checks"]))

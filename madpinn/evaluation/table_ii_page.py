@@ -109,7 +109,10 @@ def verdict_sentence(verdict: dict) -> str:
         text += " Readings that reproduce it: " + "; ".join(f"{name(r)} (cost reading {r['cost_reading']})" for r in verdict["reproducing"]) + "."
     else:
         c = verdict["closest"]
-        text += f" The closest reading: {name(c)}, {c['checks_passed']} of {c['checks']} checks."
+        text += f" The closest reading: {name(c)}, {c['checks_passed']} of {c['checks']} checks"
+        text += f"; it fails {c['failed']}." if c.get("failed") else "."
+    if not verdict["protocol_reproduces"] and verdict["protocol"].get("failed") and verdict.get("closest") != verdict["protocol"]:
+        text += f" The protocol's reading fails {verdict['protocol']['failed']}."
     return text
 
 

@@ -115,7 +115,8 @@ def reading_rows(frame: pd.DataFrame) -> pd.DataFrame:
 def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataFrame:
     """One row per reading (study, run, horizon) that has a cell at every paper N: the checks of
     :data:`SCALE` per N, the cost reading that matches (or "none"), ``checks_passed`` of
-    ``3 · len(N)`` and ``reproduces``. Readings missing an N are left out (they cannot be judged)."""
+    ``3 · len(N)``, ``reproduces`` and ``failed`` (each failed check with its value and line, "; "-joined;
+    cost in the best-matching reading). Readings missing an N are left out (they cannot be judged)."""
     counts = sorted(paper.cells)
     out = []
     for (study, run, h), g in rows.groupby(["study", "run", "horizon_s"], sort=False):
@@ -123,12 +124,15 @@ def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataF
         if not set(counts) <= set(g.index):
             continue
         row = {"study": study, "run": run, "horizon_s": h, "pattern": g["pattern"].iloc[0], "seeds": g["seeds"].iloc[0]}
-        passed = 0
+        passed, failed = 0, []
         for n in counts:
-            ok_s = g.at[n, "safety"] >= paper.cells[n]["safety"] - scale.safety_points - 1e-12
-            ok_sc = g.at[n, "safe_scenarios"] >= paper.cells[n]["safe_scenarios"] - scale.safe_points - 1e-12
-            row[f"safety_ok_{n}"], row[f"safe_ok_{n}"] = bool(ok_s), bool(ok_sc)
-            passed += int(ok_s) + int(ok_sc)
+            for key, points, ok_key in (("safety", scale.safety_points, "safety_ok"), ("safe_scenarios", scale.safe_points, "safe_ok")):
+                line = paper.cells[n][key] - points
+                ok = g.at[n, key] >= line - 1e-12
+                row[f"{ok_key}_{n}"] = bool(ok)
+                passed += int(ok)
+                if not ok:
+                    failed.append(f"{key.replace('_', ' ')} at N={n}: {100 * g.at[n, key]:.1f} % < {100 * line:.2f} %")
         cost_hits = {}
         for reading, figure in COST_READINGS.items():
             cost_hits[reading] = [bool(abs(g.at[n, figure] / paper.cells[n]["cost"] - 1.0) <= scale.cost_relative)
@@ -136,7 +140,11 @@ def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataF
         best = max(cost_hits, key=lambda k: sum(cost_hits[k]))
         for n, ok in zip(counts, cost_hits[best]):
             row[f"cost_ok_{n}"] = ok
+            if not ok:
+                failed.append(f"cost {best} at N={n}: {100 * (g.at[n, COST_READINGS[best]] / paper.cells[n]['cost'] - 1.0):+.0f} % "
+                              f"(band ±{100 * scale.cost_relative:g} %)")
         passed += sum(cost_hits[best])
+        row["failed"] = "; ".join(failed)
         row["cost_reading"] = best if all(cost_hits[best]) else "none"
         row["checks_passed"], row["checks"] = passed, 3 * len(counts)
         row["reproduces"] = passed == 3 * len(counts)
@@ -148,7 +156,7 @@ def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataF
 def claim_verdict(judged: pd.DataFrame, protocol: tuple[str, str, float]) -> dict:
     """The Table II claim's verdict from judged readings; ``protocol`` = (study, run, horizon_s) of
     the protocol's own reading. ``{"verdict", "protocol", "protocol_reproduces", "reproducing", "closest",
-    "readings_judged", "judged"}`` (each reading: study, run, horizon_s, checks_passed, checks, cost_reading)."""
+    "readings_judged", "judged"}`` (each reading: study, run, horizon_s, checks_passed, checks, cost_reading, failed)."""
     if judged.empty:
         raise ValueError("no reading has a cell at every agent count of Table II")
     key = judged[["study", "run", "horizon_s"]].apply(tuple, axis=1)
@@ -157,7 +165,8 @@ def claim_verdict(judged: pd.DataFrame, protocol: tuple[str, str, float]) -> dic
         raise ValueError(f"the protocol's reading {protocol} is not among the judged readings")
     hits = judged[judged["reproduces"]]
     name = lambda r: {"study": r["study"], "run": r["run"], "horizon_s": float(r["horizon_s"]),   # noqa: E731
-                      "checks_passed": int(r["checks_passed"]), "checks": int(r["checks"]), "cost_reading": r["cost_reading"]}
+                      "checks_passed": int(r["checks_passed"]), "checks": int(r["checks"]), "cost_reading": r["cost_reading"],
+                      "failed": str(r["failed"])}
     closest = judged.sort_values(["checks_passed", "mean_safety"], ascending=False).iloc[0]
     if bool(proto["reproduces"].iloc[0]):
         verdict = VERDICTS[0]
