@@ -15,8 +15,8 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, validate_config
-from madpinn.evaluation.table_ii_readings import (PaperRow, baseline_reading, claim_verdict, horizons_of, judge, law_reading, law_rule,
-                                                  reading_rows)
+from madpinn.evaluation.table_ii_readings import (PaperRow, baseline_reading, choice_effects, claim_verdict, horizons_of, judge,
+                                                  law_reading, law_rule, reading_rows)
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 
 PAPER = PaperRow({64: {"safety": 1.0, "safe_scenarios": 1.0, "cost": 1.09},
@@ -100,6 +100,23 @@ def test_the_verdict_names_the_readings_it_rests_on():
     assert v["closest"]["failed"].startswith("safety at N=64: 65.0 % < 98.00 %")
     with pytest.raises(ValueError, match="protocol's reading"):
         claim_verdict(only_bad, ("law_local", "madpinn", T))
+
+
+def test_each_choice_is_paired_with_the_papers_deployment_under_its_own_law():
+    paper_dep = reading("law_uniform", "madpinn", {64: 0.6, 128: 0.5, 256: 0.4}, PAPER_COST_INT)
+    carrot = reading("grid_uniform", "madpinn-carrot05", {64: 0.9, 128: 0.8, 256: 0.7}, {n: 2 * c for n, c in PAPER_COST_INT.items()})
+    local = reading("grid_within_2m", "madpinn-wide", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, pattern="goals_within_2m")
+    e = choice_effects(pd.concat([paper_dep, carrot, local], ignore_index=True), "madpinn")
+    # no paper-deployment cells under goals within 2 m: that choice has no partner and no row
+    assert set(e["run"]) == {"madpinn-carrot05"} and (e["reference"] == "law_uniform/madpinn").all()
+    e = e.set_index("n_agents")
+    assert list(e.index) == [64, 128, 256] and (e["pairs"] == 20).all()
+    assert e["d_safety"].to_numpy() == pytest.approx([0.3, 0.3, 0.3])   # every scenario differs by exactly this
+    assert e.at[256, "d_safety_lo"] == pytest.approx(0.3) and e.at[256, "d_safety_hi"] == pytest.approx(0.3)
+    assert e.at[128, "d_cost_time_avg"] == pytest.approx(PAPER_COST_INT[128] / T)
+    # a scenario without its partner is left out of the pairs
+    short = paper_dep[~((paper_dep["n_agents"] == 64) & (paper_dep["scenario"] == 0))]
+    assert choice_effects(pd.concat([short, carrot], ignore_index=True), "madpinn").set_index("n_agents").at[64, "pairs"] == 19
 
 
 def test_a_reading_missing_an_agent_count_is_not_judged():
@@ -188,6 +205,7 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     assert [r["study"] for r in verdict["reproducing"]] == ["law_within_1m"]
     md = (out / "table_ii_readings.md").read_text()
     assert "holds only under readings the paper does not state" in md and "law_within_1m (goals_within_1m)" in md
+    assert "## What each deployment choice moves, on the same scenarios" in md
     assert verdict["baselines"] == {"reading": "hard for every method tried", "reaching": []}
     assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 / 0.50 m |" in md
     for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf"):
