@@ -15,8 +15,9 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config, validate_config
-from madpinn.evaluation.table_ii_readings import (PaperRow, baseline_reading, choice_effects, claim_verdict, horizons_of, judge,
-                                                  law_reading, law_rule, reading_rows)
+from madpinn.evaluation.paired_effects import paired_effects
+from madpinn.evaluation.table_ii_readings import (PaperRow, baseline_reading, claim_verdict, horizons_of, judge, law_reading, law_rule,
+                                                  reading_rows)
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 
 PAPER = PaperRow({64: {"safety": 1.0, "safe_scenarios": 1.0, "cost": 1.09},
@@ -106,7 +107,7 @@ def test_each_choice_is_paired_with_the_papers_deployment_under_its_own_law():
     paper_dep = reading("law_uniform", "madpinn", {64: 0.6, 128: 0.5, 256: 0.4}, PAPER_COST_INT)
     carrot = reading("grid_uniform", "madpinn-carrot05", {64: 0.9, 128: 0.8, 256: 0.7}, {n: 2 * c for n, c in PAPER_COST_INT.items()})
     local = reading("grid_within_2m", "madpinn-wide", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, pattern="goals_within_2m")
-    e = choice_effects(pd.concat([paper_dep, carrot, local], ignore_index=True), "madpinn")
+    e = paired_effects(pd.concat([paper_dep, carrot, local], ignore_index=True), "madpinn")
     # no paper-deployment cells under goals within 2 m: that choice has no partner and no row
     assert set(e["run"]) == {"madpinn-carrot05"} and (e["reference"] == "law_uniform/madpinn").all()
     e = e.set_index("n_agents")
@@ -116,7 +117,7 @@ def test_each_choice_is_paired_with_the_papers_deployment_under_its_own_law():
     assert e.at[128, "d_cost_time_avg"] == pytest.approx(PAPER_COST_INT[128] / T)
     # a scenario without its partner is left out of the pairs
     short = paper_dep[~((paper_dep["n_agents"] == 64) & (paper_dep["scenario"] == 0))]
-    assert choice_effects(pd.concat([short, carrot], ignore_index=True), "madpinn").set_index("n_agents").at[64, "pairs"] == 19
+    assert paired_effects(pd.concat([short, carrot], ignore_index=True), "madpinn").set_index("n_agents").at[64, "pairs"] == 19
 
 
 def test_a_reading_missing_an_agent_count_is_not_judged():

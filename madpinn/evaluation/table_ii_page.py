@@ -12,8 +12,9 @@ import numpy as np
 import pandas as pd
 
 from madpinn.evaluation.encounter_hazard import hazard_by_speed
-from madpinn.evaluation.table_ii_readings import (SCALE, PaperRow, baseline_reading, choice_effects, claim_verdict, judge,
-                                                  law_reading, law_rule, reading_rows)
+from madpinn.evaluation.paired_effects import paired_effects
+from madpinn.evaluation.table_ii_readings import (SCALE, PaperRow, baseline_reading, claim_verdict, judge, law_reading, law_rule,
+                                                  reading_rows)
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 from madpinn.evaluation.tables import load_results, to_markdown
 
@@ -150,7 +151,7 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.
     from madpinn.evaluation.html import markdown_page
 
     judged, verdict = verdict_of(rows, paper, settings)
-    effects = choice_effects(large, settings.protocol[1])
+    effects = paired_effects(large, settings.protocol[1])
     rule = law_rule(anchor, large, settings.anchor_agents) if len(anchor) else pd.DataFrame()
     verdict["law_rule"] = law_reading(rule) if len(rule) else "no anchor cells"
     base_rows = reading_rows(baselines) if len(baselines) else pd.DataFrame()

@@ -32,7 +32,6 @@ import numpy as np
 import pandas as pd
 
 from madpinn.evaluation.encounter_hazard import cell_hazard
-from madpinn.evaluation.intervals import paired_bootstrap
 from madpinn.evaluation.metrics import COST_COLUMNS, bootstrap_interval, horizon_suffix
 
 
@@ -220,42 +219,6 @@ def law_reading(rule: pd.DataFrame) -> str:
     if not readings:
         return "no large-arena cell at the anchor's load"
     return readings[0] if len(readings) == 1 else "mixed: " + "; ".join(readings)
-
-
-PAIR_KEYS = ["arena", "n_agents", "seed", "scenario"]
-"""scenario rows of two cells under the same start/goal law pair on these: a scenario is a pure function of
-(arena, law, N, seed, index) (:mod:`madpinn.scenarios`), so a pair is one layout under two deployments"""
-
-
-def choice_effects(large: pd.DataFrame, reference_run: str) -> pd.DataFrame:
-    """What each open deployment choice moves, on the same scenarios: every (study, run) of the
-    large-arena scenario rows ``large`` (with their ``pattern``) other than ``reference_run``, paired
-    per scenario (:data:`PAIR_KEYS`) with ``reference_run`` under the same start/goal law (the
-    paper's deployment: another study of that law, or the same study), at the episode's end. One row
-    per (study, run, N): the pairs, Δ safety and Δ cost ÷T (collision-free agents), run − reference,
-    with 95 % paired bootstrap intervals over scenarios (seeds pooled). Scenarios without a partner
-    are left out (``pairs`` counts the rest). The straight-line encounters cannot check the pairing:
-    they are counted at the run's own v_max."""
-    ref_rows = large[large["run"] == reference_run]
-    cost = COST_COLUMNS["cost_time_avg"]
-    out = []
-    for (study, run), g in large[large["run"] != reference_run].groupby(["study", "run"], sort=False):
-        pattern = g["pattern"].iloc[0]
-        ref = ref_rows[ref_rows["pattern"] == pattern]
-        if ref.empty:
-            continue
-        ref_study = ref["study"].iloc[0] if study not in set(ref["study"]) else study
-        ref = ref[ref["study"] == ref_study]
-        pairs = g.merge(ref, on=PAIR_KEYS, suffixes=("", "_ref"))
-        for n, p in pairs.groupby("n_agents", sort=True):
-            row = {"study": study, "run": run, "reference": f"{ref_study}/{reference_run}", "pattern": pattern,
-                   "n_agents": int(n), "pairs": len(p)}
-            for name, col in (("safety", "safety_rate"), ("cost_time_avg", cost)):
-                a, b = p[col].to_numpy(dtype=float), p[f"{col}_ref"].to_numpy(dtype=float)
-                row[f"d_{name}"] = float(np.nanmean(a) - np.nanmean(b))
-                row[f"d_{name}_lo"], row[f"d_{name}_hi"] = paired_bootstrap(a, b)
-            out.append(row)
-    return pd.DataFrame(out)
 
 
 BASELINE_READINGS = ("hard for MAD-PINN alone", "hard for every method tried")

@@ -1,0 +1,46 @@
+"""Paired effects: a run against a reference run on the same scenarios (per-scenario differences of
+safety and cost ÷T with paired bootstrap intervals), the Table II readings page's "what each choice
+moves" (issue 60) and the calibrated level's page (issue 62)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from madpinn.evaluation.intervals import paired_bootstrap
+from madpinn.evaluation.metrics import COST_COLUMNS
+
+PAIR_KEYS = ["arena", "n_agents", "seed", "scenario"]
+"""scenario rows of two cells under the same start/goal law pair on these: a scenario is a pure function of
+(arena, law, N, seed, index) (:mod:`madpinn.scenarios`), so a pair is one layout under two deployments"""
+
+
+def paired_effects(frame: pd.DataFrame, reference_run: str) -> pd.DataFrame:
+    """What each run moves against ``reference_run``, on the same scenarios: every (study, run) of the
+    scenario rows ``frame`` (with their ``pattern``: the start/goal law) other than ``reference_run``, paired
+    per scenario (:data:`PAIR_KEYS`) with ``reference_run`` under the same start/goal law (the same
+    study where it holds that run, else another study of that law), at the episode's end. One row
+    per (study, run, N): the pairs, Δ safety and Δ cost ÷T (collision-free agents), run − reference,
+    with 95 % paired bootstrap intervals over scenarios (seeds pooled). Scenarios without a partner
+    are left out (``pairs`` counts the rest). The straight-line encounters cannot check the pairing:
+    they are counted at the run's own v_max."""
+    ref_rows = frame[frame["run"] == reference_run]
+    cost = COST_COLUMNS["cost_time_avg"]
+    out = []
+    for (study, run), g in frame[frame["run"] != reference_run].groupby(["study", "run"], sort=False):
+        pattern = g["pattern"].iloc[0]
+        ref = ref_rows[ref_rows["pattern"] == pattern]
+        if ref.empty:
+            continue
+        ref_study = ref["study"].iloc[0] if study not in set(ref["study"]) else study
+        ref = ref[ref["study"] == ref_study]
+        pairs = g.merge(ref, on=PAIR_KEYS, suffixes=("", "_ref"))
+        for n, p in pairs.groupby("n_agents", sort=True):
+            row = {"study": study, "run": run, "reference": f"{ref_study}/{reference_run}", "pattern": pattern,
+                   "n_agents": int(n), "pairs": len(p)}
+            for name, col in (("safety", "safety_rate"), ("cost_time_avg", cost)):
+                a, b = p[col].to_numpy(dtype=float), p[f"{col}_ref"].to_numpy(dtype=float)
+                row[f"d_{name}"] = float(np.nanmean(a) - np.nanmean(b))
+                row[f"d_{name}_lo"], row[f"d_{name}_hi"] = paired_bootstrap(a, b)
+            out.append(row)
+    return pd.DataFrame(out)
