@@ -34,6 +34,9 @@ def test_calibration_is_planned_and_the_cp_cells_load_it(tmp_path):
     cells = planned_jobs(proc)
     assert cells.get("calibrate_vhat") == 1 and cells.get("evaluate", 0) >= 5, cells
     out = proc.stdout
-    assert "calibration=results/smoke/validation/vhat_calibration.json" in out
+    assert "calibration=results/conformal/validation/vhat_calibration.json" in out   # the overlay's own results
     assert out.count("--model calibration=") == sum(1 for ln in out.splitlines()
                                                     if "python -m madpinn evaluate" in ln and "-cpeps" in ln)
+    # the page reads every cell of those studies and the calibration
+    page = planned_jobs(run_in(copy, "-n", "conformal_page", configfiles=("smoke.yaml", overlay.name)))
+    assert page.get("conformal_page") == 1 and page.get("evaluate") == cells.get("evaluate"), page

@@ -201,8 +201,9 @@ def test_the_closure_covers_what_a_real_job_imports(tmp_path):
     # (e.g. value_functions.build for the choices of train-value) define names, run no job code
     # (a plugin registry: each job hashes its own); calibrate-vhat's module is registered from inside
     # value_functions.register (issue 62: its own module, so no other value-function job's hash moves),
-    # vhat-recipe's from inside outputs.register (issue 61, likewise for the output jobs)
-    parser = closure([f"{m}:" for m in (*COMMAND_MODULES, "madpinn.commands.calibration", "madpinn.commands.recipe")])
+    # vhat-recipe's and conformal-page's from inside outputs.register (issues 61, 62: likewise for the output jobs)
+    parser = closure([f"{m}:" for m in (*COMMAND_MODULES, "madpinn.commands.calibration", "madpinn.commands.recipe",
+                                                                  "madpinn.commands.conformal")])
     assert {"madpinn.evaluation.cell", "madpinn.policies.nominal", "madpinn.simulation.simulator"} <= loaded, loaded
     assert not loaded - hashed - parser, sorted(loaded - hashed - parser)
 

@@ -260,6 +260,10 @@ def register(sub) -> None:
 
     register_recipe(sub)
 
+    from madpinn.commands.conformal import register as register_conformal   # conformal-page: its own module (its page's hash only)
+
+    register_conformal(sub)
+
     p = sub.add_parser("oracle", help="cost lower bound of scenarios 0..S-1 of (arena, N, seed) -> Parquet")
     add_config_arg(p)
     p.add_argument("--arena", required=True)

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from madpinn.evaluation.metrics import across_seeds
-from madpinn.evaluation.reproduction import paper_values
+from madpinn.evaluation.paper_rows import paper_safety
 from madpinn.evaluation.tables import cell_infeasible_shares, load_results, per_seed
 from madpinn.figures import style
 from madpinn.figures.frontier import _interval
@@ -36,9 +36,6 @@ from madpinn.scenarios import UNIFORM
 
 PAPER_SAMPLES = 65536 * 100000
 """the paper's V̂ recipe (DeepReach practice: 65 536 states × 100 000 iterations)"""
-PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_scaling"}
-"""the paper's table of its own method in each arena (Table II, Table I of paper_values.yaml)"""
-PAPER_RUN = "madpinn"
 SEED_RANGE_LABEL = "training-seed range"
 """legend entry of a budget's range over training seeds (issue 60 item 3)"""
 RECIPE_MARKERS = {"D": "diamond", "P": "plus", "X": "cross", "^": "triangle", "v": "down-triangle"}
@@ -83,15 +80,6 @@ class BudgetPanel:
     title: str
     paper: Mapping[int, float] = field(default_factory=dict)
     """N -> the paper's safety (%) at this setting; empty where the paper reports none"""
-
-
-def paper_safety(arena: str, pattern: str | None, counts: Iterable[int]) -> dict[int, float]:
-    """The paper's safety (%) of its own method in ``arena`` at ``counts`` (uniform scenarios only:
-    the paper tests no structured conflict)."""
-    if (pattern or UNIFORM) != UNIFORM or arena not in PAPER_TABLE_OF_ARENA:
-        return {}
-    cells = paper_values()[PAPER_TABLE_OF_ARENA[arena]]["runs"][PAPER_RUN]["n"]
-    return {int(n): 100 * cells[int(n)]["safety"] for n in counts if int(n) in cells}
 
 
 def budget_roles(base: str | None, variants: Mapping[str, Mapping | None],

@@ -1,0 +1,74 @@
+"""The calibrated level's page (issue 62): which cells it reads and how their runs relate, parsed once
+from the validated config. Light (no pandas): the workflow hashes it while it plans
+(:func:`madpinn.commands.conformal.reads`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+REFERENCE_RUN = "madpinn"
+"""V̂ alone (δ = 0, the paper's deployment): every run of the page is paired against it"""
+
+
+@dataclass(frozen=True)
+class LevelRun:
+    """A run that deploys a calibrated level (``methods.madpinn.variants.<v>.conformal``)."""
+
+    run: str
+    epsilon: float
+    """the violation rate the level is calibrated to, per accepted state of V̂'s own model"""
+    beta: float
+    """the calibration's confidence parameter (the bound holds with probability 1 − β)"""
+    binned: bool
+    """one δ per closing-speed bin (a Mondrian split) instead of one pooled δ"""
+    distribution: str
+    """the state distribution the level was calibrated on (``uniform`` | ``conflict``)"""
+
+
+@dataclass(frozen=True)
+class ConformalSettings:
+    """The studies whose runs deploy a calibrated level, and what the page needs of them."""
+
+    studies: tuple[str, ...]
+    """studies with at least one level run (overlay ``workflow/configs/conformal.yaml``)"""
+    arenas: Mapping[str, str]
+    """study -> its arena (``small`` | ``large``): where the paper's row comes from"""
+    patterns: Mapping[str, str]
+    """study -> its start/goal law or conflict pattern"""
+    levels: tuple[LevelRun, ...]
+    """the level runs, in the studies' order"""
+    others: tuple[str, ...]
+    """the studies' other runs besides V̂ alone (e.g. a hand-tuned speed governor)"""
+    labels: Mapping[str, str]
+    """run -> display label"""
+    speed_edges: tuple[float, ...]
+    """interior closing-speed bin edges (m/s) of the calibration (its Mondrian split)"""
+    collision_radius: float
+    """r (m): an agent whose minimum separation is ≤ r collided"""
+
+    @classmethod
+    def from_config(cls, cfg: Mapping) -> "ConformalSettings":
+        from madpinn.config import ConfigError, method_config, study_pattern
+
+        def conformal(run):
+            return method_config(cfg, run)[1].get("conformal") if run.partition("-")[0] == REFERENCE_RUN else None
+
+        studies = {s: st for s, st in cfg["studies"].items() if any(conformal(r) for r in st["runs"])}
+        if not studies:
+            raise ConfigError("no study runs a calibrated level (methods.madpinn.variants.<v>.conformal; "
+                              "overlay workflow/configs/conformal.yaml)")
+        missing = sorted(s for s, st in studies.items() if REFERENCE_RUN not in st["runs"])
+        if missing:
+            raise ConfigError(f"studies {missing} run a calibrated level without '{REFERENCE_RUN}' (V̂ alone), "
+                              "which every level run is paired against: add it to their runs")
+        runs = list(dict.fromkeys(r for st in studies.values() for r in st["runs"]))
+        levels = tuple(LevelRun(r, float(c["epsilon"]), float(c["beta"]), bool(c["binned"]), str(c["distribution"]))
+                       for r in runs if (c := conformal(r)))
+        level_names = {lv.run for lv in levels}
+        return cls(studies=tuple(studies), arenas={s: str(st["arena"]) for s, st in studies.items()},
+                   patterns={s: study_pattern(st) for s, st in studies.items()}, levels=levels,
+                   others=tuple(r for r in runs if r != REFERENCE_RUN and r not in level_names),
+                   labels={r: str(method_config(cfg, r)[1]["label"]) for r in runs},
+                   speed_edges=tuple(float(x) for x in cfg["value_functions"]["vhat"]["validation"]["calibration"]["speed_edges"]),
+                   collision_radius=float(cfg["agents"]["collision_radius"]))
