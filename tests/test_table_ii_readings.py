@@ -209,7 +209,8 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     assert "## What each deployment choice moves, on the same scenarios" in md
     assert verdict["baselines"] == {"reading": "hard for every method tried", "reaching": []}
     assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 / 0.50 m |" in md
-    for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf"):
+    for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf",
+                 "fig_scenario_laws.png", "fig_scenario_laws.pdf"):
         assert (out / name).stat().st_size > 0
 
 

@@ -184,6 +184,7 @@ def _table_ii_readings(args) -> int:
     from madpinn.evaluation.table_ii_page import load_frames, write_table_ii_readings
     from madpinn.evaluation.table_ii_readings import PaperRow, reading_rows
     from madpinn.evaluation.table_ii_settings import ReadingsSettings
+    from madpinn.figures.scenario_laws import plot_scenario_laws
     from madpinn.figures.table_ii_readings import plot_table_ii_readings
 
     cfg = config_of(args)
@@ -194,6 +195,7 @@ def _table_ii_readings(args) -> int:
         rows = reading_rows(large)   # once: the page's tables and the figure
         files = write_table_ii_readings(anchor, large, rows, baselines, settings, paper, args.out_dir)
         files += plot_table_ii_readings(rows, paper, settings.labels, Path(args.out_dir) / "fig_table_ii_readings")
+        files += plot_scenario_laws(anchor, large, settings, Path(args.out_dir) / "fig_scenario_laws")
         record.artifacts = files
         return finish(run, record, echo=list(record.artifacts))
 

@@ -95,6 +95,10 @@ if config["table_ii_readings"]:
                        category=REPORT_SECTIONS["our_tables"],
                        labels={"Item": "fig_table_ii_readings", "Study": "table_ii_readings.studies"}),
             pdf=kept(f"{FIGURES}/table_ii_readings/fig_table_ii_readings.pdf"),
+            laws_png=report(kept(f"{FIGURES}/table_ii_readings/fig_scenario_laws.png"), caption="../report/table_ii_readings.rst",
+                            category=REPORT_SECTIONS["our_tables"],
+                            labels={"Item": "fig_scenario_laws", "Study": "table_ii_readings.studies"}),
+            laws_pdf=kept(f"{FIGURES}/table_ii_readings/fig_scenario_laws.pdf"),
         params:
             config=RESOLVED,
             settings=settings_hash("table-ii-readings"),
