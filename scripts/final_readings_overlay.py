@@ -11,7 +11,8 @@ reading other than the protocol's runs in its own validation study, redefined by
 names every study) with seed 0, 20 scenarios and the kept runs only: its law (`pattern`), the large arena
 at 64 / 128 / 256 agents, T = 6 s, in its own results directory (results/table_ii_final/); the
 overlay's `table_ii_readings` section judges them and the protocol's row against Table II with Table I's
-16-agent `main` cells of seed 0 as the anchor. Readings at another horizon than the episode's are
+16-agent `main` cells of seed 0 as the anchor, and the baselines in the large arena (`baselines_large`)
+run on seed 0 too (issue 60 item 4). Readings at another horizon than the episode's are
 refused (the plan fixes T = 6 s), as is a verdict without a protocol reading.
 """
 
@@ -24,6 +25,7 @@ from pathlib import Path
 import yaml
 
 PROTOCOL_STUDY, PROTOCOL_RUN = "scaling", "madpinn"
+BASELINES = "baselines_large"
 AGENT_COUNTS, SEEDS, SCENARIOS, EPISODE_S = [64, 128, 256], [0], 20, 6.0
 
 
@@ -56,12 +58,15 @@ def overlay(verdict: dict, laws: dict) -> dict:
         study["runs"].append(r["run"])
     return {"experiment": "madpinn-table-ii-final",
             "paths": {"results": "results/table_ii_final", "figures": "results/table_ii_final/paper_figures"},
-            "table_ii_readings": {"studies": [PROTOCOL_STUDY, *studies], "baselines": [],
+            "table_ii_readings": {"studies": [PROTOCOL_STUDY, *studies], "baselines": [BASELINES],
                                   "anchor": {"study": "main", "n_agents": 16},
                                   "protocol": {"study": PROTOCOL_STUDY, "run": PROTOCOL_RUN}},
             # the protocol's reading and Table I's anchor: the paper's deployment alone, seed 0 (cells of the rerun;
             # main keeps 8 agents for figures.trajectories, the anchor reads its 16)
             "studies": {PROTOCOL_STUDY: {"runs": [PROTOCOL_RUN]}, "main": {"agent_counts": [8, 16], "seeds": SEEDS, "runs": [PROTOCOL_RUN]},
+                        # issue 60 item 4: the baselines in the large arena, "on the validation seeds and then seed 0"
+                        BASELINES: {**{k: v for k, v in laws["studies"][BASELINES].items() if k not in ("seeds", "scenarios")},
+                                    "seeds": SEEDS, "scenarios": SCENARIOS},
                         **studies}}
 
 
