@@ -49,6 +49,8 @@ def overlay(verdict: dict, laws: dict) -> dict:
     """The overlay of the kept readings (``laws``: the validation overlay that defined their studies)."""
     studies = {}
     for r in kept_readings(verdict):
+        if r["study"] not in laws.get("studies", {}):
+            raise SystemExit(f"kept reading {r['study']} · {r['run']}: {r['study']} is not a study of the validation overlay given")
         source = laws["studies"][r["study"]]
         if source.get("arena") != "large":
             raise SystemExit(f"kept reading {r['study']} is not a large-arena study")
@@ -57,6 +59,8 @@ def overlay(verdict: dict, laws: dict) -> dict:
                                                 "in_all": False, "runs": []})
         study["runs"].append(r["run"])
     return {"experiment": "madpinn-table-ii-final",
+            # the validation overlay's own run variants (e.g. sensall), which a kept reading may name
+            **({"methods": laws["methods"]} if laws.get("methods") else {}),
             "paths": {"results": "results/table_ii_final", "figures": "results/table_ii_final/paper_figures"},
             "table_ii_readings": {"studies": [PROTOCOL_STUDY, *studies], "baselines": [BASELINES],
                                   "anchor": {"study": "main", "n_agents": 16},

@@ -11,8 +11,9 @@ import pandas as pd
 import pytest
 
 from conftest import REPO
+from madpinn.evaluation.paper_rows import paper_safety
 from madpinn.figures.budget import (ANNEALED, CONSTANT, BudgetRun, budget_panel, budget_table, draw_vhat_budget,
-                                    model_samples, model_schedule, paper_safety, trend, verification_epsilon)
+                                    model_samples, model_schedule, trend, verification_epsilon)
 from madpinn.value_functions.model import read_checkpoint
 
 

@@ -66,8 +66,8 @@ def test_a_reading_at_the_paper_values_reproduces_and_one_short_point_fails_one_
     assert not j.at["law_c", "reproduces"] and j.at["law_c", "cost_reading"] == "none"   # 30 % off, in both readings
     # each failed check is named with its value and line (cost in the best-matching reading)
     assert j.at["law_a", "failed"] == ""
-    assert j.at["law_b", "failed"] == "safety at N=128: 96.0 % < 96.75 %; safe scenarios at N=128: 0.0 % < 80.00 %"
-    assert j.at["law_c", "failed"].count("cost integral at N=") == 3 and "+30 % (band ±25 %)" in j.at["law_c", "failed"]
+    assert j.at["law_b", "failed"] == "safety at N=128: 96.00 % < 96.75 %; safe scenarios at N=128: 0.00 % < 80.00 %"
+    assert j.at["law_c", "failed"].count("cost integral at N=") == 3 and "+30.00 % (band ±25 %)" in j.at["law_c", "failed"]
 
 
 def test_the_time_averaged_cost_reading_counts_when_the_integral_does_not():
@@ -98,7 +98,7 @@ def test_the_verdict_names_the_readings_it_rests_on():
     only_bad = judge(reading_rows(bad), PAPER)
     v = claim_verdict(only_bad, ("law_uniform", "madpinn", T))
     assert v["verdict"] == "not reproduced under any reading tried" and v["closest"]["study"] == "law_uniform"
-    assert v["closest"]["failed"].startswith("safety at N=64: 65.0 % < 98.00 %")
+    assert v["closest"]["failed"].startswith("safety at N=64: 65.00 % < 98.00 %")
     with pytest.raises(ValueError, match="protocol's reading"):
         claim_verdict(only_bad, ("law_local", "madpinn", T))
 
@@ -107,6 +107,10 @@ def test_each_choice_is_paired_with_the_papers_deployment_under_its_own_law():
     paper_dep = reading("law_uniform", "madpinn", {64: 0.6, 128: 0.5, 256: 0.4}, PAPER_COST_INT)
     carrot = reading("grid_uniform", "madpinn-carrot05", {64: 0.9, 128: 0.8, 256: 0.7}, {n: 2 * c for n, c in PAPER_COST_INT.items()})
     local = reading("grid_within_2m", "madpinn-wide", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, pattern="goals_within_2m")
+    # scenarios differ from one another by the same amount in both runs: only a pairing per scenario
+    # gives the constant difference a zero-width interval (an unpaired bootstrap would not)
+    for f in (paper_dep, carrot):
+        f["safety_rate"] = f["safety_rate"] - 0.01 * f["scenario"]
     e = paired_effects(pd.concat([paper_dep, carrot, local], ignore_index=True), "madpinn")
     # no paper-deployment cells under goals within 2 m: that choice has no partner and no row
     assert set(e["run"]) == {"madpinn-carrot05"} and (e["reference"] == "law_uniform/madpinn").all()
@@ -118,6 +122,14 @@ def test_each_choice_is_paired_with_the_papers_deployment_under_its_own_law():
     # a scenario without its partner is left out of the pairs
     short = paper_dep[~((paper_dep["n_agents"] == 64) & (paper_dep["scenario"] == 0))]
     assert paired_effects(pd.concat([short, carrot], ignore_index=True), "madpinn").set_index("n_agents").at[64, "pairs"] == 19
+    # a figure one side lacks (every agent collided: no collision-free cost) drops that pair for that figure only
+    gap = carrot.copy()
+    gap.loc[(gap["n_agents"] == 64) & (gap["scenario"] < 5), "cost_safe_time_avg"] = np.nan
+    g = paired_effects(pd.concat([paper_dep, gap], ignore_index=True), "madpinn").set_index("n_agents")
+    assert g.at[64, "cost_time_avg_pairs"] == 15 and g.at[64, "safety_pairs"] == 20
+    assert g.at[64, "d_cost_time_avg"] == pytest.approx(PAPER_COST_INT[64] / T)   # still the per-scenario difference
+    # the reference given twice counts once
+    assert paired_effects(pd.concat([paper_dep, paper_dep, carrot], ignore_index=True), "madpinn").set_index("n_agents").at[64, "pairs"] == 20
 
 
 def test_a_reading_missing_an_agent_count_is_not_judged():
@@ -223,7 +235,7 @@ def test_the_claims_page_reads_the_verdict_of_the_readings():
     judged = judge(reading_rows(pd.concat([good, bad], ignore_index=True)), PAPER)
     checks = readings_checks(claim_verdict(judged, ("law_uniform", "madpinn", T)))
     assert [c.stated for c in checks] == [False, True]
-    assert checks[0].observed == "9 of 9 checks" and checks[1].observed.startswith("3 of 9 checks; failed: safety at N=64: 65.0 %")
+    assert checks[0].observed == "9 of 9 checks" and checks[1].observed.startswith("3 of 9 checks; failed: safety at N=64: 65.00 %")
     assert page_verdict(checks) == UNSTATED            # the readings page's words, on the claims page's scale
     only_bad = readings_checks(claim_verdict(judge(reading_rows(bad), PAPER), ("law_uniform", "madpinn", T)))
     assert page_verdict(only_bad) == "does not hold"

@@ -21,6 +21,20 @@ def reads(cfg: Mapping, **_) -> dict:
     return {"experiment": cfg["experiment"], **dataclasses.asdict(ConformalSettings.from_config(cfg))}
 
 
+def _calibration(path: str) -> dict:
+    """The calibrate-vhat report at ``path``, or a one-line error naming the command that writes it."""
+    from madpinn.config import TargetError
+
+    try:
+        report = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise TargetError(f"calibration report {path} is unreadable ({exc}); write it with python -m madpinn calibrate-vhat "
+                          "(rule calibrate_vhat)") from exc
+    if not isinstance(report, dict) or "distributions" not in report:
+        raise TargetError(f"{path} is not a calibrate-vhat report (no 'distributions')")
+    return report
+
+
 def _conformal_page(args) -> int:
     from madpinn.evaluation.conformal_page import load_frame, write_conformal_page
     from madpinn.evaluation.conformal_settings import ConformalSettings
@@ -28,7 +42,7 @@ def _conformal_page(args) -> int:
 
     cfg = config_of(args)
     settings = ConformalSettings.from_config(cfg)   # the studies' rules, before any file is read
-    report = json.loads(Path(args.calibration).read_text()) if args.calibration else None
+    report = _calibration(args.calibration) if args.calibration else None
     record = JobRecord(job_key="table/conformal", rule="conformal_page", params={"inputs": len(args.inputs)})
     with job(cfg, record, not args.no_track) as run:
         files, rows = write_conformal_page(load_frame(args.inputs, settings), settings, report, args.out_dir)

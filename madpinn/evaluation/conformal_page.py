@@ -38,10 +38,12 @@ from madpinn.value_functions.safety_level import bin_labels
 
 def load_frame(result_paths: Iterable[str | Path], settings: ConformalSettings) -> pd.DataFrame:
     """Scenario rows of the given cells (the page's studies only), each with its study's ``pattern``."""
+    from madpinn.config import TargetError
+
     df = load_results(result_paths)
     unknown = sorted(set(df["study"]) - set(settings.studies))
     if unknown:
-        raise ValueError(f"cells of studies without a calibrated level: {unknown}")
+        raise TargetError(f"cells of studies without a calibrated level: {unknown} (the page reads {list(settings.studies)})")
     df["pattern"] = df["study"].map(settings.patterns)
     return df
 
@@ -56,8 +58,14 @@ def cell_rows(frame: pd.DataFrame, settings: ConformalSettings) -> pd.DataFrame:
     paper = {s: paper_safety(settings.arenas[s], settings.patterns[s], rows.loc[rows["study"] == s, "n_agents"].unique())
              for s in settings.studies}
     rows["paper_safety"] = [paper.get(s, {}).get(int(n), np.nan) / 100 for s, n in zip(rows["study"], rows["n_agents"])]
-    effects = paired_effects(frame, REFERENCE_RUN).drop(columns=["reference", "pattern"])
+    effects = paired_effects(frame, REFERENCE_RUN)
+    if effects.empty:   # V̂ alone only, or no partner: no paired difference to show
+        effects = pd.DataFrame(columns=["study", "run", "n_agents", *(f"d_{f}{s}" for f in ("safety", "cost_time_avg")
+                                                                      for s in ("", "_lo", "_hi"))])
+    effects = effects.drop(columns=[c for c in ("reference", "pattern", "pairs", "safety_pairs", "cost_time_avg_pairs") if c in effects])
     rows = rows.merge(effects, on=["study", "run", "n_agents"], how="left")
+    for c in [c for c in rows if c.startswith("d_")]:
+        rows[c] = rows[c].astype(float)
     order = {r: i for i, r in enumerate((REFERENCE_RUN, *(lv.run for lv in settings.levels), *settings.others))}
     study_order = {s: i for i, s in enumerate(settings.studies)}
     rank = rows["study"].map(study_order).fillna(len(study_order)) * 1e6 + rows["n_agents"] * 1e2 + rows["run"].map(order).fillna(len(order))
@@ -72,6 +80,14 @@ def _level_rows(report: Mapping | None, level: LevelRun) -> dict[str, Mapping]:
     entries = [e for e in block.get("binned" if level.binned else "pooled", [])
                if np.isclose(e["epsilon"], level.epsilon) and np.isclose(e["beta"], level.beta)]
     return {e["bin_label"]: e for e in entries}
+
+
+def _deployed_delta(entry: Mapping | None) -> float:
+    """The δ a level run deploys from its report entry: NaN without a report, +∞ where the calibration
+    certified no level (that bin then accepts no state: :func:`madpinn.value_functions.safety_level.read_level`)."""
+    if entry is None:
+        return float("nan")
+    return float("inf") if entry.get("delta") is None else float(entry["delta"])
 
 
 def speed_gap(frame: pd.DataFrame, settings: ConformalSettings, report: Mapping | None) -> pd.DataFrame:
@@ -92,11 +108,10 @@ def speed_gap(frame: pd.DataFrame, settings: ConformalSettings, report: Mapping 
                 out.append({"study": study, "run": run, "bin": label, "agents": r.agents, "collided": r.collided,
                             "share": r.hazard, "share_lo": r.low, "share_hi": r.high,
                             "epsilon": level.epsilon if level else np.nan,
-                            "delta": (0.0 if level is None else (e or {}).get("delta", np.nan)),
+                            "delta": 0.0 if level is None else _deployed_delta(e),
                             "heldout_rate": test.get("rate", np.nan) if test.get("accepted") else np.nan,
                             "heldout_bound": test.get("upper_bound", np.nan) if test.get("accepted") else np.nan})
-    frame_out = pd.DataFrame(out)
-    return frame_out.replace({None: np.nan}) if len(frame_out) else frame_out
+    return pd.DataFrame(out)
 
 
 def verdict(rows: pd.DataFrame, settings: ConformalSettings) -> dict:
@@ -161,7 +176,7 @@ def cells_display(rows: pd.DataFrame, settings: ConformalSettings) -> pd.DataFra
 
 
 def gap_display(gap: pd.DataFrame, settings: ConformalSettings) -> pd.DataFrame:
-    fmt = lambda x, d=3: "–" if not np.isfinite(x) else f"{x:.{d}f}"   # noqa: E731
+    fmt = lambda x, d=3: "∞ (none certified)" if x == np.inf else "–" if not np.isfinite(x) else f"{x:.{d}f}"   # noqa: E731
     return pd.DataFrame({
         "study": gap["study"], "run": [settings.labels.get(r, r) for r in gap["run"]], "closing speed": gap["bin"],
         "agents": gap["agents"], "collided share [95 % Wilson]":

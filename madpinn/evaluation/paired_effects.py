@@ -7,12 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from madpinn.evaluation.intervals import paired_bootstrap
+from madpinn.evaluation.intervals import PAIR_KEYS, paired_bootstrap
 from madpinn.evaluation.metrics import COST_COLUMNS
 
-PAIR_KEYS = ["arena", "n_agents", "seed", "scenario"]
-"""scenario rows of two cells under the same start/goal law pair on these: a scenario is a pure function of
-(arena, law, N, seed, index) (:mod:`madpinn.scenarios`), so a pair is one layout under two deployments"""
+# Scenario rows of two cells under the same start/goal law pair on PAIR_KEYS: a scenario is a pure function of
+# (arena, law, N, seed, index) (:mod:`madpinn.scenarios`), so a pair is one layout under two deployments.
 
 
 def paired_effects(frame: pd.DataFrame, reference_run: str) -> pd.DataFrame:
@@ -22,7 +21,9 @@ def paired_effects(frame: pd.DataFrame, reference_run: str) -> pd.DataFrame:
     study where it holds that run, else another study of that law), at the episode's end. One row
     per (study, run, N): the pairs, Δ safety and Δ cost ÷T (collision-free agents), run − reference,
     with 95 % paired bootstrap intervals over scenarios (seeds pooled). Scenarios without a partner
-    are left out (``pairs`` counts the rest). The straight-line encounters cannot check the pairing:
+    are left out (``pairs`` counts the rest), and so, per figure, are pairs where either side lacks it
+    (cost over collision-free agents is NaN in a scenario where every agent collided;
+    ``<figure>_pairs`` counts what each Δ rests on). The straight-line encounters cannot check the pairing:
     they are counted at the run's own v_max."""
     ref_rows = frame[frame["run"] == reference_run]
     cost = COST_COLUMNS["cost_time_avg"]
@@ -34,13 +35,17 @@ def paired_effects(frame: pd.DataFrame, reference_run: str) -> pd.DataFrame:
             continue
         ref_study = ref["study"].iloc[0] if study not in set(ref["study"]) else study
         ref = ref[ref["study"] == ref_study]
-        pairs = g.merge(ref, on=PAIR_KEYS, suffixes=("", "_ref"))
+        keys = list(PAIR_KEYS)
+        pairs = g.drop_duplicates(keys).merge(ref.drop_duplicates(keys), on=keys, suffixes=("", "_ref"))
         for n, p in pairs.groupby("n_agents", sort=True):
             row = {"study": study, "run": run, "reference": f"{ref_study}/{reference_run}", "pattern": pattern,
                    "n_agents": int(n), "pairs": len(p)}
             for name, col in (("safety", "safety_rate"), ("cost_time_avg", cost)):
                 a, b = p[col].to_numpy(dtype=float), p[f"{col}_ref"].to_numpy(dtype=float)
-                row[f"d_{name}"] = float(np.nanmean(a) - np.nanmean(b))
-                row[f"d_{name}_lo"], row[f"d_{name}_hi"] = paired_bootstrap(a, b)
+                both = np.isfinite(a) & np.isfinite(b)   # paired: scenarios where both sides have the figure
+                a, b = a[both], b[both]
+                row[f"d_{name}"] = float(np.mean(a - b)) if both.any() else float("nan")
+                row[f"d_{name}_lo"], row[f"d_{name}_hi"] = paired_bootstrap(a, b) if both.any() else (float("nan"),) * 2
+                row[f"{name}_pairs"] = int(both.sum())
             out.append(row)
     return pd.DataFrame(out)

@@ -13,10 +13,16 @@ PAPER_TABLE_OF_ARENA = {"large": "table_ours_scaling", "small": "table_safety_sc
 PAPER_RUN = "madpinn"
 
 
-def paper_safety(arena: str, pattern: str | None, counts: Iterable[int]) -> dict[int, float]:
-    """The paper's safety (%) of its own method in ``arena`` at ``counts`` (uniform scenarios only:
-    the paper tests no structured conflict)."""
+def paper_cells(arena: str, pattern: str | None, counts: Iterable[int]) -> dict[int, dict]:
+    """The paper's cells of its own method in ``arena`` at ``counts``: N -> its paper-values entry
+    (``safety``, ``safe_scenarios`` as fractions, ``cost``, …); uniform scenarios only (the paper
+    tests no structured conflict)."""
     if (pattern or UNIFORM) != UNIFORM or arena not in PAPER_TABLE_OF_ARENA:
         return {}
     cells = paper_values()[PAPER_TABLE_OF_ARENA[arena]]["runs"][PAPER_RUN]["n"]
-    return {int(n): 100 * cells[int(n)]["safety"] for n in counts if int(n) in cells}
+    return {int(n): cells[int(n)] for n in counts if int(n) in cells}
+
+
+def paper_safety(arena: str, pattern: str | None, counts: Iterable[int]) -> dict[int, float]:
+    """The paper's safety (%) of its own method in ``arena`` at ``counts`` (:func:`paper_cells`)."""
+    return {n: 100 * c["safety"] for n, c in paper_cells(arena, pattern, counts).items()}

@@ -132,7 +132,7 @@ def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataF
                 row[f"{ok_key}_{n}"] = bool(ok)
                 passed += int(ok)
                 if not ok:
-                    failed.append(f"{key.replace('_', ' ')} at N={n}: {100 * g.at[n, key]:.1f} % < {100 * line:.2f} %")
+                    failed.append(f"{key.replace('_', ' ')} at N={n}: {100 * g.at[n, key]:.2f} % < {100 * line:.2f} %")
         cost_hits = {}
         for reading, figure in COST_READINGS.items():
             cost_hits[reading] = [bool(abs(g.at[n, figure] / paper.cells[n]["cost"] - 1.0) <= scale.cost_relative)
@@ -141,7 +141,7 @@ def judge(rows: pd.DataFrame, paper: PaperRow, scale: Scale = SCALE) -> pd.DataF
         for n, ok in zip(counts, cost_hits[best]):
             row[f"cost_ok_{n}"] = ok
             if not ok:
-                failed.append(f"cost {best} at N={n}: {100 * (g.at[n, COST_READINGS[best]] / paper.cells[n]['cost'] - 1.0):+.0f} % "
+                failed.append(f"cost {best} at N={n}: {100 * (g.at[n, COST_READINGS[best]] / paper.cells[n]['cost'] - 1.0):+.2f} % "
                               f"(band ±{100 * scale.cost_relative:g} %)")
         passed += sum(cost_hits[best])
         row["failed"] = "; ".join(failed)

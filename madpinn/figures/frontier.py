@@ -25,13 +25,11 @@ import pandas as pd
 from matplotlib.lines import Line2D
 
 from madpinn.evaluation.metrics import across_seeds
-from madpinn.evaluation.reproduction import paper_values
+from madpinn.evaluation.paper_rows import paper_cells
 from madpinn.evaluation.tables import load_results, per_seed
 from madpinn.figures import style
 from madpinn.figures.placement import Point, draw_points
 
-PAPER_TABLE = "table_ours_scaling"     # Table II of paper_values.yaml
-PAPER_RUN = "madpinn"
 MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "h", "p", "*")
 SWEEP_STYLE = {"carrot": "-", "v_max": "--"}
 SWEEP_NAME = {"carrot": "carrot sweep", "v_max": "v_max sweep"}
@@ -91,8 +89,7 @@ def frontier_data(result_paths: Iterable[str | Path]) -> pd.DataFrame:
 
 def paper_points(counts: Iterable[int]) -> dict[int, dict]:
     """The paper's Table II MAD-PINN cells at ``counts``: N -> {cost (time-averaged), safety (fraction)}."""
-    cells = paper_values()[PAPER_TABLE]["runs"][PAPER_RUN]["n"]
-    return {int(n): cells[int(n)] for n in counts if int(n) in cells}
+    return paper_cells("large", None, counts)
 
 
 def plot_large_arena_frontier(result_paths: Iterable[str | Path], runs: Sequence[FrontierRun],

@@ -140,16 +140,19 @@ if CONFORMAL_STUDIES:
     # paper's safety where V̂ alone does not, at what cost) and the closed-loop collided share per
     # closing-speed bin beside the calibration's ε, δ and held-out rate. Not part of all:
     #   snakemake -j2 conformal_page --configfile workflow/configs/shipped.yaml workflow/configs/conformal.yaml
-    if len(conformal_vhats()) != 1:
-        sys.stderr.write(f"\nmadpinn: the calibrated levels deploy {len(conformal_vhats())} V̂ models ({conformal_vhats()}); "
-                         "the conformal page reads one calibration: give every level run the same V̂\n\n")
-        raise SystemExit(1)
+    def conformal_page_calibration(wildcards):
+        """The one calibration the page reads (checked when the page is planned, not for every target)."""
+        vhats = conformal_vhats()
+        if len(vhats) != 1:
+            raise ValueError(f"madpinn: the calibrated levels deploy {len(vhats)} V̂ models ({vhats}); the conformal page "
+                             "reads one calibration: give every level run the same V̂")
+        return calibration_report(vhats[0])   # rules.calibrate_vhat
 
     rule conformal_page:
         input:
             tracking=TRACKING,
             results=lambda w: sorted({p for s in CONFORMAL_STUDIES for p in study_results(s)}),
-            calibration=calibration_report(conformal_vhats()[0]),   # rules.calibrate_vhat
+            calibration=conformal_page_calibration,
         output:
             csv=kept(f"{FIGURES}/conformal/conformal.csv"),
             gap=kept(f"{FIGURES}/conformal/speed_gap.csv"),
