@@ -503,6 +503,15 @@ def calibration_report(vhat):
     return str(rules.calibrate_vhat.output.report).format(vhat=vhat)
 
 
+def conformal_page_calibration(wildcards):
+    """The one calibration the conformal page reads (checked when the page is planned, not for every target)."""
+    vhats = conformal_vhats()
+    if len(vhats) != 1:
+        raise ValueError(f"madpinn: the calibrated levels deploy {len(vhats)} V̂ models ({vhats}); the conformal page "
+                         "reads one calibration: give every level run the same V̂")
+    return calibration_report(vhats[0])   # rules.calibrate_vhat
+
+
 def conformal_vhats():
     """The V̂ models a configured study's run deploys a calibrated level with (their calibrations are targets)."""
     return sorted({vf_model_name("vhat", run_vhat_variant(run)) for st in config["studies"].values() for run in st["runs"]

@@ -140,14 +140,6 @@ if CONFORMAL_STUDIES:
     # paper's safety where V̂ alone does not, at what cost) and the closed-loop collided share per
     # closing-speed bin beside the calibration's ε, δ and held-out rate. Not part of all:
     #   snakemake -j2 conformal_page --configfile workflow/configs/shipped.yaml workflow/configs/conformal.yaml
-    def conformal_page_calibration(wildcards):
-        """The one calibration the page reads (checked when the page is planned, not for every target)."""
-        vhats = conformal_vhats()
-        if len(vhats) != 1:
-            raise ValueError(f"madpinn: the calibrated levels deploy {len(vhats)} V̂ models ({vhats}); the conformal page "
-                             "reads one calibration: give every level run the same V̂")
-        return calibration_report(vhats[0])   # rules.calibrate_vhat
-
     rule conformal_page:
         input:
             tracking=TRACKING,
