@@ -192,7 +192,9 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     frames = {"law_anchor_small": _anchor(0.98).assign(study="law_anchor_small"),
               "law_uniform": reading("law_uniform", "madpinn", {64: 0.65, 128: 0.58, 256: 0.47}, PAPER_COST_INT),
               "law_within_1m": reading("law_within_1m", "madpinn", {64: 1.0, 128: 1.0, 256: 1.0}, PAPER_COST_INT, load=0.3),
-              "baselines_large": reading("baselines_large", "safemarl", {64: 0.9, 128: 0.8, 256: 0.7}, PAPER_COST_INT)}
+              "baselines_large": reading("baselines_large", "safemarl", {64: 0.9, 128: 0.8, 256: 0.7}, PAPER_COST_INT),
+              # another deployment at the anchor's load: a reading of item 2, never a cell of §1's law rule
+              "law_uniform_wide": reading("law_uniform", "madpinn-wide", {64: 0.9, 128: 0.8, 256: 0.7}, PAPER_COST_INT)}
     paths = []
     for study, f in frames.items():
         rng = np.random.default_rng(0)
@@ -219,6 +221,8 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     md = (out / "table_ii_readings.md").read_text()
     assert "holds only under readings the paper does not state" in md and "law_within_1m (goals_within_1m)" in md
     assert "## What each deployment choice moves, on the same scenarios" in md
+    laws = pd.read_csv(out / "laws.csv")
+    assert set(laws["run"]) == {"madpinn"}
     assert verdict["baselines"] == {"reading": "hard for every method tried", "reaching": []}
     assert "| SafeMARL" in md and "(baselines_large) | 90.0 [90.0, 90.0] / 0.0 / 0.18 / 0.50 m |" in md
     for name in ("table_ii_readings.csv", "table_ii_readings.html", "laws.csv", "fig_table_ii_readings.png", "fig_table_ii_readings.pdf",

@@ -152,7 +152,10 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.
 
     judged, verdict = verdict_of(rows, paper, settings)
     effects = paired_effects(large, settings.protocol[1])
-    rule = law_rule(anchor, large, settings.anchor_agents) if len(anchor) else pd.DataFrame()
+    # §1 reads the start/goal laws under the paper's deployment: the protocol's run only (the grid's other
+    # deployments are readings of item 2, not loads of item 1)
+    paper_deployment = large[large["run"] == settings.protocol[1]]
+    rule = law_rule(anchor, paper_deployment, settings.anchor_agents) if len(anchor) and len(paper_deployment) else pd.DataFrame()
     verdict["law_rule"] = law_reading(rule) if len(rule) else "no anchor cells"
     base_rows = reading_rows(baselines) if len(baselines) else pd.DataFrame()
     if len(base_rows):
