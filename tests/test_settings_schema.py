@@ -49,6 +49,7 @@ from madpinn.simulation.settings import SimSettings
 from madpinn.simulation.mujoco.controller import ControllerSettings
 from madpinn.simulation.mujoco.settings import MujocoSettings
 from madpinn.evaluation.cell import CellSettings
+from madpinn.evaluation.conformal_settings import ConformalSettings
 from madpinn.evaluation.recipe_settings import RecipeSettings
 from madpinn.evaluation.table_ii_settings import ReadingsSettings
 from madpinn.tracking.settings import TrackingSettings
@@ -144,6 +145,10 @@ SETTINGS = [
     Entry(RecipeSettings, "vhat_recipe", RecipeSettings.from_config,
           not_config=("deciding", "reported", "seeds", "labels"),   # deciding / reported: study -> counts, held as (study, N) cells; the rest read from the studies and runs it names
           overlay=(REPO / "workflow" / "configs" / "vhat_recipe.yaml",)),
+    Entry(ConformalSettings, "value_functions.vhat.validation.calibration", ConformalSettings.from_config,
+          keys={"collision_radius": "/agents.collision_radius"},
+          not_config=("studies", "arenas", "patterns", "levels", "others", "labels"),   # read from the studies and runs that deploy a level
+          overlay=(REPO / "workflow" / "configs" / "conformal.yaml",)),
     Entry(CellSettings, "studies.main", lambda c: CellSettings.from_config(c, "main", "madpinn"),
           not_config=tuple(f.name for f in dataclasses.fields(CellSettings))),   # composite: study, run and parsed parts
 ]
