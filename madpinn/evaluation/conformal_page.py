@@ -58,11 +58,7 @@ def cell_rows(frame: pd.DataFrame, settings: ConformalSettings) -> pd.DataFrame:
     paper = {s: paper_safety(settings.arenas[s], settings.patterns[s], rows.loc[rows["study"] == s, "n_agents"].unique())
              for s in settings.studies}
     rows["paper_safety"] = [paper.get(s, {}).get(int(n), np.nan) / 100 for s, n in zip(rows["study"], rows["n_agents"])]
-    effects = paired_effects(frame, REFERENCE_RUN)
-    if effects.empty:   # V̂ alone only, or no partner: no paired difference to show
-        effects = pd.DataFrame(columns=["study", "run", "n_agents", *(f"d_{f}{s}" for f in ("safety", "cost_time_avg")
-                                                                      for s in ("", "_lo", "_hi"))])
-    effects = effects.drop(columns=[c for c in ("reference", "pattern", "pairs", "safety_pairs", "cost_time_avg_pairs") if c in effects])
+    effects = paired_effects(frame, REFERENCE_RUN).drop(columns=["reference", "pattern", "pairs", "safety_pairs", "cost_time_avg_pairs"])
     rows = rows.merge(effects, on=["study", "run", "n_agents"], how="left")
     for c in [c for c in rows if c.startswith("d_")]:
         rows[c] = rows[c].astype(float)

@@ -14,6 +14,12 @@ from madpinn.evaluation.metrics import COST_COLUMNS
 # (arena, law, N, seed, index) (:mod:`madpinn.scenarios`), so a pair is one layout under two deployments.
 
 
+EFFECT_COLUMNS = ["study", "run", "reference", "pattern", "n_agents", "pairs",
+                  "d_safety", "d_safety_lo", "d_safety_hi", "safety_pairs",
+                  "d_cost_time_avg", "d_cost_time_avg_lo", "d_cost_time_avg_hi", "cost_time_avg_pairs"]
+"""the columns of :func:`paired_effects`, in order"""
+
+
 def paired_effects(frame: pd.DataFrame, reference_run: str) -> pd.DataFrame:
     """What each run moves against ``reference_run``, on the same scenarios: every (study, run) of the
     scenario rows ``frame`` (with their ``pattern``: the start/goal law) other than ``reference_run``, paired
@@ -48,4 +54,4 @@ def paired_effects(frame: pd.DataFrame, reference_run: str) -> pd.DataFrame:
                 row[f"d_{name}_lo"], row[f"d_{name}_hi"] = paired_bootstrap(a, b) if both.any() else (float("nan"),) * 2
                 row[f"{name}_pairs"] = int(both.sum())
             out.append(row)
-    return pd.DataFrame(out)
+    return pd.DataFrame(out, columns=EFFECT_COLUMNS)   # the columns even when nothing pairs
