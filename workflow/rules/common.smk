@@ -162,6 +162,11 @@ def study_results(study):
     return [eval_path(study, run, n, seed) for run in st["runs"] for n in st["agent_counts"] for seed in st["seeds"]]
 
 
+def studies_results(studies):
+    """Every cell of ``studies`` (each once, sorted): the result files a page over those studies reads."""
+    return sorted({p for s in studies for p in study_results(s)})
+
+
 def studies_in_all():
     """The studies whose cells `all` builds (all but those with `in_all: false`, e.g. the gap decomposition's)."""
     return [s for s, st in config["studies"].items() if st["in_all"]]

@@ -12,7 +12,7 @@ REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json", 
 rule reproduction_report:
     input:
         tracking=TRACKING,
-        results=lambda w: sorted({p for s in report_studies() for p in study_results(s)}),
+        results=lambda w: studies_results(report_studies()),
         oracle=lambda w: sorted({p for s in report_studies() for p in oracle_inputs(s)}),
         models=lambda w: sorted({m for s in report_studies() for m in study_models(s)}),
     output:
