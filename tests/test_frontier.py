@@ -54,6 +54,10 @@ def test_variant_merges_over_the_base_and_has_its_own_training_hash(smoke_cfg):
 
 def test_runs_select_their_vhat_and_speed_bound(paper_cfg):
     assert run_vhat(paper_cfg, "madpinn") == "vhat" and run_vhat(paper_cfg, "madpinn-h04") == "vhat_h04"
+    # issue 61: the deployed V̂ is trained on uniform states (the paper's), the earlier recipe is the labelled row cs
+    assert paper_cfg["value_functions"]["vhat"]["conflict_sampling"]["fraction"] == 0.0 and run_vhat(paper_cfg, "madpinn-cs") == "vhat_cs"
+    assert model_training_hash(paper_cfg, "vhat") == model_training_hash(paper_cfg, "vhat_nocs") != model_training_hash(paper_cfg, "vhat_cs")
+    assert {"madpinn-cs"} <= set(paper_cfg["studies"]["main"]["runs"]) & set(paper_cfg["studies"]["scaling"]["runs"])
     assert run_agents(paper_cfg, "madpinn-vmax1")["v_max"] == 1.0 and run_agents(paper_cfg, "madpinn")["v_max"] == 4.0
     # a governor is a deployment setting: its cells rerun, no training does
     assert settings_hash(paper_cfg, "evaluate", study="large_arena_frontier", run="madpinn-vmax1") != settings_hash(
