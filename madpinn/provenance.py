@@ -228,16 +228,18 @@ def source_files(entries: Iterable[str]) -> list[Path]:
 def reached_source(module: str, defs: frozenset[str] | None) -> bytes:
     """The bytes of ``module`` that a job reaching ``defs`` of it runs: the whole file (``defs``
     None), else the file less the lines of every top-level definition not in ``defs`` (decorators
-    included)."""
+    included); in both, less a plugin registry's lines (``_MODULES = {...}``: a job runs the one
+    entry it is named by, hashed as its own entry, so adding or editing another entry re-keys nothing)."""
     path = module_path(module)
     data = path.read_bytes()
-    if defs is None:
+    body = _parse(*_stat(path)).body
+    drop = [node for node in body if _is_registry(node) or (defs is not None and isinstance(node, _DEFS) and node.name not in defs)]
+    if not drop:
         return data
     lines = data.splitlines(keepends=True)
-    for node in reversed(_parse(*_stat(path)).body):
-        if isinstance(node, _DEFS) and node.name not in defs:
-            first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
-            del lines[first - 1:node.end_lineno]
+    for node in reversed(drop):
+        first = min([node.lineno, *(d.lineno for d in getattr(node, "decorator_list", ()))])
+        del lines[first - 1:node.end_lineno]
     return b"".join(lines)
 
 

@@ -8,7 +8,9 @@
 #   COMMIT=1 scripts/validation_cells.sh workflow/configs/scenario_laws.yaml 3 \
 #       results/scenario_laws/eval/mujoco/grid_uniform/madpinn-wide/n{64,128,256}_seed100.parquet
 #
-# One job at a time (-j1: the other core is for a training); JOBS=2 for both cores.
+# One job at a time (-j1: the other core is for a training); JOBS=2 for both cores. The protocol's own
+# cells the same way, kept in output_cache/ (its overlay: the shipped one):
+#   CACHE=output_cache COMMIT=1 scripts/validation_cells.sh workflow/configs/shipped.yaml 4 TARGET...
 set -u
 cd "$(dirname "$0")/.."
 [ $# -ge 3 ] || { echo "usage: $0 OVERLAY BATCH_SIZE TARGET..." >&2; exit 2; }
@@ -23,8 +25,9 @@ for ((i = 0; i < ${#targets[@]}; i += batch)); do
   "$py" -m snakemake -j"${JOBS:-1}" --keep-going --configfile "${configs[@]}" --profile profiles/shipped -- "${part[@]}"
   rc=$?
   "$py" -m madpinn publish --config "${configs[@]}" || exit $?
-  if [ "${COMMIT:-0}" = 1 ] && [ -n "$(git status --porcelain --ignored -- validation_cache)" ]; then
-    git add -f validation_cache && git commit -q -m "validation cells: ${part[*]}" -- validation_cache || exit $?
+  cache=${CACHE:-validation_cache}   # where the overlay keeps its cells (its paths.output_cache)
+  if [ "${COMMIT:-0}" = 1 ] && [ -n "$(git status --porcelain --ignored -- "$cache")" ]; then
+    git add -f "$cache" && git commit -q -m "${cache%_cache} cells: ${part[*]}" -- "$cache" || exit $?
   fi
   [ $rc -eq 0 ] || exit $rc
 done

@@ -224,18 +224,30 @@ def test_trends_are_drawn_without_replicates():
 
 
 def test_the_figure_command_gives_each_v_hat_variant_its_role():
-    """The config decides: a variant that only reseeds (s1) replicates the base; one at the base's
-    samples and schedule with another recipe (nocs: uniform states) is a recipe variant; a variant at
-    other samples (b05) or at the base's samples under another schedule is a budget."""
+    """The config decides: the base is the run whose V̂ the others derive from (``from: cs``); a
+    variant that only reseeds it (s1) replicates the base; one at the base's samples and schedule with
+    another recipe (the base V̂, uniform states since issue 61) is a recipe variant; a variant at other
+    samples (b05) or at the base's samples under another schedule (b2x) is a budget."""
     from madpinn.config import load_config
-    from madpinn.figures.budget import budget_roles
+    from madpinn.figures.budget import budget_base, budget_roles
 
-    variants = load_config([REPO / "config.yaml"])["value_functions"]["vhat_variants"]
-    entries = {"madpinn": None, **{f"madpinn-{v}": variants[v] for v in ("s1", "nocs", "b05", "b2x")}}
-    base = (4096 * 60000, ANNEALED)
-    roles = budget_roles("madpinn", entries, {"madpinn": base, "madpinn-s1": base, "madpinn-nocs": base,
-                                              "madpinn-b05": (4096 * 30000, ANNEALED), "madpinn-b2x": (4096 * 60000, CONSTANT)})
-    assert roles["madpinn-s1"] == {"replicates": "madpinn", "recipe_of": None}
-    assert roles["madpinn-nocs"] == {"replicates": None, "recipe_of": "madpinn"}
-    for budget in ("madpinn", "madpinn-b05", "madpinn-b2x"):
+    table = load_config([REPO / "config.yaml"])["value_functions"]["vhat_variants"]
+    variants = {"madpinn": None, **{f"madpinn-{v}": v for v in ("cs", "s1", "b05", "b2x")}}
+    base = budget_base(variants, table)
+    assert base == "madpinn-cs"
+    one = (4096 * 60000, ANNEALED)
+    roles = budget_roles(base, variants, table, {"madpinn": one, "madpinn-cs": one, "madpinn-s1": one,
+                                                 "madpinn-b05": (4096 * 30000, ANNEALED), "madpinn-b2x": (4096 * 60000, CONSTANT)})
+    assert roles["madpinn-s1"] == {"replicates": "madpinn-cs", "recipe_of": None}
+    assert roles["madpinn"] == {"replicates": None, "recipe_of": "madpinn-cs"}
+    for budget in ("madpinn-cs", "madpinn-b05", "madpinn-b2x"):
         assert roles[budget] == {"replicates": None, "recipe_of": None}, budget
+    # without a `from` chain (the layout before issue 61) the base V̂'s run is the base
+    flat = {"s1": {"seed": 1}, "nocs": {"conflict_sampling": {"fraction": 0.0}}}
+    old = {"madpinn": None, "madpinn-s1": "s1", "madpinn-nocs": "nocs"}
+    assert budget_base(old, flat) == "madpinn"
+    roles = budget_roles("madpinn", old, flat, {run: one for run in old})
+    assert roles["madpinn-s1"]["replicates"] == "madpinn" and roles["madpinn-nocs"]["recipe_of"] == "madpinn"
+    # a reseeded variant of another recipe is no replicate of this base
+    assert budget_roles("madpinn", {"madpinn": None, "madpinn-s1": "s1"}, {"s1": {"from": "cs", "seed": 1}, "cs": {}},
+                        {"madpinn": one, "madpinn-s1": one})["madpinn-s1"] == {"replicates": None, "recipe_of": "madpinn"}

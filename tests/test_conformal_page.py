@@ -81,10 +81,19 @@ def test_cells_are_paired_against_vhat_alone_and_the_sentence_names_where_a_leve
     assert reached == {64: True, 128: True, 256: False}
     assert v["sentence"].startswith("A calibrated level reaches the paper's safety (less 2 points) where V̂ alone does not in 2 of 3 cells")
     assert "Carrot 0.5 m + v_max 0.8 m/s (not in paper) 99.0 % at Δ cost ÷T +1.00" in v["sentence"]
+    # the adopted level: most cells at the line (ε 0.1: 2 of 3; ε 0.05 per bin: 0), beating V̂ alone (0)
+    a = v["adopted"]
+    assert (a["run"], a["reaches"], a["cells"], a["alone_reaches"], a["beats_alone"]) == ("madpinn-cpeps10", 2, 3, 0, True)
     # no level above V̂ alone's line anywhere: the sentence says so
     flat = large_cells()
     flat.loc[flat["run"] == "madpinn-cpeps10", "safety_rate"] = 0.6
-    assert verdict(cell_rows(flat, settings), settings)["sentence"].startswith("No calibrated level reaches")
+    fv = verdict(cell_rows(flat, settings), settings)
+    assert fv["sentence"].startswith("No calibrated level reaches")
+    # then the tie (0 cells each) goes to the higher mean safety, then the lower cost: ε 0.1 at 0.6 against 0.6 per bin
+    # costs 1.5 against 1.2, so the per-bin level is adopted, and it does not beat V̂ alone
+    assert (fv["adopted"]["run"], fv["adopted"]["beats_alone"]) == ("madpinn-cpeps05bins", False)
+    flat.loc[flat["run"] == "madpinn-cpeps10", "safety_rate"] = 0.61
+    assert verdict(cell_rows(flat, settings), settings)["adopted"]["run"] == "madpinn-cpeps10"
 
 
 def test_the_speed_gap_counts_collided_agents_per_bin_beside_the_levels_epsilon_and_delta(settings):

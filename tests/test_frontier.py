@@ -14,7 +14,7 @@ import torch
 
 from conftest import REPO, SMOKE
 from madpinn.commands import main
-from madpinn.config import ConfigError, deep_merge, load_config, run_agents, run_vhat, with_vf_variant
+from madpinn.config import ConfigError, deep_merge, load_config, run_agents, run_vhat, validate_config, with_vf_variant
 from madpinn.commands import settings_hash
 from madpinn.provenance import model_training_hash
 from madpinn.value_functions.build import training_hash
@@ -25,10 +25,11 @@ from workflow_helpers import NO_TRACKING, TINY, copy_repo, planned_jobs, run_in,
 def test_variant_merges_over_the_base_and_has_its_own_training_hash(smoke_cfg):
     merged = with_vf_variant(smoke_cfg, "vhat", "h04")["value_functions"]["vhat"]
     base = smoke_cfg["value_functions"]["vhat"]
-    assert merged["horizon"] == 0.4 and {k: v for k, v in merged.items() if k != "horizon"} == {
-        k: v for k, v in base.items() if k != "horizon"}
+    cs = with_vf_variant(smoke_cfg, "vhat", "cs")["value_functions"]["vhat"]   # h04: {from: cs, horizon: 0.4}
+    assert cs == {**base, "conflict_sampling": {**base["conflict_sampling"], "fraction": 0.5}}
+    assert merged == {**cs, "horizon": 0.4}
     speed = with_vf_variant(smoke_cfg, "vhat", "speed")["value_functions"]["vhat"]
-    assert speed["fine_tune"] is None and speed["init_from"] == "models/vhat.pt" and speed["iterations"] == 30
+    assert speed["fine_tune"] is None and speed["init_from"] == "models/vhat_cs.pt" and speed["iterations"] == 30
     hashes = {n: model_training_hash(smoke_cfg, n) for n in ("vhat", "vhat_h04", "vhat_h03", "vhat_speed")}
     assert hashes["vhat"] == training_hash(smoke_cfg, "vhat") and len(set(hashes.values())) == 4
     # the rule's param is the variant's training hash
@@ -42,10 +43,21 @@ def test_variant_merges_over_the_base_and_has_its_own_training_hash(smoke_cfg):
     assert model_training_hash(deep_merge(smoke_cfg, {"value_functions": {"vhat": {"lr": 2.0e-4}}}), "vhat_h04") != hashes["vhat_h04"]
     with pytest.raises(ConfigError, match="unknown vhat variant 'nope'"):
         with_vf_variant(smoke_cfg, "vhat", "nope")
+    # a `from` chain: editing cs retrains what derives from it, not the base; a bad chain is one line
+    chained = deep_merge(smoke_cfg, {"value_functions": {"vhat_variants": {"cs": {"conflict_sampling": {"fraction": 0.25}}}}})
+    assert model_training_hash(chained, "vhat_h04") != hashes["vhat_h04"] and training_hash(chained, "vhat") == hashes["vhat"]
+    for bad, message in (({"h04": {"from": "nope"}}, r"unknown vhat variant 'nope' \(value_functions.vhat_variants.h04.from"),
+                         ({"cs": {"from": "h04"}}, r"'from' chain returns to 'h04' \(h04 -> cs -> h04\)")):
+        with pytest.raises(ConfigError, match=message):
+            validate_config(deep_merge(smoke_cfg, {"value_functions": {"vhat_variants": bad}}))
 
 
 def test_runs_select_their_vhat_and_speed_bound(paper_cfg):
     assert run_vhat(paper_cfg, "madpinn") == "vhat" and run_vhat(paper_cfg, "madpinn-h04") == "vhat_h04"
+    # issue 61: the deployed V̂ is trained on uniform states (the paper's), the earlier recipe is the labelled row cs
+    assert paper_cfg["value_functions"]["vhat"]["conflict_sampling"]["fraction"] == 0.0 and run_vhat(paper_cfg, "madpinn-cs") == "vhat_cs"
+    assert model_training_hash(paper_cfg, "vhat") == model_training_hash(paper_cfg, "vhat_nocs") != model_training_hash(paper_cfg, "vhat_cs")
+    assert {"madpinn-cs"} <= set(paper_cfg["studies"]["main"]["runs"]) & set(paper_cfg["studies"]["scaling"]["runs"])
     assert run_agents(paper_cfg, "madpinn-vmax1")["v_max"] == 1.0 and run_agents(paper_cfg, "madpinn")["v_max"] == 4.0
     # a governor is a deployment setting: its cells rerun, no training does
     assert settings_hash(paper_cfg, "evaluate", study="large_arena_frontier", run="madpinn-vmax1") != settings_hash(

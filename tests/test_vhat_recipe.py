@@ -20,7 +20,7 @@ from madpinn.evaluation.recipe_settings import RecipeSettings
 
 OVERLAY = REPO / "workflow" / "configs" / "vhat_recipe.yaml"
 DECIDING = [("vhat_budget_small", 12), ("vhat_budget_small", 16), ("vhat_budget_circle", 16)]
-BAND = {"madpinn": 0.95, "madpinn-s1": 0.96, "madpinn-s2": 0.97}   # the band: 95–97 %
+BAND = {"madpinn-cs": 0.95, "madpinn-s1": 0.96, "madpinn-s2": 0.97}   # the band: 95–97 %
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def cells(minus_f: list[float], minus_c: list[float], band: dict | None = None, 
     c = minus_c + [minus_c[0]] * (len(where) - len(minus_c))
     frames = [cell(st, run, n, v) for st, n in where for run, v in band.items()]
     frames += [cell(st, "madpinn-b05", n, v) for (st, n), v in zip(where, f)]
-    frames += [cell(st, "madpinn-nocs", n, v) for (st, n), v in zip(where, c)]
+    frames += [cell(st, "madpinn", n, v) for (st, n), v in zip(where, c)]
     return pd.concat(frames, ignore_index=True)
 
 
@@ -83,18 +83,18 @@ def test_the_quorum_and_the_other_side(settings):
 def test_reported_cells_decide_nothing(settings):
     frame = cells([0.96] * 3, [0.96] * 3, reported=True)
     large = frame["study"] == "vhat_budget"
-    frame.loc[large & (frame["run"] == "madpinn-nocs"), "safety_rate"] = 0.50   # far below the band at 64 / 128 / 256
+    frame.loc[large & (frame["run"] == "madpinn"), "safety_rate"] = 0.50   # far below the band at 64 / 128 / 256
     table, choice = choose(cell_safety(frame), settings)
     assert choice["components"]["C"]["verdict"] == INDISTINGUISHABLE
     assert table.loc[table["role"] == "reported", "below_C"].all() and len(choice["reported"]) == 3
 
 
 def test_a_degenerate_band_is_provisional_and_rereading_with_s2_can_flip_the_verdict(settings):
-    without_s2 = {"madpinn": 0.95, "madpinn-s1": 0.96}
+    without_s2 = {"madpinn-cs": 0.95, "madpinn-s1": 0.96}
     frame = cells([0.93] * 3, [0.96] * 3, band=without_s2)       # −F 2 points below the band over base and s1
     table, choice = choose(cell_safety(frame), settings)
     assert choice["provisional"] and choice["missing_replicates"] == ["madpinn-s2"]
-    assert choice["band_runs"] == ["madpinn", "madpinn-s1"] and choice["components"]["F"]["verdict"] == NEEDED
+    assert choice["band_runs"] == ["madpinn-cs", "madpinn-s1"] and choice["components"]["F"]["verdict"] == NEEDED
     assert "provisional" in choice_sentence(choice)
     # s2's cells arrive at 94 %: the band widens to 94–96 and −F's 93 % is within training variance
     later = pd.concat([frame, *[cell(st, "madpinn-s2", n, 0.94) for st, n in DECIDING]], ignore_index=True)
@@ -104,19 +104,19 @@ def test_a_degenerate_band_is_provisional_and_rereading_with_s2_can_flip_the_ver
 
 def test_cells_the_rule_cannot_read_are_refused(settings):
     frame = cells([0.93] * 3, [0.99] * 3)
-    with pytest.raises(ValueError, match=r"vhat_budget_circle N=16 madpinn-nocs"):
-        choose(cell_safety(frame[~((frame["study"] == "vhat_budget_circle") & (frame["run"] == "madpinn-nocs"))]), settings)
+    with pytest.raises(ValueError, match=r"vhat_budget_circle N=16 madpinn'"):
+        choose(cell_safety(frame[~((frame["study"] == "vhat_budget_circle") & (frame["run"] == "madpinn"))]), settings)
     with pytest.raises(ValueError, match="no training-seed replicate"):
         choose(cell_safety(frame[~frame["run"].isin(["madpinn-s1", "madpinn-s2"])]), settings)
     with pytest.raises(ValueError, match=r"protocol seeds \[0\]"):
-        choose(cell_safety(pd.concat([frame, cell("vhat_budget_small", "madpinn", 12, 0.9, seed=0)])), settings)
+        choose(cell_safety(pd.concat([frame, cell("vhat_budget_small", "madpinn-cs", 12, 0.9, seed=0)])), settings)
     with pytest.raises(ValueError, match="outside vhat_recipe: \\['main'\\]"):
-        choose(cell_safety(pd.concat([frame, cell("main", "madpinn", 12, 0.9)])), settings)
+        choose(cell_safety(pd.concat([frame, cell("main", "madpinn-cs", 12, 0.9)])), settings)
 
 
 def test_settings_come_from_the_config_and_bad_declarations_fail_early(cfg, settings):
-    assert settings.band_runs == ("madpinn", "madpinn-s1", "madpinn-s2")
-    assert settings.components == {"F": "madpinn-b05", "C": "madpinn-nocs"}
+    assert settings.band_runs == ("madpinn-cs", "madpinn-s1", "madpinn-s2")
+    assert settings.components == {"F": "madpinn-b05", "C": "madpinn"}
     assert settings.deciding == tuple(DECIDING) and settings.margin_points == 2.0 and settings.quorum == 2
     bare = load_config([REPO / "config.yaml"])
     assert bare["vhat_recipe"] is None   # off unless configured
@@ -128,8 +128,8 @@ def test_settings_come_from_the_config_and_bad_declarations_fail_early(cfg, sett
         ({"vhat_recipe": {"deciding": {"nope": [12]}}}, "'vhat_recipe.deciding': unknown study 'nope'"),
         ({"vhat_recipe": {"deciding": {"vhat_budget_circle": [12]}}}, "study 'vhat_budget_circle' has no agent counts \\[12\\]"),
         ({"vhat_recipe": {"reported": {"vhat_budget": [100]}}}, "'vhat_recipe.reported.vhat_budget': study 'vhat_budget' has no agent counts"),
-        ({"studies": {"vhat_budget_circle": {"runs": ["madpinn", "madpinn-s1", "madpinn-s2", "madpinn-b05"]}}},
-         "study 'vhat_budget_circle' does not run \\['madpinn-nocs'\\]"),
+        ({"studies": {"vhat_budget_circle": {"runs": ["madpinn-cs", "madpinn-s1", "madpinn-s2", "madpinn-b05"]}}},
+         "study 'vhat_budget_circle' does not run \\['madpinn'\\]"),
         ({"studies": {"vhat_budget_small": {"seeds": [0]}}}, "validation seeds ≥ 100 only"),
         ({"vhat_recipe": {"quorum": 4}}, "'vhat_recipe.quorum': 4 exceeds the 3 deciding cells"),
         ({"vhat_recipe": {"margin_points": 0}}, "vhat_recipe.margin_points"),
@@ -196,7 +196,7 @@ def test_the_overlay_plans_the_page_and_hands_it_to_the_claims(tmp_path):
     out = proc.stdout + proc.stderr
     assert "python -m madpinn vhat-recipe" in out and "--vhat-recipe results/paper_figures/vhat_recipe/vhat_recipe.json" in out
     for study in ("vhat_budget_small", "vhat_budget_circle"):
-        for run in ("madpinn-s2", "madpinn-nocs"):
+        for run in ("madpinn-s2", "madpinn"):
             assert f"eval/mujoco/{study}/{run}/n16_seed100.parquet" in out, (study, run)
     # a broken section stops the plan in one line, before any job
     bad = tmp_path / "bad.yaml"

@@ -272,3 +272,24 @@ def test_each_result_line_of_the_command_layer_reruns_the_jobs_that_run_it(packa
         assert {"evaluate", "train-value", "oracle", "table", "train-defmarl"} <= changed, sorted(changed)
     else:
         assert changed == commands, sorted(changed)
+
+
+def test_a_new_command_family_re_keys_no_job(package_copy):
+    """Adding a job family to the command registry (``madpinn/commands/__init__.py:_MODULES``) leaves
+    every existing command's source hash as it was: a job follows its own handler, not the registry's
+    other lines (before 2026-12-02 one new entry moved every job's hash)."""
+    root, before = package_copy
+    init, family = root / "madpinn" / "commands" / "__init__.py", root / "madpinn" / "commands" / "extra_family.py"
+    text = init.read_text()
+    old = '    "timing": "madpinn.commands.timing",  # neighbour-timing\n'
+    assert text.count(old) == 1
+    family.write_text("def _run(args):\n    return 0\n\n\ndef register(sub):\n"
+                      "    sub.add_parser('extra-command').set_defaults(func=_run)\n")
+    init.write_text(text.replace(old, old + '    "extra_family": "madpinn.commands.extra_family",  # extra-command\n'))
+    try:
+        after = _command_hashes(root)
+    finally:
+        init.write_text(text)
+        family.unlink()
+    assert "extra-command" in after and set(before) < set(after)
+    assert {c: after[c] for c in before} == before

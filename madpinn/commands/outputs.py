@@ -57,7 +57,7 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     import json
 
     from madpinn.config import ConfigError, method_config
-    from madpinn.figures.budget import BudgetRun, budget_panel, budget_roles, model_samples, model_schedule, plot_vhat_budget
+    from madpinn.figures.budget import BudgetRun, budget_base, budget_panel, budget_roles, model_samples, model_schedule, plot_vhat_budget
     from madpinn.value_functions.model import read_checkpoint
 
     studies = args.study or []
@@ -67,15 +67,15 @@ def _vhat_budget_figure(cfg: dict, args) -> list[Path]:
     models, reports = parse_models(args.vhat or [], "--vhat"), parse_models(args.verify or [], "--verify")
     runs = []
     names = list(dict.fromkeys(run for st in studies for run in cfg["studies"][st]["runs"]))
-    base = next((run for run in names if method_config(cfg, run)[1].get("vhat") is None), None)   # the shipped recipe's run
     missing = [run for run in names if run not in models]
     if missing:
         raise ConfigError(f"fig_vhat_budget: pass --vhat {missing[0]}=PATH (the V̂ model run '{missing[0]}' loads)")
     metas = {run: read_checkpoint(models[run], "vhat")["meta"] for run in names}
     budget_of = {run: (model_samples(m), model_schedule(m)) for run, m in metas.items()}
     variants = {run: method_config(cfg, run)[1].get("vhat") for run in names}
-    entries = {run: None if v is None else cfg["value_functions"]["vhat_variants"][v] for run, v in variants.items()}
-    roles = budget_roles(base, entries, budget_of)
+    table = cfg["value_functions"]["vhat_variants"]
+    base = budget_base(variants, table)   # the reference recipe's run
+    roles = budget_roles(base, variants, table, budget_of)
     for run in names:
         report = json.loads(Path(reports[run]).read_text()) if run in reports else None
         runs.append(BudgetRun(run=run, label=str(method_config(cfg, run)[1]["label"]), samples=budget_of[run][0],

@@ -4,6 +4,7 @@ the agent model a study flies against its runs and their value functions."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Mapping
 
 from madpinn.config.models import describe_model, methods_flying, model_identity, study_agents
@@ -239,6 +240,7 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
     lines += _agent_models_errors(cfg)
     lines += _stop_at_errors(cfg)
     lines += _horizon_errors(cfg)
+    lines += _claims_input_errors(cfg)
     traj = cfg["figures"]["trajectories"]
     study = cfg["studies"].get(traj["study"])
     if study is None:
@@ -249,6 +251,15 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
         if traj["seed"] not in study["seeds"]:
             lines.append(f"  - 'figures.trajectories.seed': {traj['seed']} is not among studies.{traj['study']}.seeds")
     return lines
+
+
+def _claims_input_errors(cfg: Mapping[str, Any]) -> list[str]:
+    """``claims.<page>`` names a published page's file that exists (the claims page reads it; a run
+    whose overlay builds that page reads its own instead, so then it need not exist yet)."""
+    own = {"table_ii_verdict": "table_ii_readings", "vhat_recipe": "vhat_recipe"}
+    return [f"  - 'claims.{key}': no file '{path}' (publish the page first: python -m madpinn publish --config <its configs>)"
+            for key, path in cfg["claims"].items()
+            if path is not None and not cfg[own[key]] and not Path(path).is_file()]
 
 
 def _horizon_errors(cfg: Mapping[str, Any]) -> list[str]:

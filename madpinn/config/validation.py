@@ -92,7 +92,11 @@ def _vf_variant_errors(cfg: Mapping[str, Any], validator) -> list[str]:
         node = root["properties"]["value_functions"]["properties"][kind]
         sub = validator.evolve(schema={**node, "$defs": root["$defs"]})
         for variant in variants:
-            merged = with_vf_variant(cfg, kind, variant)["value_functions"][kind]
+            try:
+                merged = with_vf_variant(cfg, kind, variant)["value_functions"][kind]
+            except ConfigError as e:   # an unknown or circular `from`
+                lines.append(f"  - 'value_functions.{section}.{variant}.from': {e}")
+                continue
             for err in sub.iter_errors(merged):
                 key = ".".join(["value_functions", section, variant, *map(str, err.absolute_path)])
                 message = err.message

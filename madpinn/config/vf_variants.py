@@ -37,19 +37,46 @@ def split_vf_model(name: str) -> tuple[str, str | None] | None:
     return (kind, variant) if kind in VF_VARIANTS and variant else None
 
 
+FROM = "from"
+"""a variant's key naming the variant it derives from (``b05: {from: cs, ...}``): its settings are
+that variant's, resolved first, with its own merged over them"""
+
+
+def variant_settings(variants: Mapping[str, Any], variant: str, kind: str = "vhat", section: str | None = None) -> dict:
+    """The settings of ``variant`` (a key of ``variants``: one ``value_functions.<kind>_variants``)
+    with its ``from`` chain resolved: the named variant's resolved settings, its own deep-merged over
+    them (without ``from``). Raises :class:`ConfigError` on an unknown name or a cycle."""
+    section = section or VF_VARIANTS.get(kind, f"{kind}_variants")
+    chain: list[str] = []
+    name: Any = variant
+    while name is not None:
+        if name in chain:
+            raise ConfigError(f"value_functions.{section}.{variant}: its 'from' chain returns to '{name}' "
+                              f"({' -> '.join([*chain, name])})")
+        if name not in variants:
+            where = f"{chain[-1]}.from" if chain else variant
+            raise ConfigError(f"unknown {kind} variant '{name}' (value_functions.{section}{'.' + where if chain else ''}: "
+                              f"{sorted(variants) or 'none'})")
+        chain.append(name)
+        name = variants[name].get(FROM)
+    settings: dict = {}
+    for name in reversed(chain):
+        settings = deep_merge(settings, {k: v for k, v in variants[name].items() if k != FROM})
+    return settings
+
+
 def with_vf_variant(cfg: Mapping[str, Any], kind: str, variant: str | None) -> dict:
-    """``cfg`` with ``value_functions.<kind>`` replaced by variant ``variant`` deep-merged over it
-    and, where the variant names an agent model (its ``agents``: issue 63), ``agents`` with that model
-    merged over it (``variant`` None: ``cfg`` itself). What a variant's training, its training hash
-    and its checks read: every other key is the base configuration's."""
+    """``cfg`` with ``value_functions.<kind>`` replaced by variant ``variant`` (its ``from`` chain
+    resolved: :func:`variant_settings`) deep-merged over it and, where the variant names an agent
+    model (its ``agents``: issue 63), ``agents`` with that model merged over it (``variant`` None:
+    ``cfg`` itself). What a variant's training, its training hash and its checks read: every other
+    key is the base configuration's."""
     if not variant:
         return cfg
     section = VF_VARIANTS.get(kind)
     variants = cfg["value_functions"][section] if section else {}
-    if variant not in variants:
-        raise ConfigError(f"unknown {kind} variant '{variant}' (value_functions.{section or kind + '_variants'}: "
-                          f"{sorted(variants) or 'none'})")
-    settings = {k: v for k, v in variants[variant].items() if k != "agents"}
+    resolved = variant_settings(variants, variant, kind, section or kind + "_variants")
+    settings = {k: v for k, v in resolved.items() if k != "agents"}
     vf = {**cfg["value_functions"], kind: deep_merge(cfg["value_functions"][kind], settings)}
-    model = variants[variant].get("agents")   # an overlay: absent = the configuration's model
+    model = resolved.get("agents")   # an overlay: absent = the configuration's model
     return {**cfg, "value_functions": vf, **({"agents": with_model(cfg["agents"], model)} if model else {})}

@@ -150,7 +150,34 @@ def verdict(rows: pd.DataFrame, settings: ConformalSettings) -> dict:
                          f"Δ cost ÷T {c['best_d_cost']:+.2f}" + (f" (beside it: {gov})" if gov else ""))
         sentence = (f"A calibrated level reaches the paper's safety (less {100 * line:g} points) where V̂ alone does not in "
                     f"{len(newly)} of {len(cells)} cells with a paper row: " + "; ".join(parts) + ".")
-    return {"sentence": sentence, "cells": cells, "line_points": 100 * line}
+    return {"sentence": sentence, "cells": cells, "line_points": 100 * line, "adopted": adopted_level(rows, settings)}
+
+
+def adopted_level(rows: pd.DataFrame, settings: ConformalSettings) -> dict:
+    """The level run the protocol adopts as its labelled row (issue 62 item 3), by the rule written
+    before the closed-loop cells ran (docs/findings/2026-11-28-vhat-calibration.md, "Adoption rule"):
+    over the cells with a paper row, the level run that (1) reaches the paper's safety less 2 points
+    in the most cells, then (2) has the highest mean safety there, then (3) the lowest mean Δ cost ÷T
+    against V̂ alone, then (4) the largest ε (the least tightening). ``beats_alone``: it reaches the
+    line in more cells than V̂ alone. ``run`` None when no level run has a cell with a paper row."""
+    line = SCALE.safety_points
+    paper = rows[np.isfinite(rows["paper_safety"])]
+    reach = paper["safety"] >= paper["paper_safety"] - line - 1e-12
+    eps = {lv.run: lv.epsilon for lv in settings.levels}
+    scored = []
+    for run in eps:
+        g, r = paper[paper["run"] == run], reach[paper["run"] == run]
+        if len(g):
+            scored.append({"run": run, "epsilon": eps[run], "cells": int(len(g)), "reaches": int(r.sum()),
+                           "mean_safety": float(g["safety"].mean()), "mean_d_cost": float(g["d_cost_time_avg"].mean())})
+    alone = int(reach[paper["run"] == REFERENCE_RUN].sum())
+    if not scored:
+        return {"run": None, "alone_reaches": alone, "beats_alone": False, "candidates": []}
+    key = lambda c: (-c["reaches"], -c["mean_safety"], c["mean_d_cost"], -c["epsilon"])   # noqa: E731
+    scored.sort(key=key)
+    best = scored[0]
+    return {"run": best["run"], "epsilon": best["epsilon"], "reaches": best["reaches"], "cells": best["cells"],
+            "alone_reaches": alone, "beats_alone": best["reaches"] > alone, "candidates": scored}
 
 
 def _pct(x) -> str:
@@ -182,6 +209,17 @@ def gap_display(gap: pd.DataFrame, settings: ConformalSettings) -> pd.DataFrame:
     })
 
 
+def _adopted_text(a: Mapping, settings: ConformalSettings) -> str:
+    if a["run"] is None:
+        return "None: no level run has a cell with a paper row."
+    how = ("it reaches the line in more cells than V̂ alone" if a["beats_alone"] else
+           "it reaches the line in no more cells than V̂ alone: the row is reported, it does not close the gap")
+    return (f"**{settings.labels.get(a['run'], a['run'])}** (`{a['run']}`): the paper's safety less the line in "
+            f"{a['reaches']} of {a['cells']} cells with a paper row (V̂ alone: {a['alone_reaches']}); {how}. The rule, fixed "
+            "before these cells: most cells at the line, then the highest mean safety there, then the lowest mean Δ cost ÷T, "
+            "then the largest ε.")
+
+
 def write_conformal_page(frame: pd.DataFrame, settings: ConformalSettings, report: Mapping | None,
                          out_dir: str | Path) -> tuple[list[Path], pd.DataFrame]:
     """Write ``conformal.csv`` (one row per study, run and N), ``speed_gap.csv``, ``conformal.json``
@@ -204,6 +242,7 @@ def write_conformal_page(frame: pd.DataFrame, settings: ConformalSettings, repor
         "(the paper's deployment). The paper's safety is Table I's (small arena) or Table II's (large arena) row of its "
         f"own method; a run reaches it at its safety ≥ the paper's − {v['line_points']:g} points (issue 60's scale). "
         "Paired differences are against V̂ alone on the same scenarios (95 % paired bootstrap); validation seeds only.", "",
+        "## The level the protocol adopts", "", _adopted_text(v["adopted"], settings), "",
         "## Cells", "", to_markdown(cells_display(rows, settings)), "",
         "## What the guarantee covers, and the gap", "",
         "The level bounds one accepted state of V̂'s model (three agents, double integrators, V̂'s horizon) by ε with "

@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from madpinn.config.vf_variants import FROM
 from madpinn.evaluation.metrics import across_seeds
 from madpinn.evaluation.paper_rows import paper_safety
 from madpinn.evaluation.tables import cell_infeasible_shares, load_results, per_seed
@@ -82,17 +83,33 @@ class BudgetPanel:
     """N -> the paper's safety (%) at this setting; empty where the paper reports none"""
 
 
-def budget_roles(base: str | None, variants: Mapping[str, Mapping | None],
+def budget_base(variants: Mapping[str, str | None], table: Mapping[str, Mapping]) -> str | None:
+    """The run of the reference recipe among ``variants`` (run -> the V̂ variant it loads, None for
+    the base V̂; ``table``: ``value_functions.vhat_variants``): the run loading the variant the
+    others derive from (``from``), else the run loading the base V̂, else None."""
+    named = [table[v].get(FROM) for v in variants.values() if v is not None]
+    for run, variant in variants.items():
+        if variant is not None and variant in named:
+            return run
+    return next((run for run, variant in variants.items() if variant is None), None)
+
+
+def budget_roles(base: str | None, variants: Mapping[str, str | None], table: Mapping[str, Mapping],
                  budgets: Mapping[str, tuple[int, str]]) -> dict[str, dict[str, str | None]]:
-    """Per run (``variants``: run -> its V̂ variant's entry, None for the base recipe; ``budgets``: run ->
-    its V̂'s (samples, schedule)), the :class:`BudgetRun` roles: ``replicates`` the base when the variant
-    only reseeds the recipe, ``recipe_of`` the base when it keeps the base's samples and schedule and
-    changes the recipe (e.g. uniform states); both None for a budget."""
+    """Per run (``variants``: run -> its V̂ variant, None for the base V̂; ``table``:
+    ``value_functions.vhat_variants``; ``budgets``: run -> its V̂'s (samples, schedule)), the
+    :class:`BudgetRun` roles: ``replicates`` the base when the variant only reseeds the base's recipe
+    (its own entry is a ``seed`` and the base's variant as its ``from``), ``recipe_of`` the base when
+    it keeps the base's samples and schedule and changes the recipe (e.g. uniform states); both None
+    for a budget and for the base itself."""
+    reference = variants.get(base) if base is not None else None
     out = {}
-    for run, entry in variants.items():
-        reseeded = entry is not None and set(entry) == {"seed"}
-        recipe = entry is not None and not reseeded and base is not None and budgets[run] == budgets[base]
-        out[run] = {"replicates": base if reseeded and base is not None else None, "recipe_of": base if recipe else None}
+    for run, variant in variants.items():
+        entry = table[variant] if variant is not None else None
+        reseeded = (entry is not None and base is not None and run != base and entry.get(FROM) == reference
+                    and set(entry) - {FROM} == {"seed"})
+        recipe = base is not None and run != base and not reseeded and budgets[run] == budgets[base]
+        out[run] = {"replicates": base if reseeded else None, "recipe_of": base if recipe else None}
     return out
 
 

@@ -11,7 +11,7 @@ if config["agent_models"]:
     rule table_agent_models:
         input:
             tracking=TRACKING,
-            results=sorted({p for s in AGENT_MODEL_STUDIES for p in study_results(s)}),
+            results=studies_results(AGENT_MODEL_STUDIES),
         output:
             csv=kept(f"{FIGURES}/agent_models/table_agent_models.csv"),
             md=kept(f"{FIGURES}/agent_models/table_agent_models.md"),

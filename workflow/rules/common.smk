@@ -162,6 +162,11 @@ def study_results(study):
     return [eval_path(study, run, n, seed) for run in st["runs"] for n in st["agent_counts"] for seed in st["seeds"]]
 
 
+def studies_results(studies):
+    """Every cell of ``studies`` (each once, sorted): the result files a page over those studies reads."""
+    return sorted({p for s in studies for p in study_results(s)})
+
+
 def studies_in_all():
     """The studies whose cells `all` builds (all but those with `in_all: false`, e.g. the gap decomposition's)."""
     return [s for s, st in config["studies"].items() if st["in_all"]]
@@ -433,6 +438,14 @@ def out_dir_of(key):
     return lambda wildcards, output: os.path.dirname(output[key])
 
 
+def claims_page_input(key, section, own):
+    """The claims page's input of a validation-seed page: ``[own]`` (the page this run builds) when its
+    overlay configures ``section``, else the published file ``claims.<key>`` names, else nothing."""
+    if config[section]:
+        return [own]
+    return [config["claims"][key]] if config["claims"][key] else []
+
+
 def init_model(kind, variant=None):
     """The model a ``value_functions.<kind>.init_from`` fine-tuning run (of V̂ variant ``variant``:
     its merged settings) starts from (or nothing)."""
@@ -457,9 +470,20 @@ def vhat_variants_used():
 
 def vf_variants_used(kind):
     """The variants of value function ``kind`` (vhat | vs: value_functions.<kind>_variants) that a
-    configured study's MAD-PINN run loads (`<kind>: <name>`): only their trainings are planned."""
-    return sorted({run_vf_variant(kind, run) for st in config["studies"].values() for run in st["runs"]
-                   if run.partition("-")[0] == "madpinn"} - {None})
+    configured study's MAD-PINN run loads (`<kind>: <name>`), and those a fine-tune among them starts
+    from (its ``init_from`` names ``models/<kind>_<name>.pt``): only their trainings are planned."""
+    from madpinn.config import split_vf_model
+
+    used = {run_vf_variant(kind, run) for st in config["studies"].values() for run in st["runs"]
+            if run.partition("-")[0] == "madpinn"} - {None}
+    todo = list(used)
+    while todo:
+        for path in init_model(kind, todo.pop()):
+            start = split_vf_model(os.path.splitext(os.path.basename(path))[0])
+            if start and start[0] == kind and start[1] and start[1] not in used:
+                used.add(start[1])
+                todo.append(start[1])
+    return sorted(used)
 
 
 def run_vhat_variant(run):

@@ -10,7 +10,7 @@ if any(s.endswith(CONTACTS_SUFFIX) for s in config["studies"]):
     rule collision_readings:
         input:
             tracking=TRACKING,
-            results=lambda w: sorted({p for s in reading_studies() for p in study_results(s)}),
+            results=lambda w: studies_results(reading_studies()),
         output:
             csv=kept(f"{FIGURES}/table_collision_readings.csv"),
             md=kept(f"{FIGURES}/table_collision_readings.md"),
@@ -44,7 +44,7 @@ if CONTROLLER_STUDIES:
     rule controller_readings:
         input:
             tracking=TRACKING,
-            results=lambda w: sorted({p for s in CONTROLLER_STUDIES for p in study_results(s)}),
+            results=lambda w: studies_results(CONTROLLER_STUDIES),
         output:
             csv=kept(f"{FIGURES}/table_controller_readings.csv"),
             md=kept(f"{FIGURES}/table_controller_readings.md"),
@@ -82,7 +82,7 @@ if config["table_ii_readings"]:
     rule table_ii_readings:
         input:
             tracking=TRACKING,
-            results=sorted({p for s in TABLE_II_STUDIES for p in study_results(s)}),
+            results=studies_results(TABLE_II_STUDIES),
         output:
             csv=kept(f"{FIGURES}/table_ii_readings/table_ii_readings.csv"),
             md=kept(f"{FIGURES}/table_ii_readings/table_ii_readings.md"),
@@ -132,7 +132,7 @@ if config["vhat_recipe"]:
     rule vhat_recipe:
         input:
             tracking=TRACKING,
-            results=sorted({p for s in RECIPE_STUDIES for p in study_results(s)}),
+            results=studies_results(RECIPE_STUDIES),
         output:
             csv=kept(f"{FIGURES}/vhat_recipe/vhat_recipe.csv"),
             md=kept(f"{FIGURES}/vhat_recipe/vhat_recipe.md"),

@@ -12,7 +12,7 @@ REPORT_OUTPUTS = [f"{FIGURES}/reproduction.md", f"{FIGURES}/reproduction.json", 
 rule reproduction_report:
     input:
         tracking=TRACKING,
-        results=lambda w: sorted({p for s in report_studies() for p in study_results(s)}),
+        results=lambda w: studies_results(report_studies()),
         oracle=lambda w: sorted({p for s in report_studies() for p in oracle_inputs(s)}),
         models=lambda w: sorted({m for s in report_studies() for m in study_models(s)}),
     output:
@@ -78,8 +78,8 @@ rule claims_table:
         report=rules.reproduction_report.output.json,
         timing=NEIGHBOUR_TIMING,
         heatmap=f"{FIGURES}/fig_value_heatmap.json",   # rules.fig_value_heatmap (train.smk); a path, so the rule files may come in any order
-        readings=[f"{FIGURES}/table_ii_readings/verdict.json"] if config["table_ii_readings"] else [],   # rules.table_ii_readings (readings.smk)
-        recipe=[f"{FIGURES}/vhat_recipe/vhat_recipe.json"] if config["vhat_recipe"] else [],   # rules.vhat_recipe (readings.smk)
+        readings=claims_page_input("table_ii_verdict", "table_ii_readings", f"{FIGURES}/table_ii_readings/verdict.json"),   # rules.table_ii_readings (readings.smk) or the published page
+        recipe=claims_page_input("vhat_recipe", "vhat_recipe", f"{FIGURES}/vhat_recipe/vhat_recipe.json"),   # rules.vhat_recipe (readings.smk) or the published page
     output:
         md=kept(CLAIMS_OUTPUTS[0]),   # kept: a failed job never deletes the committed claims (common.smk)
         json=kept(CLAIMS_OUTPUTS[1]),
@@ -100,8 +100,8 @@ rule claims_table:
     shell:
         "python -m madpinn claims --config {params.config:q} --report {input.report:q} --timing {input.timing:q}"
         " --heatmap {input.heatmap:q} --out-dir {params.out_dir:q}"
-        + (" --table-ii-verdict {input.readings:q}" if config["table_ii_readings"] else "")
-        + (" --vhat-recipe {input.recipe:q}" if config["vhat_recipe"] else "")
+        + (" --table-ii-verdict {input.readings:q}" if claims_page_input("table_ii_verdict", "table_ii_readings", "") else "")
+        + (" --vhat-recipe {input.recipe:q}" if claims_page_input("vhat_recipe", "vhat_recipe", "") else "")
         + " 2>&1 | tee {log:q}"
 
 

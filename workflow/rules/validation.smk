@@ -133,7 +133,7 @@ if CONFORMAL_STUDIES:
 
     rule conformal_cells:   # `snakemake -j2 conformal_cells`: every cell of those studies (closed loop, heavy)
         input:
-            lambda w: sorted({p for s in CONFORMAL_STUDIES for p in study_results(s)}),
+            lambda w: studies_results(CONFORMAL_STUDIES),
 
     # The calibrated level in closed loop (issue 62, not in the paper): per study, run and N the cells
     # beside V̂ alone and the hand-tuned rows, the sentence the issue asks for (does a level reach the
@@ -143,7 +143,7 @@ if CONFORMAL_STUDIES:
     rule conformal_page:
         input:
             tracking=TRACKING,
-            results=lambda w: sorted({p for s in CONFORMAL_STUDIES for p in study_results(s)}),
+            results=lambda w: studies_results(CONFORMAL_STUDIES),
             calibration=conformal_page_calibration,
         output:
             csv=kept(f"{FIGURES}/conformal/conformal.csv"),
