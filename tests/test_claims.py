@@ -134,3 +134,22 @@ def test_docs_numbers_follow_config_and_cells():
     line = (f"the median speed is {' / '.join(f'{medians[n][0]:.1f}' for n in ns)} m/s at {' / '.join(map(str, ns))} agents, "
             f"the 90th\npercentile {' / '.join(f'{medians[n][1]:.1f}' for n in ns)} m/s")
     assert line in speeds, line
+
+
+def test_the_protocols_claims_read_the_published_readings_verdict(tmp_path):
+    """``claims.table_ii_verdict`` (config.yaml: the published page) reaches the claims job from any
+    working directory; a named file that does not exist stops the plan in one line, before any job;
+    an overlay that builds the readings page itself hands its own verdict instead."""
+    from conftest import run_snakemake
+
+    published = REPO / "paper_figures" / "table_ii_readings" / "verdict.json"
+    assert load_config([REPO / "config.yaml"])["claims"]["table_ii_verdict"] == "paper_figures/table_ii_readings/verdict.json"
+    proc = run_snakemake(tmp_path, "-n", "-j1", "claims_table", configfiles=())   # the protocol's config
+    assert f"--table-ii-verdict {published}" in proc.stdout + proc.stderr
+    missing = tmp_path / "missing.yaml"
+    missing.write_text("claims: {table_ii_verdict: paper_figures/none/verdict.json}\n")   # over the smoke overlay
+    proc = run_snakemake(tmp_path, "-n", "-j1", "claims_table", configfiles=(missing,), check=False)   # smoke + a missing page
+    assert proc.returncode != 0 and "'claims.table_ii_verdict': no file" in proc.stderr and "Traceback" not in proc.stderr
+    proc = run_snakemake(tmp_path, "-n", "-j1", "claims_table",
+                         configfiles=(missing, REPO / "workflow" / "configs" / "scenario_laws.yaml"))
+    assert "--table-ii-verdict results/scenario_laws/paper_figures/table_ii_readings/verdict.json" in proc.stdout + proc.stderr

@@ -13,6 +13,13 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 """the repository (the package's parent directory)"""
 
 
+def in_repository(path: str | Path) -> Path:
+    """``path`` as a file of the repository: relative paths are read from :data:`REPO_ROOT` (a committed,
+    published page such as ``paper_figures/…``), whatever the workflow's working directory."""
+    path = Path(path)
+    return path if path.is_absolute() else REPO_ROOT / path
+
+
 def write_if_changed(path: str | Path, text: str) -> Path:
     """Write ``text`` only if the file content differs (keeps mtimes stable for Snakemake)."""
     from madpinn.atomic import atomic_write

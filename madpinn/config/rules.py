@@ -4,7 +4,6 @@ the agent model a study flies against its runs and their value functions."""
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, Mapping
 
 from madpinn.config.models import describe_model, methods_flying, model_identity, study_agents
@@ -254,12 +253,14 @@ def _cross_field_errors(cfg: Mapping[str, Any]) -> list[str]:
 
 
 def _claims_input_errors(cfg: Mapping[str, Any]) -> list[str]:
-    """``claims.<page>`` names a published page's file that exists (the claims page reads it; a run
-    whose overlay builds that page reads its own instead, so then it need not exist yet)."""
+    """``claims.<page>`` names a published page's file that exists, relative to the repository (the claims
+    page reads it; a run whose overlay builds that page reads its own instead, so then it need not exist yet)."""
+    from madpinn.config.paths import in_repository
+
     own = {"table_ii_verdict": "table_ii_readings", "vhat_recipe": "vhat_recipe"}
-    return [f"  - 'claims.{key}': no file '{path}' (publish the page first: python -m madpinn publish --config <its configs>)"
+    return [f"  - 'claims.{key}': no file '{in_repository(path)}' (publish the page first: python -m madpinn publish --config <its configs>)"
             for key, path in cfg["claims"].items()
-            if path is not None and not cfg[own[key]] and not Path(path).is_file()]
+            if path is not None and not cfg[own[key]] and not in_repository(path).is_file()]
 
 
 def _horizon_errors(cfg: Mapping[str, Any]) -> list[str]:

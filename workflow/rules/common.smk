@@ -443,7 +443,9 @@ def claims_page_input(key, section, own):
     overlay configures ``section``, else the published file ``claims.<key>`` names, else nothing."""
     if config[section]:
         return [own]
-    return [config["claims"][key]] if config["claims"][key] else []
+    from madpinn.config.paths import in_repository
+
+    return [str(in_repository(config["claims"][key]))] if config["claims"][key] else []
 
 
 def init_model(kind, variant=None):
