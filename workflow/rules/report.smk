@@ -72,14 +72,20 @@ rule neighbour_timing:
         " 2>&1 | tee {log:q}"
 
 
+# The validation-seed pages the claims page reads (each [] or one file): rules.table_ii_readings /
+# rules.vhat_recipe (readings.smk) when this run's overlay builds them, else the published page.
+CLAIMS_READINGS = claims_page_input("table_ii_verdict", "table_ii_readings", f"{FIGURES}/table_ii_readings/verdict.json")
+CLAIMS_RECIPE = claims_page_input("vhat_recipe", "vhat_recipe", f"{FIGURES}/vhat_recipe/vhat_recipe.json")
+
+
 rule claims_table:
     input:
         tracking=TRACKING,
         report=rules.reproduction_report.output.json,
         timing=NEIGHBOUR_TIMING,
         heatmap=f"{FIGURES}/fig_value_heatmap.json",   # rules.fig_value_heatmap (train.smk); a path, so the rule files may come in any order
-        readings=claims_page_input("table_ii_verdict", "table_ii_readings", f"{FIGURES}/table_ii_readings/verdict.json"),   # rules.table_ii_readings (readings.smk) or the published page
-        recipe=claims_page_input("vhat_recipe", "vhat_recipe", f"{FIGURES}/vhat_recipe/vhat_recipe.json"),   # rules.vhat_recipe (readings.smk) or the published page
+        readings=CLAIMS_READINGS,
+        recipe=CLAIMS_RECIPE,
     output:
         md=kept(CLAIMS_OUTPUTS[0]),   # kept: a failed job never deletes the committed claims (common.smk)
         json=kept(CLAIMS_OUTPUTS[1]),
@@ -100,8 +106,8 @@ rule claims_table:
     shell:
         "python -m madpinn claims --config {params.config:q} --report {input.report:q} --timing {input.timing:q}"
         " --heatmap {input.heatmap:q} --out-dir {params.out_dir:q}"
-        + (" --table-ii-verdict {input.readings:q}" if claims_page_input("table_ii_verdict", "table_ii_readings", "") else "")
-        + (" --vhat-recipe {input.recipe:q}" if claims_page_input("vhat_recipe", "vhat_recipe", "") else "")
+        + (" --table-ii-verdict {input.readings:q}" if CLAIMS_READINGS else "")
+        + (" --vhat-recipe {input.recipe:q}" if CLAIMS_RECIPE else "")
         + " 2>&1 | tee {log:q}"
 
 
