@@ -153,3 +153,18 @@ def test_the_protocols_claims_read_the_published_readings_verdict(tmp_path):
     proc = run_snakemake(tmp_path, "-n", "-j1", "claims_table",
                          configfiles=(missing, REPO / "workflow" / "configs" / "scenario_laws.yaml"))
     assert "--table-ii-verdict results/scenario_laws/paper_figures/table_ii_readings/verdict.json" in proc.stdout + proc.stderr
+
+
+def test_every_page_the_protocols_claims_read_is_committed():
+    """Each ``claims.*`` file config.yaml names is tracked by git: a clean clone validates the protocol's
+    config only if the published page travelled with it (paper_figures/.gitignore ignores by default)."""
+    import subprocess
+
+    import yaml
+
+    named = [p for p in yaml.safe_load((REPO / "config.yaml").read_text())["claims"].values() if p]
+    if not (REPO / ".git").exists():
+        pytest.skip("not a git checkout")
+    for path in named:
+        proc = subprocess.run(["git", "ls-files", "--error-unmatch", path], cwd=REPO, capture_output=True, text=True)
+        assert proc.returncode == 0, f"{path} is named by config.yaml claims: but not committed (git add -f it)"
