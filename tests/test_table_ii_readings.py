@@ -244,3 +244,19 @@ def test_the_claims_page_reads_the_verdict_of_the_readings():
     only_bad = readings_checks(claim_verdict(judge(reading_rows(bad), PAPER), ("law_uniform", "madpinn", T)))
     assert page_verdict(only_bad) == "does not hold"
     assert page_verdict(readings_checks(claim_verdict(judged, ("law_local", "madpinn", T)))) == "holds"
+
+
+def test_a_reading_identical_to_another_is_named_in_the_legend():
+    """Two runs with the same figures everywhere (e.g. sensing every agent and sensing 2.83 m: V_s
+    sees at most 2 m per axis) draw one line over the other; the legend says which lies under which.
+    A run that differs at one N is no twin."""
+    from madpinn.figures.table_ii_readings import draw_table_ii_readings, identical_runs
+
+    a = reading("law_uniform", "madpinn", {64: 0.65, 128: 0.58, 256: 0.47}, PAPER_COST_INT)
+    b = a.assign(run="madpinn-sense-all")
+    c = reading("law_uniform", "madpinn-other", {64: 0.65, 128: 0.58, 256: 0.48}, PAPER_COST_INT)
+    rows = reading_rows(pd.concat([a, b, c], ignore_index=True))
+    assert identical_runs(rows) == {"madpinn-sense-all": "madpinn"}
+    fig = draw_table_ii_readings(rows, PAPER, {"madpinn": "MAD-PINN", "madpinn-sense-all": "sensing every agent"})
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "sensing every agent (identical to MAD-PINN: drawn under it)" in texts and "madpinn-other" in texts

@@ -34,6 +34,28 @@ def _band(paper: PaperRow, figure: str, n: int, scale: float) -> tuple[float, fl
     return c["cost"] * (1 - SCALE.cost_relative), c["cost"] * (1 + SCALE.cost_relative)
 
 
+def identical_runs(rows: pd.DataFrame) -> dict[str, str]:
+    """Each run whose every plotted figure (at every law, T and N) equals an earlier run's, mapped to
+    that run: its lines lie exactly under the earlier one's, so the legend must say so."""
+    keys = ["pattern", "horizon_s", "n_agents"]
+    figures = [f for f, _, _ in PANELS]
+
+    def frame(run):
+        g = rows[rows["run"] == run]
+        return g[keys + figures].sort_values(keys).reset_index(drop=True)
+
+    seen: list[tuple[str, pd.DataFrame]] = []
+    same: dict[str, str] = {}
+    for run in dict.fromkeys(rows["run"]):
+        f = frame(run)
+        twin = next((r for r, g in seen if g.shape == f.shape and g.equals(f)), None)
+        if twin is None:
+            seen.append((run, f))
+        else:
+            same[run] = twin
+    return same
+
+
 def draw_table_ii_readings(rows: pd.DataFrame, paper: PaperRow, labels: Mapping[str, str]) -> plt.Figure:
     """The figure from :func:`madpinn.evaluation.table_ii_readings.reading_rows`' frame."""
     style.setup()
@@ -56,7 +78,9 @@ def draw_table_ii_readings(rows: pd.DataFrame, paper: PaperRow, labels: Mapping[
         ax.set_xticks(range(len(counts)), [str(n) for n in counts])
         ax.set_xlabel("agents")
         ax.set_title(title)
-    handles = {labels.get(r, r): Line2D([], [], color=colours[r], lw=2) for r in runs}
+    twins = identical_runs(rows)
+    handles = {labels.get(r, r) + (f" (identical to {labels.get(twins[r], twins[r])}: drawn under it)" if r in twins else ""):
+               Line2D([], [], color=colours[r], lw=2) for r in runs}
     handles.update({f"law: {p}": Line2D([], [], ls=s, color="0.3") for p, s in laws.items()})
     handles.update({f"T = {h:g} s": Line2D([], [], marker=m, ls="none", color="0.3") for h, m in horizons.items()})
     handles["paper (Table II) and the scale's band"] = Line2D([], [], marker="*", ls="none", ms=12, color="black")
