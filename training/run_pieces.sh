@@ -8,6 +8,12 @@ set -u
 cd "$(dirname "$0")/.."
 py=${PYTHON:-.venv/bin/python}
 niceness=${NICE:-19}
+# Under the kernel's autogroup scheduler (sched_autogroup_enabled = 1) nice acts only inside one session:
+# a script started with setsid is a session of its own and would take a full share of the CPU beside the
+# cells whatever its nice. Started so (its own session leader), it lowers its session's autogroup too.
+if [ "$(ps -o sid= -p $$ | tr -d ' ')" = "$$" ] && [ -w /proc/self/autogroup ]; then
+  echo "$niceness" > /proc/self/autogroup 2>/dev/null || true
+fi
 while :; do
   nice -n "$niceness" "$py" -m madpinn "$@"
   rc=$?
