@@ -16,7 +16,7 @@ import pytest
 
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config
-from madpinn.evaluation.conformal_page import cell_rows, speed_gap, verdict, write_conformal_page
+from madpinn.evaluation.conformal_page import adopted_caveats, cell_rows, speed_gap, uncertified_runs, verdict, write_conformal_page
 from madpinn.evaluation.conformal_settings import ConformalSettings
 
 OVERLAY = REPO / "workflow" / "configs" / "conformal.yaml"
@@ -153,3 +153,25 @@ def test_the_command_writes_the_page_the_sentence_and_the_figure(tmp_path, setti
                            "--inputs", *alone, "--out-dir", str(tmp_path / "alone"), "--no-track"], capture_output=True, text=True, cwd=REPO)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert pd.read_csv(tmp_path / "alone" / "conformal.csv")["d_safety"].isna().all()
+
+
+def test_an_adopted_run_whose_level_was_certified_nowhere_is_named_so_with_its_cost(settings):
+    """A level run whose calibration certified no δ in any bin (δ = ∞: V̂ never trusted) is flagged in
+    the sentence and in the adoption text, with its cost ÷T against V̂ alone's (by construction 1.5×)."""
+    report = {"distributions": {"conflict": {
+        "pooled": [{"bin_label": "all", "epsilon": 0.1, "beta": 1e-3, "delta": None, "test": {}}],
+        "binned": [{"bin_label": lab, "epsilon": 0.05, "beta": 1e-3, "delta": 0.02, "test": {"accepted": 10, "rate": 0.0, "upper_bound": 0.04}}
+                   for lab in ["< 2 m/s", "2–4 m/s", "4–6 m/s", "≥ 6 m/s"]]}}}
+    frame = large_cells()
+    gap = speed_gap(frame, settings, report)
+    never = uncertified_runs(gap)
+    assert never == {"madpinn-cpeps10"}                        # the per-bin level has a finite δ everywhere
+    assert uncertified_runs(speed_gap(frame, settings, None)) == frozenset()   # no report: nothing is claimed
+    rows = cell_rows(frame, settings)
+    v = verdict(rows, settings, never)
+    assert v["adopted"]["run"] == "madpinn-cpeps10"
+    assert "V̂ never trusted where none was certified" in v["sentence"] and "[no level certified: V̂ never trusted]" in v["sentence"]
+    caveats = adopted_caveats(v["adopted"], rows, never)
+    assert caveats["certified"] is False and caveats["cost_ratio"] == pytest.approx(1.5)
+    assert adopted_caveats(v["adopted"], rows, frozenset())["certified"] is True
+    assert "V̂ never trusted" not in verdict(rows, settings)["sentence"]

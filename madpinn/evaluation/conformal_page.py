@@ -110,10 +110,20 @@ def speed_gap(frame: pd.DataFrame, settings: ConformalSettings, report: Mapping 
     return pd.DataFrame(out)
 
 
-def verdict(rows: pd.DataFrame, settings: ConformalSettings) -> dict:
+def uncertified_runs(gap: pd.DataFrame) -> frozenset[str]:
+    """The level runs of :func:`speed_gap`'s frame whose calibration certified no finite δ in any bin
+    (each accepts no state of V̂: every agent takes the infeasible branch at every step)."""
+    if not len(gap):
+        return frozenset()
+    finite = gap.assign(finite=np.isfinite(gap["delta"].to_numpy(dtype=float)) | gap["delta"].isna())
+    return frozenset(r for r, g in finite.groupby("run") if r != REFERENCE_RUN and not g["finite"].any())
+
+
+def verdict(rows: pd.DataFrame, settings: ConformalSettings, uncertified: frozenset[str] = frozenset()) -> dict:
     """Per cell with a paper row: V̂ alone, the safest level run and the hand-tuned rows, whether each
     reaches the paper's safety less 2 points; and the sentence: where a level reaches it and V̂ alone
-    does not, at what cost (Δ cost ÷T against V̂ alone) beside the hand-tuned rows' cost there."""
+    does not, at what cost (Δ cost ÷T against V̂ alone) beside the hand-tuned rows' cost there.
+    ``uncertified`` (:func:`uncertified_runs`): level runs named as such in the sentence."""
     line = SCALE.safety_points
     cells, newly = [], []
     levels = {lv.run for lv in settings.levels}
@@ -145,10 +155,13 @@ def verdict(rows: pd.DataFrame, settings: ConformalSettings) -> dict:
         for c in newly:
             gov = "; ".join(f"{settings.labels.get(r, r)} {100 * o['safety']:.1f} % at Δ cost ÷T {o['d_cost']:+.2f}"
                             for r, o in c["others"].items())
-            parts.append(f"{c['study']} N={c['n_agents']}: {settings.labels.get(c['best_level'], c['best_level'])} "
+            never = " [no level certified: V̂ never trusted]" if c["best_level"] in uncertified else ""
+            parts.append(f"{c['study']} N={c['n_agents']}: {settings.labels.get(c['best_level'], c['best_level'])}{never} "
                          f"{100 * c['best_safety']:.1f} % against V̂ alone {100 * c['alone']:.1f} % (line {100 * c['line']:.2f} %), "
                          f"Δ cost ÷T {c['best_d_cost']:+.2f}" + (f" (beside it: {gov})" if gov else ""))
-        sentence = (f"A calibrated level reaches the paper's safety (less {100 * line:g} points) where V̂ alone does not in "
+        what = ("A level run (a calibrated level, or V̂ never trusted where none was certified)"
+                if any(c["best_level"] in uncertified for c in newly) else "A calibrated level")
+        sentence = (f"{what} reaches the paper's safety (less {100 * line:g} points) where V̂ alone does not in "
                     f"{len(newly)} of {len(cells)} cells with a paper row: " + "; ".join(parts) + ".")
     return {"sentence": sentence, "cells": cells, "line_points": 100 * line, "adopted": adopted_level(rows, settings)}
 
@@ -178,6 +191,21 @@ def adopted_level(rows: pd.DataFrame, settings: ConformalSettings) -> dict:
     best = scored[0]
     return {"run": best["run"], "epsilon": best["epsilon"], "reaches": best["reaches"], "cells": best["cells"],
             "alone_reaches": alone, "beats_alone": best["reaches"] > alone, "candidates": scored}
+
+
+def adopted_caveats(adopted: Mapping, rows: pd.DataFrame, uncertified: frozenset[str]) -> dict:
+    """What the adoption rule weighs only as a tie-break, for the adopted run: ``cost_ratio``, its mean
+    cost ÷T over the cells with a paper row against V̂ alone's on the same cells, and ``certified``,
+    False where its calibration certified no finite δ (:func:`uncertified_runs`). Empty without an
+    adopted run."""
+    run = adopted.get("run")
+    if run is None:
+        return {}
+    paper = rows[np.isfinite(rows["paper_safety"])]
+    own, alone = paper[paper["run"] == run], paper[paper["run"] == REFERENCE_RUN]
+    pairs = own.merge(alone, on=["study", "n_agents"], suffixes=("", "_alone"))
+    ratio = float(pairs["cost_time_avg"].mean() / pairs["cost_time_avg_alone"].mean()) if len(pairs) else float("nan")
+    return {"cost_ratio": ratio, "certified": run not in uncertified}
 
 
 def _pct(x) -> str:
@@ -214,10 +242,17 @@ def _adopted_text(a: Mapping, settings: ConformalSettings) -> str:
         return "None: no level run has a cell with a paper row."
     how = ("it reaches the line in more cells than V̂ alone" if a["beats_alone"] else
            "it reaches the line in no more cells than V̂ alone: the row is reported, it does not close the gap")
-    return (f"**{settings.labels.get(a['run'], a['run'])}** (`{a['run']}`): the paper's safety less the line in "
+    text = (f"**{settings.labels.get(a['run'], a['run'])}** (`{a['run']}`): the paper's safety less the line in "
             f"{a['reaches']} of {a['cells']} cells with a paper row (V̂ alone: {a['alone_reaches']}); {how}. The rule, fixed "
             "before these cells: most cells at the line, then the highest mean safety there, then the lowest mean Δ cost ÷T, "
             "then the largest ε.")
+    if np.isfinite(a.get("cost_ratio", np.nan)):
+        text += f" Its cost ÷T over those cells is {a['cost_ratio']:.1f}× V̂ alone's (cost enters the rule only as a tie-break)."
+    if a.get("certified") is False:
+        text += (" Its calibration certified no level anywhere (δ = ∞ in every bin): it accepts no state of V̂, so every "
+                 "agent takes the infeasible branch (∇V̂ at z_max) at every step. The rule adopts the most conservative "
+                 "deployment, not a calibrated level; the row is reported as such.")
+    return text
 
 
 def write_conformal_page(frame: pd.DataFrame, settings: ConformalSettings, report: Mapping | None,
@@ -228,7 +263,9 @@ def write_conformal_page(frame: pd.DataFrame, settings: ConformalSettings, repor
 
     rows = cell_rows(frame, settings)
     gap = speed_gap(frame, settings, report)
-    v = verdict(rows, settings)
+    never = uncertified_runs(gap) if report else frozenset()
+    v = verdict(rows, settings, never)
+    v["adopted"].update(adopted_caveats(v["adopted"], rows, never))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     csv, gap_csv, js, md, html = (out / n for n in ("conformal.csv", "speed_gap.csv", "conformal.json", "conformal.md", "conformal.html"))
