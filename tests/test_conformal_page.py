@@ -17,7 +17,7 @@ import pytest
 from conftest import REPO
 from madpinn.config import ConfigError, deep_merge, load_config
 from madpinn.evaluation.conformal_page import adopted_caveats, cell_rows, speed_gap, uncertified_runs, verdict, write_conformal_page
-from madpinn.evaluation.conformal_settings import ConformalSettings
+from madpinn.evaluation.conformal_settings import ConformalSettings, conformal_studies
 
 OVERLAY = REPO / "workflow" / "configs" / "conformal.yaml"
 T = 6.0
@@ -65,8 +65,11 @@ def test_settings_come_from_the_overlay_and_refuse_a_level_study_without_vhat_al
     bad = deep_merge(cfg, {"studies": {"conformal_large": {"runs": ["madpinn-cpeps10"]}}})
     with pytest.raises(ConfigError, match="without 'madpinn'"):
         ConformalSettings.from_config(bad)
-    with pytest.raises(ConfigError, match="no study runs a calibrated level"):
-        ConformalSettings.from_config(load_config([REPO / "config.yaml"]))
+    # the protocol's main and scaling carry the adopted level as a row (issue 62): protocol seeds, never this page's
+    protocol = load_config([REPO / "config.yaml"])
+    assert "madpinn-cpeps01" in protocol["studies"]["main"]["runs"] and conformal_studies(protocol) == []
+    with pytest.raises(ConfigError, match="no validation-seed study runs a calibrated level"):
+        ConformalSettings.from_config(protocol)
 
 
 def test_cells_are_paired_against_vhat_alone_and_the_sentence_names_where_a_level_reaches_the_paper(settings):

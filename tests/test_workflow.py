@@ -167,9 +167,10 @@ def test_ours_overlay_runs_our_rows_without_baseline_trainings(tmp_path):
     proc = run_snakemake(tmp_path, "-n", "-j2", "all", configfiles=(ours,))
     out = proc.stdout + proc.stderr
     m = re.search(r"^evaluate\s+(\d+)$", out, re.M)
-    # main, scaling (6 runs: + the labelled speed-governor row, the 2.83 m sensing row of issue 47 and
-    # the conflict-sampled V̂ of issue 61), two ablations (seed 0), four conflict studies (3 runs × 2 agent counts)
-    assert m and int(m.group(1)) == 3 * 4 * 5 + 6 * 3 + 3 + 8 + 4 * 3 * 2
+    # main, scaling (7 runs: + the labelled speed-governor row, the 2.83 m sensing row of issue 47, the
+    # conflict-sampled V̂ of issue 61 and issue 62's adopted level), two ablations (seed 0), four conflict
+    # studies (3 runs × 2 agent counts)
+    assert m and int(m.group(1)) == 3 * 4 * 5 + 7 * 3 + 3 + 8 + 4 * 3 * 2
     assert "train_vhat" in out and "train_vs" in out
     assert "train_safemarl_nominal" not in out and "train_defmarl" not in out and "/mppi/" not in out
 

@@ -11,6 +11,25 @@ REFERENCE_RUN = "madpinn"
 """V̂ alone (δ = 0, the paper's deployment): every run of the page is paired against it"""
 
 
+MIN_VALIDATION_SEED = 100
+"""the page reads validation-seed studies only (seeds ≥ this; the protocol's 0–4 are the tables':
+a protocol study may carry a level run as a labelled row, as ``main`` does since issue 62)"""
+
+
+def level_run(cfg: Mapping, run: str) -> Mapping | None:
+    """The ``conformal`` settings a MAD-PINN run deploys (None: V̂ alone, δ = 0, or another method)."""
+    from madpinn.config import method_config
+
+    return method_config(cfg, run)[1].get("conformal") if run.partition("-")[0] == REFERENCE_RUN else None
+
+
+def conformal_studies(cfg: Mapping) -> list[str]:
+    """The page's studies: each on validation seeds only with at least one level run (the workflow's
+    ``conformal_cells`` / ``conformal_page`` inputs and :meth:`ConformalSettings.from_config` alike)."""
+    return [s for s, st in cfg["studies"].items()
+            if min(st["seeds"]) >= MIN_VALIDATION_SEED and any(level_run(cfg, r) for r in st["runs"])]
+
+
 @dataclass(frozen=True)
 class LevelRun:
     """A run that deploys a calibrated level (``methods.madpinn.variants.<v>.conformal``)."""
@@ -51,12 +70,9 @@ class ConformalSettings:
     def from_config(cls, cfg: Mapping) -> "ConformalSettings":
         from madpinn.config import ConfigError, method_config, study_pattern
 
-        def conformal(run):
-            return method_config(cfg, run)[1].get("conformal") if run.partition("-")[0] == REFERENCE_RUN else None
-
-        studies = {s: st for s, st in cfg["studies"].items() if any(conformal(r) for r in st["runs"])}
+        studies = {s: cfg["studies"][s] for s in conformal_studies(cfg)}
         if not studies:
-            raise ConfigError("no study runs a calibrated level (methods.madpinn.variants.<v>.conformal; "
+            raise ConfigError("no validation-seed study runs a calibrated level (methods.madpinn.variants.<v>.conformal; "
                               "overlay workflow/configs/conformal.yaml)")
         missing = sorted(s for s, st in studies.items() if REFERENCE_RUN not in st["runs"])
         if missing:
@@ -64,7 +80,7 @@ class ConformalSettings:
                               "which every level run is paired against: add it to their runs")
         runs = list(dict.fromkeys(r for st in studies.values() for r in st["runs"]))
         levels = tuple(LevelRun(r, float(c["epsilon"]), float(c["beta"]), bool(c["binned"]), str(c["distribution"]))
-                       for r in runs if (c := conformal(r)))
+                       for r in runs if (c := level_run(cfg, r)))
         level_names = {lv.run for lv in levels}
         return cls(studies=tuple(studies), arenas={s: str(st["arena"]) for s, st in studies.items()},
                    patterns={s: study_pattern(st) for s, st in studies.items()}, levels=levels,

@@ -6,6 +6,7 @@ from types import SimpleNamespace
 import yaml
 
 from madpinn.config import ConfigError, method_config, study_backend, study_pattern, vf_model_name, write_if_changed
+from madpinn.evaluation.conformal_settings import conformal_studies, level_run
 from madpinn.evaluation.reproduction import paper_table_numbers
 from madpinn.commands import handler_entry
 from madpinn.commands.seed_guard import WORKFLOW_ENV
@@ -519,7 +520,7 @@ def madpinn_models(wildcards):
 def run_conformal(run):
     """The calibrated level a MAD-PINN run deploys (`conformal`: issue 62), or None (the paper's δ = 0)."""
     try:
-        return method_config(config, run)[1].get("conformal")
+        return level_run(config, run)
     except ConfigError:   # an unknown run: the job itself says so in one line
         return None
 
@@ -541,7 +542,7 @@ def conformal_page_calibration(wildcards):
 def conformal_vhats():
     """The V̂ models a configured study's run deploys a calibrated level with (their calibrations are targets)."""
     return sorted({vf_model_name("vhat", run_vhat_variant(run)) for st in config["studies"].values() for run in st["runs"]
-                   if run.partition("-")[0] == "madpinn" and run_conformal(run)})
+                   if run_conformal(run)})
 
 
 

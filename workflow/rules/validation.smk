@@ -127,8 +127,9 @@ rule calibrate_vhat:
 for _vhat in conformal_vhats():
     register_targets(calibration_report(_vhat), *[f"{FIGURES}/table_{_vhat}_calibration.{ext}" for ext in ("csv", "md")])
 
-CONFORMAL_STUDIES = [s for s, st in config["studies"].items() if any(run_conformal(r) for r in st["runs"])]
-"""studies with a run that deploys a calibrated level (overlay workflow/configs/conformal.yaml)"""
+CONFORMAL_STUDIES = conformal_studies(config)
+"""validation-seed studies with a run that deploys a calibrated level (overlay workflow/configs/conformal.yaml;
+a protocol study's level row, main's madpinn-cpeps01, is a table row, not this page's)"""
 if CONFORMAL_STUDIES:
 
     rule conformal_cells:   # `snakemake -j2 conformal_cells`: every cell of those studies (closed loop, heavy)
