@@ -248,7 +248,7 @@ def test_the_claims_page_reads_the_verdict_of_the_readings():
 
 def test_a_reading_identical_to_another_is_named_in_the_legend():
     """Two runs with the same figures everywhere (e.g. sensing every agent and sensing 2.83 m: V_s
-    sees at most 2 m per axis) draw one line over the other; the legend says which lies under which.
+    sees at most 2 m per axis) draw one line over the other; the legend says which hides which.
     A run that differs at one N is no twin."""
     from madpinn.figures.table_ii_readings import draw_table_ii_readings, identical_runs
 
@@ -259,4 +259,4 @@ def test_a_reading_identical_to_another_is_named_in_the_legend():
     assert identical_runs(rows) == {"madpinn-sense-all": "madpinn"}
     fig = draw_table_ii_readings(rows, PAPER, {"madpinn": "MAD-PINN", "madpinn-sense-all": "sensing every agent"})
     texts = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert "sensing every agent (identical to MAD-PINN: drawn under it)" in texts and "madpinn-other" in texts
+    assert "sensing every agent (identical to MAD-PINN: its line hides that one)" in texts and "madpinn-other" in texts

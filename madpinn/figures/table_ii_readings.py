@@ -36,7 +36,7 @@ def _band(paper: PaperRow, figure: str, n: int, scale: float) -> tuple[float, fl
 
 def identical_runs(rows: pd.DataFrame) -> dict[str, str]:
     """Each run whose every plotted figure (at every law, T and N) equals an earlier run's, mapped to
-    that run: its lines lie exactly under the earlier one's, so the legend must say so."""
+    that run: its lines, drawn later, lie exactly over the earlier one's and hide them, so the legend says so."""
     keys = ["pattern", "horizon_s", "n_agents"]
     figures = [f for f, _, _ in PANELS]
 
@@ -79,7 +79,7 @@ def draw_table_ii_readings(rows: pd.DataFrame, paper: PaperRow, labels: Mapping[
         ax.set_xlabel("agents")
         ax.set_title(title)
     twins = identical_runs(rows)
-    handles = {labels.get(r, r) + (f" (identical to {labels.get(twins[r], twins[r])}: drawn under it)" if r in twins else ""):
+    handles = {labels.get(r, r) + (f" (identical to {labels.get(twins[r], twins[r])}: its line hides that one)" if r in twins else ""):
                Line2D([], [], color=colours[r], lw=2) for r in runs}
     handles.update({f"law: {p}": Line2D([], [], ls=s, color="0.3") for p, s in laws.items()})
     handles.update({f"T = {h:g} s": Line2D([], [], marker=m, ls="none", color="0.3") for h, m in horizons.items()})
