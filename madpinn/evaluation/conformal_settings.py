@@ -7,13 +7,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
+from madpinn.marl.validation import MIN_VALIDATION_SEED   # the page reads validation-seed studies only: a protocol
+# study may carry a level run as a labelled row (main's madpinn-cpeps01, issue 62), never this page's
+
 REFERENCE_RUN = "madpinn"
 """V̂ alone (δ = 0, the paper's deployment): every run of the page is paired against it"""
-
-
-MIN_VALIDATION_SEED = 100
-"""the page reads validation-seed studies only (seeds ≥ this; the protocol's 0–4 are the tables':
-a protocol study may carry a level run as a labelled row, as ``main`` does since issue 62)"""
 
 
 def level_run(cfg: Mapping, run: str) -> Mapping | None:
