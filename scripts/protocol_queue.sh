@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The protocol's cells as a resumable queue, for a rerun that spans sessions: a dry run of `all`
+# lists every evaluation cell the protocol still lacks in results/, ordered by study (Table I first,
+# the large-arena frontier last), and scripts/validation_cells.sh runs them in batches, keeping each
+# finished batch in output_cache/ (COMMIT=1: committed). A fresh checkout restores what is kept
+# in seconds per batch and computes the rest. Afterwards `snakemake … all` builds the tables.
+#
+#   scripts/protocol_queue.sh [BATCH_SIZE]          # JOBS=2 for both cores (default 1)
+#   COMMIT=1 JOBS=2 setsid nohup scripts/protocol_queue.sh 4 > /tmp/protocol_cells.log 2>&1 &
+#   LIST=1 scripts/protocol_queue.sh                # print the ordered targets, run nothing
+set -u
+cd "$(dirname "$0")/.."
+py=${PYTHON:-.venv/bin/python}
+order=(main ablation_neighbours ablation_update conflict_pairs conflict_lines conflict_circle
+       conflict_crossing scaling large_arena_frontier)     # any other study follows, by name
+plan=$("$py" -m snakemake -n --nolock --configfile config.yaml workflow/configs/shipped.yaml \
+         --profile profiles/shipped all 2>&1) || { echo "$plan" | tail -20 >&2; exit 2; }
+cells=$(grep '^    output: results/.*eval/' <<<"$plan" | sed 's/^    output: //; s/,.*//')
+study() { awk -F/ '{print $4}'; }
+targets=()
+for s in "${order[@]}" $(study <<<"$cells" | sort -u | grep -vxF -f <(printf '%s\n' "${order[@]}")); do
+  while read -r t; do [ -n "$t" ] && targets+=("$t"); done < <(grep "/mujoco/$s/" <<<"$cells" | sort -t/ -k5,5 -k6,6V)
+done
+if [ "${LIST:-0}" = 1 ]; then printf '%s\n' "${targets[@]}"; exit 0; fi
+[ ${#targets[@]} -gt 0 ] || { echo "protocol_queue: every cell is in results/: run snakemake … all"; exit 0; }
+echo "protocol_queue: ${#targets[@]} cells to restore or compute"
+CACHE=output_cache exec scripts/validation_cells.sh workflow/configs/shipped.yaml "${1:-4}" "${targets[@]}"
