@@ -15,11 +15,12 @@ order=(main ablation_neighbours ablation_update conflict_pairs conflict_lines co
        conflict_crossing scaling large_arena_frontier)     # any other study follows, by name
 plan=$("$py" -m snakemake -n --nolock --configfile config.yaml workflow/configs/shipped.yaml \
          --profile profiles/shipped all 2>&1) || { echo "$plan" | tail -20 >&2; exit 2; }
-cells=$(grep '^    output: results/.*eval/' <<<"$plan" | sed 's/^    output: //; s/,.*//')
-study() { awk -F/ '{print $4}'; }
+# each cell's first output, <results>/eval/<backend>/<study>/<run>/n<N>_seed<S>.parquet (paths.results, sim.backend)
+cells=$(grep -E '^    output: .*/eval/[^/]+/[^/]+/[^/]+/n[0-9]+_seed[0-9]+\.parquet' <<<"$plan" | sed 's/^    output: //; s/,.*//')
+study() { sed -E 's#.*/eval/[^/]+/([^/]+)/.*#\1#'; }
 targets=()
 for s in "${order[@]}" $(study <<<"$cells" | sort -u | grep -vxF -f <(printf '%s\n' "${order[@]}")); do
-  while read -r t; do [ -n "$t" ] && targets+=("$t"); done < <(grep "/mujoco/$s/" <<<"$cells" | sort -t/ -k5,5 -k6,6V)
+  while read -r t; do [ -n "$t" ] && targets+=("$t"); done < <(grep -E "/eval/[^/]+/$s/" <<<"$cells" | sort -V)
 done
 if [ "${LIST:-0}" = 1 ]; then printf '%s\n' "${targets[@]}"; exit 0; fi
 [ ${#targets[@]} -gt 0 ] || { echo "protocol_queue: every cell is in results/: run snakemake … all"; exit 0; }
