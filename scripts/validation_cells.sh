@@ -27,7 +27,12 @@ for ((i = 0; i < ${#targets[@]}; i += batch)); do
   "$py" -m madpinn publish --config "${configs[@]}" || exit $?
   cache=${CACHE:-validation_cache}   # where the overlay keeps its cells (its paths.output_cache)
   if [ "${COMMIT:-0}" = 1 ] && [ -n "$(git status --porcelain --ignored -- "$cache")" ]; then
-    git add -f "$cache" && git commit -q -m "${cache%_cache} cells: ${part[*]}" -- "$cache" || exit $?
+    # a commit made beside this one (a training's checkpoint) may hold git's index lock for a moment: retry
+    for try in 1 2 3 4 5 6; do
+      git add -f "$cache" && git commit -q -m "${cache%_cache} cells: ${part[*]}" -- "$cache" && break
+      [ $try -lt 6 ] || exit 1
+      sleep 5
+    done
   fi
   [ $rc -eq 0 ] || exit $rc
 done
