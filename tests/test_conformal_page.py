@@ -65,9 +65,13 @@ def test_settings_come_from_the_overlay_and_refuse_a_level_study_without_vhat_al
     bad = deep_merge(cfg, {"studies": {"conformal_large": {"runs": ["madpinn-cpeps10"]}}})
     with pytest.raises(ConfigError, match="without 'madpinn'"):
         ConformalSettings.from_config(bad)
-    # the protocol's main and scaling carry the adopted level as a row (issue 62): protocol seeds, never this page's
+    # the protocol's main and scaling carry the adopted level as a row (issue 62): protocol seeds, never this page's;
+    # the large arena's frontier (validation seed 100, in `all`) shows level runs beside its governors: its figure's
     protocol = load_config([REPO / "config.yaml"])
     assert "madpinn-cpeps01" in protocol["studies"]["main"]["runs"] and conformal_studies(protocol) == []
+    assert min(protocol["studies"]["large_arena_frontier"]["seeds"]) >= 100
+    assert {"madpinn-cpeps05", "madpinn-cpeps01"} <= set(protocol["studies"]["large_arena_frontier"]["runs"])
+    assert conformal_studies(deep_merge(protocol, {"studies": {"large_arena_frontier": {"in_all": False}}})) == ["large_arena_frontier"]
     with pytest.raises(ConfigError, match="no validation-seed study runs a calibrated level"):
         ConformalSettings.from_config(protocol)
 

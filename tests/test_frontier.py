@@ -72,6 +72,22 @@ def test_runs_select_their_vhat_and_speed_bound(paper_cfg):
         validate_config(deep_merge(paper_cfg, {"value_functions": {"vhat_variants": {"h04": {"horizon": -1.0}}}}))
 
 
+def test_a_calibrated_level_is_a_marker_of_its_own_on_no_governor_sweep(paper_cfg):
+    """Issue 62 item 3: the level rows stand on the frontier beside the governors; they share V̂, carrot
+    and speed bound with the base run, so without their level they would join its carrot sweep."""
+    from madpinn.figures.frontier import FrontierRun, sweeps
+
+    runs = {r: FrontierRun.of_run(paper_cfg, r) for r in ("madpinn", "madpinn-carrot10", "madpinn-carrot05",
+                                                          "madpinn-cpeps05", "madpinn-cpeps01")}
+    assert {"madpinn-cpeps05", "madpinn-cpeps01"} <= set(paper_cfg["studies"]["large_arena_frontier"]["runs"])
+    assert (runs["madpinn"].level, runs["madpinn-cpeps05"].level, runs["madpinn-cpeps01"].level) == ("", "ε 0.05", "ε 0.01")
+    assert runs["madpinn-cpeps05"].carrot == runs["madpinn"].carrot and runs["madpinn-cpeps05"].vhat == runs["madpinn"].vhat
+    assert sweeps(list(runs.values())) == [("carrot", ["madpinn", "madpinn-carrot10", "madpinn-carrot05"])]
+    # the same runs without their level: a carrot sweep through points at one carrot length
+    flat = [FrontierRun(r.run, r.label, r.vhat, r.carrot, r.v_max, r.neighbour_goal) for r in runs.values()]
+    assert set(sweeps(flat)[0][1]) == set(runs)
+
+
 def test_train_value_variant_trains_the_merged_settings(tmp_path, one_thread):
     out = tmp_path / "models" / "vhat_h04.pt"
     assert main(["train-value", "--config", str(REPO / "config.yaml"), str(SMOKE), "--kind", "vhat", "--variant", "h04",

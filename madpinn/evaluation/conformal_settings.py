@@ -22,10 +22,12 @@ def level_run(cfg: Mapping, run: str) -> Mapping | None:
 
 
 def conformal_studies(cfg: Mapping) -> list[str]:
-    """The page's studies: each on validation seeds only with at least one level run (the workflow's
-    ``conformal_cells`` / ``conformal_page`` inputs and :meth:`ConformalSettings.from_config` alike)."""
+    """The page's studies: each on validation seeds only, outside ``all`` (a protocol study on a
+    validation seed, the large arena's frontier, shows level runs beside its governors: its figure's,
+    not this page's), with at least one level run (the workflow's ``conformal_cells`` /
+    ``conformal_page`` inputs and :meth:`ConformalSettings.from_config` alike)."""
     return [s for s, st in cfg["studies"].items()
-            if min(st["seeds"]) >= MIN_VALIDATION_SEED and any(level_run(cfg, r) for r in st["runs"])]
+            if min(st["seeds"]) >= MIN_VALIDATION_SEED and not st["in_all"] and any(level_run(cfg, r) for r in st["runs"])]
 
 
 @dataclass(frozen=True)

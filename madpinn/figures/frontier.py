@@ -10,7 +10,8 @@ reader sees whether they lie on any frontier we reach (up and left is better).
 
 Every marker lies whole inside its frame (the safety axis leaves room above 100 %); markers that
 would overlap each other or the star move sideways (:func:`madpinn.figures.placement.dodge`,
-deterministic), a thin line joining a moved marker to a dot at its true position.
+deterministic), a thin line joining a moved marker to a dot at its true position. Runs with a
+calibrated safety level (issue 62, ``conformal``) are markers of their own, on no governor sweep.
 """
 
 from __future__ import annotations
@@ -46,7 +47,9 @@ class FrontierRun:
     run: run name ``madpinn[-variant]``; label: its display name; vhat: the V̂ model it loads
     (``vhat`` or ``vhat_<variant>``); carrot: goal-carrot bound per coordinate (m, goal_range −
     carrot_margin); v_max: speed bound per axis of its cells (m/s); neighbour_goal: the neighbour
-    goal mapping (runs of another mapping are on no sweep with the others)."""
+    goal mapping (runs of another mapping are on no sweep with the others); level: its calibrated
+    safety level (``conformal``: e.g. ``ε 0.05``; empty: V̂'s own level; runs of another level are on
+    no sweep with the others)."""
 
     run: str
     label: str
@@ -54,26 +57,30 @@ class FrontierRun:
     carrot: float
     v_max: float
     neighbour_goal: str = "neighbour"
+    level: str = ""
 
     @classmethod
     def of_run(cls, cfg: Mapping, run: str) -> "FrontierRun":
         from madpinn.config import method_config, run_agents, run_observation, run_vhat
 
         obs = run_observation(cfg, run)
-        return cls(run=run, label=str(method_config(cfg, run)[1]["label"]), vhat=run_vhat(cfg, run),
+        method = method_config(cfg, run)[1]
+        level = method.get("conformal")
+        return cls(run=run, label=str(method["label"]), vhat=run_vhat(cfg, run),
                    carrot=float(obs["goal_range"]) - float(obs["carrot_margin"]),
-                   v_max=float(run_agents(cfg, run)["v_max"]), neighbour_goal=str(obs["neighbour_goal"]))
+                   v_max=float(run_agents(cfg, run)["v_max"]), neighbour_goal=str(obs["neighbour_goal"]),
+                   level="" if not level else f"ε {level['epsilon']:g}{' per speed bin' if level['binned'] else ''}")
 
 
 def sweeps(runs: Sequence[FrontierRun]) -> list[tuple[str, list[str]]]:
-    """The governor sweeps among ``runs``: ``(kind, [run, ...])`` for each V̂ (and neighbour goal
-    mapping) whose runs differ in the carrot only (kind ``carrot``, longest carrot first) or in the
+    """The governor sweeps among ``runs``: ``(kind, [run, ...])`` for each V̂ (with one neighbour goal
+    mapping and one safety level) whose runs differ in the carrot only (kind ``carrot``, longest carrot first) or in the
     speed bound only (``v_max``, fastest first), at least two runs each."""
     out = []
     for kind, fixed in (("carrot", "v_max"), ("v_max", "carrot")):
         groups: dict[tuple, list[FrontierRun]] = {}
         for r in runs:
-            groups.setdefault((r.vhat, r.neighbour_goal, getattr(r, fixed)), []).append(r)
+            groups.setdefault((r.vhat, r.neighbour_goal, r.level, getattr(r, fixed)), []).append(r)
         for group in groups.values():
             values = {getattr(r, kind) for r in group}
             if len(values) >= 2:
