@@ -105,3 +105,13 @@ def test_the_hooks_the_docs_name_exist():
     smk = "\n".join(p.read_text() for p in RULES.glob("*.smk"))
     for hook in re.findall(r"`@?(register_\w+|make_backend)`", text):
         assert f"def {hook}(" in package + smk, hook
+
+
+README_MAX_LINES = 120
+"""README stays a front page (issue 63 item 4): what it is, the two commands, the generated headline and
+verdicts, where to go next; narrative goes to docs/findings/, reference material to docs/reference/"""
+
+
+def test_readme_stays_a_front_page():
+    lines = (REPO / "README.md").read_text().splitlines()
+    assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines (at most {README_MAX_LINES}): move narrative to docs/"
