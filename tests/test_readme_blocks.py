@@ -38,6 +38,8 @@ def test_a_changed_cell_changes_the_headline_and_the_rewrite_is_idempotent(tmp_p
     figures = tmp_path / "figures"
     figures.mkdir()
     shutil.copy(FIGURES / "claims.json", figures / "claims.json")
+    (figures / "table_ii_readings").mkdir()
+    shutil.copy(FIGURES / "table_ii_readings" / "verdict.json", figures / "table_ii_readings" / "verdict.json")
     (figures / "reproduction.json").write_text(json.dumps(changed))
     readme = tmp_path / "README.md"
     readme.write_text((REPO / "README.md").read_text())
@@ -54,3 +56,19 @@ def test_a_changed_cell_changes_the_headline_and_the_rewrite_is_idempotent(tmp_p
 def test_a_readme_without_a_block_is_refused(tmp_path):
     with pytest.raises(ValueError, match="lacks the block <!-- headline:start"):
         render_readme("# no blocks here\n", FIGURES)
+
+
+def test_the_table_ii_block_follows_the_published_readings_verdict():
+    """README's Table II sentence is the readings page's verdict (issue 61 item 5: no typed verdict)."""
+    from madpinn.evaluation.readme_blocks import table_ii_lines
+    from madpinn.evaluation.table_ii_readings import VERDICTS
+
+    verdict = json.loads((FIGURES / "table_ii_readings" / "verdict.json").read_text())
+    lines = table_ii_lines(verdict)
+    assert f"**Table II {verdict['verdict']}.**" in lines[0] and verdict["baselines"]["reading"] in lines[1]
+    changed = copy.deepcopy(verdict)
+    changed.update(verdict=VERDICTS[1],
+                   reproducing=[{**verdict["closest"], "cost_reading": "÷T"}])
+    text = table_ii_lines(changed)[0]
+    assert f"**Table II {VERDICTS[1]}.**" in text and "Readings that reproduce it" in text
+    assert verdict["closest"]["study"] in text and "The closest reading" not in text

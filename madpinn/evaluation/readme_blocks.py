@@ -116,11 +116,22 @@ def findings_lines(claims: dict, report: dict) -> list[str]:
     return lines
 
 
+def table_ii_lines(verdict: dict) -> list[str]:
+    """Table II over the readings the paper leaves open (README's ``table_ii`` block): the published
+    readings page's verdict (issue 60, validation seeds) in its own sentence, and the baselines' reading."""
+    from madpinn.evaluation.table_ii_page import verdict_sentence
+
+    return [f"- Over {verdict['readings_judged']} readings of what the paper leaves open for the large arena "
+            f"(validation seeds): {verdict_sentence(verdict)}",
+            f"- The baselines in the large arena (not in the paper): {verdict['baselines']['reading']}."]
+
+
 # block name -> (files under paper_figures/, renderer of their parsed JSON, in that order)
 BLOCKS: dict[str, tuple[tuple[str, ...], Callable[..., list[str]]]] = {
     "headline": (("reproduction.json",), headline_lines),
     "claims": (("claims.json",), claims_lines),
     "findings": (("claims.json", "reproduction.json"), findings_lines),
+    "table_ii": (("table_ii_readings/verdict.json",), table_ii_lines),
 }
 
 
