@@ -62,11 +62,11 @@ class FrontierRun:
     @classmethod
     def of_run(cls, cfg: Mapping, run: str) -> "FrontierRun":
         from madpinn.config import method_config, run_agents, run_observation, run_vhat
+        from madpinn.evaluation.conformal_settings import level_run
 
         obs = run_observation(cfg, run)
-        method = method_config(cfg, run)[1]
-        level = method.get("conformal")
-        return cls(run=run, label=str(method["label"]), vhat=run_vhat(cfg, run),
+        level = level_run(cfg, run)
+        return cls(run=run, label=str(method_config(cfg, run)[1]["label"]), vhat=run_vhat(cfg, run),
                    carrot=float(obs["goal_range"]) - float(obs["carrot_margin"]),
                    v_max=float(run_agents(cfg, run)["v_max"]), neighbour_goal=str(obs["neighbour_goal"]),
                    level="" if not level else f"ε {level['epsilon']:g}{' per speed bin' if level['binned'] else ''}")
