@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The protocol's cells as a resumable queue, for a rerun that spans sessions: a dry run of `all`
-# lists every evaluation cell the protocol still lacks in results/, ordered by study (Table I first,
-# the large-arena frontier last), and scripts/validation_cells.sh runs them in batches, keeping each
+# lists every evaluation cell and oracle bound (the shipped profile's cached rules) the protocol still
+# lacks in results/, ordered by study (Table I first, the large-arena frontier, then the oracle
+# bounds), and scripts/validation_cells.sh runs them in batches, keeping each
 # finished batch in output_cache/ (COMMIT=1: committed). A fresh checkout restores what is kept
 # in seconds per batch and computes the rest. Afterwards `snakemake … all` builds the tables.
 #
@@ -12,15 +13,17 @@ set -u
 cd "$(dirname "$0")/.."
 py=${PYTHON:-.venv/bin/python}
 order=(main ablation_neighbours ablation_update conflict_pairs conflict_lines conflict_circle
-       conflict_crossing scaling large_arena_frontier)     # any other study follows, by name
+       conflict_crossing scaling large_arena_frontier oracle)   # any other study follows, by name
 plan=$("$py" -m snakemake -n --nolock --configfile config.yaml workflow/configs/shipped.yaml \
          --profile profiles/shipped all 2>&1) || { echo "$plan" | tail -20 >&2; exit 2; }
-# each cell's first output, <results>/eval/<backend>/<study>/<run>/n<N>_seed<S>.parquet (paths.results, sim.backend)
-cells=$(grep -E '^    output: .*/eval/[^/]+/[^/]+/[^/]+/n[0-9]+_seed[0-9]+\.parquet' <<<"$plan" | sed 's/^    output: //; s/,.*//')
-study() { sed -E 's#.*/eval/[^/]+/([^/]+)/.*#\1#'; }
+# each cell's first output, <results>/eval/<backend>/<study>/<run>/n<N>_seed<S>.parquet (paths.results,
+# sim.backend), and each oracle bound's, <results>/oracle/<arena>[/<pattern>]/n<N>_seed<S>_s<K>.parquet,
+# as "<study> <path>" (study "oracle" for the bounds)
+cells=$(grep -E '^    output: .*/(eval/[^/]+/[^/]+/[^/]+/n[0-9]+_seed[0-9]+|oracle/.+/n[0-9]+_seed[0-9]+_s[0-9]+)\.parquet' <<<"$plan" \
+        | sed -E 's/^    output: //; s/,.*//' | sed -E 's#^(.*/eval/[^/]+/([^/]+)/.*)$#\2 \1#; s#^([^ ]*/oracle/.*)$#oracle \1#')
 targets=()
-for s in "${order[@]}" $(study <<<"$cells" | sort -u | grep -vxF -f <(printf '%s\n' "${order[@]}")); do
-  while read -r t; do [ -n "$t" ] && targets+=("$t"); done < <(grep -E "/eval/[^/]+/$s/" <<<"$cells" | sort -V)
+for s in "${order[@]}" $(cut -d' ' -f1 <<<"$cells" | sort -u | grep -vxF -f <(printf '%s\n' "${order[@]}")); do
+  while read -r t; do [ -n "$t" ] && targets+=("$t"); done < <(awk -v s="$s" '$1 == s {print $2}' <<<"$cells" | sort -V)
 done
 if [ "${LIST:-0}" = 1 ]; then printf '%s\n' "${targets[@]}"; exit 0; fi
 [ ${#targets[@]} -gt 0 ] || { echo "protocol_queue: every cell is in results/: run snakemake … all"; exit 0; }
