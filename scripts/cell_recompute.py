@@ -171,8 +171,8 @@ def main() -> int:
         at_targets = [results / f"at-{sha}" / t.relative_to(results) for t in targets]
         if not args.compare_only:
             recompute_at(sha, results / f"at-{sha}", at_targets, args.jobs)
-        rows += [compare_with(t, [(f"HEAD ({short('HEAD')})", h.with_suffix(".json"), h)]) | {"at": sha}
-                 for t, h in zip(at_targets, targets)]
+        head = f"HEAD ({short('HEAD')})"
+        rows += [compare_with(t, [(head, h.with_suffix(".json"), h)]) | {"at": sha} for t, h in zip(at_targets, targets)]
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(rows, indent=2, default=str))
     print("| cell | compared with | frame bit-equal | figures bit-equal | scenarios differing | "

@@ -50,14 +50,15 @@ def main() -> int:
     ap.add_argument("--changed", action="store_true", help="only the claims whose verdict, checks or rule changed")
     args = ap.parse_args()
     old, new = load(args.old), load(args.new)
-    table = rows(old, new, args.changed)
+    every = rows(old, new, changed_only=False)
     print("| claim | verdict before | verdict after | rule changed | observed before | observed after |")
     print("|---|---|---|---|---|---|")
-    for r in table:
-        print(f"| {r['id']} | {r['old']} | {r['new']} | {'yes' if r['rule_changed'] else 'no'} | "
-              f"{r['old_observed']} | {r['new_observed']} |")
-    moved = sum(r["old"].split(" (")[0] != r["new"].split(" (")[0] for r in rows(old, new, False))
-    print(f"\n{moved} of {len({c['id'] for c in old['claims']} | {c['id'] for c in new['claims']})} claims changed verdict")
+    for r in every:
+        if r["changed"] or not args.changed:
+            print(f"| {r['id']} | {r['old']} | {r['new']} | {'yes' if r['rule_changed'] else 'no'} | "
+                  f"{r['old_observed']} | {r['new_observed']} |")
+    moved = sum(r["old"].split(" (")[0] != r["new"].split(" (")[0] for r in every)
+    print(f"\n{moved} of {len(every)} claims changed verdict")
     return 0
 
 
