@@ -2,7 +2,8 @@
 
 One cache entry is one unit: the files a cached job writes, each stored as ``<hash><suffix>``
 under the job's provenance hash (an evaluation cell: ``<hash>_parquet.parquet``,
-``<hash>_summary.json``, ``<hash>_traj.npz``; an oracle bound: ``<hash>.parquet``). Two layers
+``<hash>_summary.json``, ``<hash>_traj.npz``; an oracle bound: ``<hash>.parquet``; V̂'s calibration:
+``<hash>_report.json`` and its table as ``_csv.csv``, ``_md.md``, ``_html.html``). Two layers
 (:func:`cache_layers`):
 
 - the **committed** cache ``paths.output_cache`` (``output_cache/``) is only read: a run restores
@@ -61,6 +62,10 @@ def _json(path: Path) -> None:
     json.loads(path.read_bytes())
 
 
+def _text(path: Path) -> None:
+    path.read_bytes().decode("utf-8")
+
+
 def _npz(path: Path) -> None:
     with zipfile.ZipFile(path) as z:
         bad = z.testzip()
@@ -68,13 +73,15 @@ def _npz(path: Path) -> None:
         raise ValueError(f"member {bad} fails its CRC check")
 
 
-READERS = {".parquet": _parquet, ".json": _json, ".npz": _npz}
+READERS = {".parquet": _parquet, ".json": _json, ".npz": _npz, ".csv": _text, ".md": _text, ".html": _text}
 """Entry suffix (the cached output's own) -> a reader that raises when the entry is unreadable."""
 
 
-KINDS = (("_parquet.parquet", "_summary.json", "_traj.npz"), (".parquet",))
+KINDS = (("_parquet.parquet", "_summary.json", "_traj.npz"), (".parquet",),
+         ("_report.json", "_csv.csv", "_md.md", "_html.html"))
 """The files of one entry of each cached rule (:func:`member_suffixes`): an evaluation cell (rule
-``evaluate``), an oracle bound (``oracle``, ``oracle_pattern``). The workflow checks at every start
+``evaluate``), an oracle bound (``oracle``, ``oracle_pattern``), a V̂ calibration (``calibrate_vhat``:
+≈ 4 min on one core, and the calibrated-level cells depend on it). The workflow checks at every start
 with ``--cache`` that its cached rules still write these."""
 
 

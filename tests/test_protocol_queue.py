@@ -1,5 +1,5 @@
 """scripts/protocol_queue.sh (the protocol rerun over several sittings): its list is every cached job
-a dry run of `all` under the shipped profile still plans (evaluation cells and oracle bounds), each
+a dry run of `all` under the shipped profile still plans (evaluation cells, oracle bounds, V̂'s calibration), each
 once, in the stated study order, so that scripts/protocol_finish.sh's `all` computes no cached job."""
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ import yaml
 from conftest import REPO
 
 CACHED = yaml.safe_load((REPO / "profiles" / "shipped" / "config.yaml").read_text())["cache"]
-CELL = re.compile(r"^results/(eval/[^/]+/(?P<study>[^/]+)/[^/]+/n\d+_seed\d+|oracle/.+/n\d+_seed\d+_s\d+)\.parquet$")
+CELL = re.compile(r"^results/(eval/[^/]+/(?P<study>[^/]+)/[^/]+/n\d+_seed\d+\.parquet|(?P<oracle>oracle)/.+/n\d+_seed\d+_s\d+\.parquet"
+                  r"|validation/(?P<calibration>[^/]+)_calibration\.json)$")
 
 
 def test_the_queue_lists_every_cached_job_of_all_once_in_study_order():
@@ -30,7 +31,7 @@ def test_the_queue_lists_every_cached_job_of_all_once_in_study_order():
     for target in listed:
         match = CELL.match(target)
         assert match, target
-        studies.append(match["study"] or "oracle")
+        studies.append(match["study"] or ("oracle" if match["oracle"] else "calibration"))
     order = re.search(r"^order=\((.*?)\)", (REPO / "scripts" / "protocol_queue.sh").read_text(), re.S | re.M)[1]
     rank = {s: i for i, s in enumerate(re.sub(r"#.*", "", order).split())}
     ranks = [rank.get(s, len(rank)) for s in studies]

@@ -92,8 +92,8 @@ register_targets(f"{RESULTS}/validation/vhat_scenario.json")
 # Issue 62 (not in the paper): the calibrated safety level δ of a V̂ per (ε, β), pooled and per
 # closing-speed bin, with held-out coverage (calibrate-vhat): a JSON report, which the cells of runs
 # that deploy a level (`conformal`) load (madpinn_models, common.smk), and its table, an item of the
-# report. Built for the V̂ of every configured run with a level (none in the protocol: overlay
-# workflow/configs/conformal.yaml), or on request: `snakemake -j2 results/validation/vhat_calibration.json`.
+# report. Built for the V̂ of every configured run with a level (the protocol's madpinn-cpeps01 rows,
+# the overlay workflow/configs/conformal.yaml), or on request: `snakemake -j2 results/validation/vhat_calibration.json`.
 rule calibrate_vhat:
     input:
         tracking=TRACKING,
@@ -111,6 +111,7 @@ rule calibrate_vhat:
         config=RESOLVED,
         settings=settings_hash("calibrate-vhat"),
         source=source_hash("calibrate-vhat"),
+    cache: True   # profiles/shipped restores it from output_cache/ (≈ 4 min on one core; the level cells wait for it)
     threads: 1
     resources:
         mem_mb=2000,
