@@ -74,10 +74,9 @@ def run_snakemake(workdir: Path, *args: str, configfiles=(SMOKE,), env: dict | N
 # Longest files first, so that `pytest -n 2 --dist loadfile --no-loadscope-reorder` (README) starts
 # them at once instead of leaving one to run alone at the end (xdist's default reorder would sort the
 # files by their number of tests); order within a file is kept.
-# test_shipped_faults.py runs in full once output_cache/ holds the protocol's Table II cells (1 009 s on a
-# loaded machine, 2026-12-05), so it starts second, beside the smoke DAG.
-LONG_FIRST = ("test_workflow.py", "test_shipped_faults.py", "test_workflow_recovery.py", "test_workflow_reruns.py",
-              "test_mlflow_server.py", "test_workflow_profiles.py")
+# test_shipped_faults.py takes 76 s since V̂'s calibration is restored too (1 009 s before, 2026-12-05).
+LONG_FIRST = ("test_workflow.py", "test_workflow_recovery.py", "test_workflow_reruns.py", "test_mlflow_server.py",
+              "test_workflow_profiles.py", "test_shipped_faults.py")
 
 
 def pytest_collection_modifyitems(items):
