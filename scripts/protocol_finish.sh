@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The protocol rerun's last step, once scripts/protocol_queue.sh has every cell in results/: build every
 # table, figure and page of `all` from those cells, publish them (tables and figures into paper_figures/,
-# cells computed here into output_cache/), prune the output_cache/ entries no result links to any more
+# cells computed here into output_cache/), the same for Table II's final readings on seed 0
+# (paper_figures/table_ii_final/), prune the output_cache/ entries no result links to any more
 # (cells of superseded hashes: they stay in git's history) and rewrite README's generated blocks.
 # Nothing is pruned or published unless `all` finished. COMMIT=1 commits the outcome.
 #
@@ -18,6 +19,11 @@ if [ "$left" != 0 ]; then
 fi
 "$py" -m snakemake -j"${JOBS:-2}" --configfile "${configs[@]}" --profile profiles/shipped all
 "$py" -m madpinn publish --config "${configs[@]}"
+# Table II's final readings on seed 0 (issue 60; their cells are kept in output_cache/ too): their page,
+# so that their cells are linked from results/ before the pruning below
+final=(workflow/configs/table_ii_final.yaml)
+"$py" -m snakemake -j"${JOBS:-2}" --configfile "${configs[@]}" "${final[@]}" --profile profiles/shipped table_ii_readings
+"$py" -m madpinn publish --config "${configs[@]}" "${final[@]}" --figures-to paper_figures/table_ii_final
 # every live entry is the target of a link in results/ (output_cache/README.md); the rest is superseded
 live=$(mktemp)
 find results -type l -exec readlink -f {} \; | xargs -r -n1 basename | sort -u > "$live"
