@@ -132,7 +132,7 @@ SETTINGS = [
     Entry(OracleSettings, "agents", lambda c: OracleSettings.from_config(c, "small"),
           not_config=("horizon_s", "dt")),        # the arena's episode length and episode / oracle.steps
     Entry(TrackingSettings, "tracking", TrackingSettings.from_config, keys={"experiment": "/experiment"},
-          not_config=("uri", "pending_dir", "config_hash", "source", "results", "flush_every_s")),
+          not_config=("uri", "pending_dir", "config_hash", "source", "results", "flush_every_s", "deferred")),
     Entry(EpigraphSystem, "value_functions.vhat", EpigraphSystem.from_config,
           keys={"u_max": "/agents.u_max", "v_max": "/agents.v_max"},
           not_config=("spec", "z_max")),   # spec: ObservationSettings at the training mapping; z_max: a number or `auto` (computed)

@@ -190,6 +190,41 @@ def test_store_failure_mid_job_keeps_results_and_is_logged_exactly_once_later(pa
     assert [r.info.run_id for r in _all_runs(good, "train/y")] == [newer]
 
 
+def test_inside_a_workflow_short_jobs_keep_their_runs_until_it_ends_and_trainings_stay_live(paper_cfg, tmp_path,
+                                                                                           monkeypatch, capsys):
+    """TrackingSettings.deferred (MADPINN_TRACKING_DEFER=1, set by the workflow): a job that is not live
+    opens nothing in the store and prints no warning; its record is logged by flush_pending (the
+    workflow's end) with its real times, status, metrics and files, untagged as a failure's record;
+    a live job (a training) is in the store while it runs."""
+    monkeypatch.setenv("MADPINN_TRACKING_DEFER", "1")
+    s = _settings(paper_cfg, tmp_path, monkeypatch)
+    assert s.deferred
+    init_store(s)
+    out = tmp_path / "cell.json"
+    with job_run(s, job_key="evaluate/c", rule="evaluate", params={"n": 3}) as run:
+        run.log_metrics({"progress": 0.5}, step=1)
+        out.write_text("{}")
+        run.finish(metrics={"safety_rate": 0.9}, artifacts=[out])
+    assert run.run_id is None and _all_runs(s, "evaluate/c") == []          # nothing in the store yet
+    with pytest.raises(ValueError):
+        with job_run(s, job_key="table/t", rule="table"):
+            raise ValueError("bad input")
+    with job_run(s, job_key="train/v", rule="train_vs", live=True) as live:
+        assert MlflowClient(s.uri).get_run(live.run_id).info.status == "RUNNING"
+    assert "WARNING" not in capsys.readouterr().err
+    rec = json.loads(pending_path(s, "evaluate/c", "workflow").read_text())
+    assert rec["deferred"] and rec["status"] == "FINISHED"
+    assert flush_pending(s) == {"logged": 2, "dropped": 0, "failed": 0, "kept": 0}
+    (r,) = _all_runs(s, "evaluate/c")
+    assert r.info.status == "FINISHED" and (r.info.start_time, r.info.end_time) == (rec["start_ms"], rec["end_ms"])
+    assert r.data.metrics["safety_rate"] == 0.9 and r.data.params["n"] == "3"
+    assert "madpinn.logged_from_pending" not in r.data.tags
+    assert {a.path for a in MlflowClient(s.uri).list_artifacts(r.info.run_id)} == {"cell.json"}
+    assert [x.info.status for x in _all_runs(s, "table/t")] == ["FAILED"]
+    monkeypatch.delenv("MADPINN_TRACKING_DEFER")
+    assert not _settings(paper_cfg, tmp_path, monkeypatch).deferred            # by hand: live, as before
+
+
 def test_runs_are_named_by_what_tells_them_apart(paper_cfg, tmp_path, monkeypatch):
     """The runs table's name leads with run, N, seed and study (a live run and one replayed from a
     pending record alike); the job key stays the ``madpinn.job`` tag."""

@@ -1,4 +1,6 @@
-"""A live MLflow run per job: opened when the job starts, closed with its real status and duration.
+"""An MLflow run per job: opened when the job starts, closed with its real status and duration
+(inside a workflow, a job that is not a training keeps it as a record, logged when the workflow
+ends: ``TrackingSettings.deferred``).
 
     with job_run(settings, job_key="train/vhat", rule="train_vhat", wildcards={"kind": "vhat"},
                  params={...}) as run:
@@ -67,9 +69,10 @@ class JobRun:
     off or the store failed (then the run is pending)."""
 
     def __init__(self, settings: TrackingSettings, job_key: str, rule: str, wildcards: Mapping, params: Mapping | None,
-                 tags: Mapping | None = None):
+                 tags: Mapping | None = None, defer: bool = False):
         self.settings = settings
         self.enabled = settings.enabled
+        self.defer = defer and self.enabled   # kept as a pending record, logged when the workflow ends
         tags = {
             JOB_TAG: job_key, SOURCE_TAG: settings.source, RESULTS_TAG: settings.results, "madpinn.rule": rule,
             "madpinn.config_hash": settings.config_hash, "madpinn.experiment_config": settings.experiment,
@@ -77,7 +80,7 @@ class JobRun:
             **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, **(tags or {}),
         }
         self.record = RunRecord(job_key=job_key, source=settings.source, tags=tags, start_ms=now_ms(),
-                                params=flatten(params or {}), uri=settings.uri)
+                                params=flatten(params or {}), uri=settings.uri, deferred=self.defer)
         self._client = None
         self._unsent: list = []
         self._last_flush = time.monotonic()
@@ -196,7 +199,8 @@ class JobRun:
     def __enter__(self) -> "JobRun":
         if not self.enabled:
             return self
-        self._try(self._open)
+        if not self.defer:
+            self._try(self._open)
         if threading.current_thread() is threading.main_thread():
             def _killed(signum, frame):
                 raise JobKilled(f"signal {signum}")
@@ -219,8 +223,9 @@ class JobRun:
                 remove_pending(self.settings, self.record.job_key, self.record.source)
             else:
                 path = write_pending(self.settings, self.record)
-                print(f"WARNING: MLflow run of job '{self.record.job_key}' kept as {path}; it is logged at the next "
-                      f"workflow start with a reachable store.", file=sys.stderr)
+                if not self.defer:
+                    print(f"WARNING: MLflow run of job '{self.record.job_key}' kept as {path}; it is logged at the next "
+                          f"workflow start with a reachable store.", file=sys.stderr)
         except Exception as err:  # noqa: BLE001 - never lose the job's own outcome to tracking
             print(f"WARNING: could not record the pending MLflow run of '{self.record.job_key}': {err}", file=sys.stderr)
         finally:
@@ -238,15 +243,18 @@ class JobRun:
 
 
 def job_run(settings, job_key: str, rule: str, wildcards: Mapping | None = None, params: Mapping | None = None,
-            tags: Mapping | None = None, track: bool = True) -> JobRun:
-    """The live run of one job (a context manager). ``settings``: :class:`TrackingSettings` (or the
-    config mapping, parsed here); ``track=False`` (``--no-track``) logs nothing."""
+            tags: Mapping | None = None, track: bool = True, live: bool = False) -> JobRun:
+    """The run of one job (a context manager). ``settings``: :class:`TrackingSettings` (or the
+    config mapping, parsed here); ``track=False`` (``--no-track``) logs nothing. Outside a workflow,
+    or with ``live`` (trainings: curves seen while they run), the run is opened in the store when the
+    job starts; inside one (``settings.deferred``) it is otherwise kept as a pending record and
+    logged when the workflow ends, with the same times, status, metrics and files."""
     s = _settings(settings)
     if not track and s.enabled:
         from dataclasses import replace
 
         s = replace(s, enabled=False)
-    return JobRun(s, job_key, rule, wildcards or {}, params, tags)
+    return JobRun(s, job_key, rule, wildcards or {}, params, tags, defer=s.deferred and not live)
 
 
 def log_job(cfg, job_key: str, rule: str, wildcards: Mapping[str, object], params: Mapping | None = None,

@@ -2,7 +2,9 @@
 as a pending-run file when the store fails during the job.
 
 A pending file ``<results>/tracking/pending/<source>__<job>.json`` (model directories beside it)
-holds everything the job logged, with the original timestamps, and the store it was meant for.
+holds everything the job logged, with the original timestamps, and the store it was meant for. A
+short workflow job writes one by choice (``TrackingSettings.deferred``), which the workflow logs when
+it ends; a live run writes one when its store fails.
 :func:`flush_pending` — called at every workflow start with a reachable store (``start_tracking``
 in ``workflow/rules/common.smk``) — logs each one as the job's run into that store and removes the file. Exactly once: a replay replaces every
 other run of the job (same key and source), so a replay interrupted before its file is removed
@@ -47,6 +49,7 @@ class RunRecord:
     end_ms: int | None = None
     run_id: str | None = None                            # the live run, if one was created
     uri: str | None = None                               # the store it belongs to (None: records from before)
+    deferred: bool = False                               # kept by choice (a short workflow job), not after a store failure
 
     def add_metrics(self, metrics: dict, step: int, ts: int | None = None) -> list:
         ts = now_ms() if ts is None else ts
@@ -171,7 +174,8 @@ def replay(settings: TrackingSettings, record: RunRecord) -> str | None:
         missing = log_files(c, run_id, record.artifacts, record.models, record.registered)
         if missing:
             c.set_tag(run_id, "madpinn.missing_artifacts", ",".join(missing)[:5000])
-        c.set_tag(run_id, "madpinn.logged_from_pending", "true")
+        if not record.deferred:
+            c.set_tag(run_id, "madpinn.logged_from_pending", "true")
         c.set_terminated(run_id, record.status, end_time=record.end_ms)
     except Exception:
         purge_runs(c, settings, [c.get_run(run_id)])

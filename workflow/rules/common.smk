@@ -355,10 +355,16 @@ onstart:
     open_store(TRACKING_SETTINGS, TRACKING_STORE)
 
 
-# A run that ran jobs ends with where its outputs are, one line each (Snakemake skips this hook when
-# there was nothing to do).
+# A run that ran jobs logs the runs its short jobs kept (TrackingSettings.deferred), then ends with
+# where its outputs are, one line each (Snakemake skips these hooks when there was nothing to do).
+# A failed run logs them too: the jobs that finished, and the failed job's FAILED run.
 onsuccess:
+    log_kept_runs(TRACKING_SETTINGS)
     print_where_outputs(TRACKING_SETTINGS)
+
+
+onerror:
+    log_kept_runs(TRACKING_SETTINGS)
 
 
 # --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
@@ -380,6 +386,21 @@ def start_tracking(settings, marker):
         follow_store(settings, marker)
         if settings.pending_dir.is_dir():
             sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
+
+
+def log_kept_runs(settings):
+    """At the end of a run (under its run lock): log the runs its jobs kept as pending records. A
+    store that fails here keeps them pending for the next start; never raises."""
+    from madpinn.tracking import flush_pending
+
+    if settings.enabled and settings.pending_dir.is_dir():
+        try:
+            counts = flush_pending(settings)
+        except Exception as exc:  # noqa: BLE001 - the run's own outcome stands; the next start retries
+            sys.stderr.write(f"madpinn: the runs kept by this run's jobs stay pending ({exc})\n")
+            return
+        if counts["failed"] or counts["kept"]:
+            sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
 
 
 def open_store(settings, marker):

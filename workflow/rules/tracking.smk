@@ -1,11 +1,16 @@
 # MLflow (madpinn/tracking): checked at every start, created once, pending runs logged first.
 from madpinn.tracking import TrackingSettings, check_store
-from madpinn.tracking.settings import SOURCE_ENV
+from madpinn.tracking.settings import DEFER_ENV, SOURCE_ENV
 from snakemake_interface_executor_plugins.settings import ExecMode
 
 # Jobs started by this workflow tag their runs madpinn.source=workflow; runs started by hand
 # (manual) never replace them.
 os.environ.update({SOURCE_ENV: "workflow"})   # MADPINN_TRACKING_SOURCE, set here (not required of the user)
+# Only the trainings open their runs in the store when they start (curves while they train); every
+# other job keeps its run as a pending record, logged when the workflow ends (onsuccess / onerror:
+# common.smk), by track_cells before it reads the cell runs, or else at the next start: a short job
+# is spared MLflow's import and store connection (≈ 2.7 s of CPU each). (TrackingSettings.deferred)
+os.environ.update({DEFER_ENV: "1"})
 TRACKING_SETTINGS = TrackingSettings.from_config(config)
 
 # Every start, dry runs included, stops here when the store is unreachable (read-only check).
