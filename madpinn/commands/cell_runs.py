@@ -123,7 +123,7 @@ def track_cells(cfg: dict, cells: Iterable[str | Path]) -> dict:
     here, or whose restored run has another provenance hash, is logged from its files
     (``restored=true`` when it links into the output cache); a computed cell's run gets its
     provenance hash tag. Returns ``{cells, logged, tagged, enabled}``."""
-    from madpinn.tracking import TrackingSettings, flush_pending
+    from madpinn.tracking import TrackingSettings
     from madpinn.tracking.mlflow_store import client
 
     settings = TrackingSettings.from_config(cfg)
@@ -131,7 +131,6 @@ def track_cells(cfg: dict, cells: Iterable[str | Path]) -> dict:
     counts = {"enabled": settings.enabled, "cells": len(cells), "logged": 0, "tagged": 0}
     if not settings.enabled:
         return counts
-    flush_pending(settings)   # the computed cells' runs, kept until now by a workflow (settings.deferred)
     existing = _cell_runs(settings)
     c = client(settings)
     for parquet in cells:
@@ -148,7 +147,6 @@ def track_cells(cfg: dict, cells: Iterable[str | Path]) -> dict:
             continue
         record = cell_record(RunSettings.resolve(cfg, where["study"], where["run"]), where["n_agents"], where["seed"],
                              where["backend"], restored=prov is not None)
-        record.live = True   # logged here and now: this job reads the runs it writes
         record.tags = {**record.tags, **({PROVENANCE_TAG: prov} if prov else {}),
                        **({"madpinn.logged_from_files": "true"} if prov is None else {})}
         with job(cfg, record, True) as tracker:

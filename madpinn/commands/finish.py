@@ -1,8 +1,7 @@
 """The one ending of every job: result files first, then its MLflow run (SPEC §11).
 
-A job opens its MLflow run when it starts (:func:`job`: real start time, curves logged
-as they happen, closed with the job's real status — FINISHED, FAILED, KILLED; inside a workflow
-only trainings open it in the store then, the rest are logged when the workflow ends), computes,
+A job opens its live MLflow run when it starts (:func:`job`: real start time, curves logged
+as they happen, closed with the job's real status — FINISHED, FAILED, KILLED), computes,
 writes its result files, and hands them to :func:`finish`, which checks they exist and only
 then logs them; tracking can never lose them (a store failure leaves a pending run, see
 :mod:`madpinn.tracking`).
@@ -41,9 +40,6 @@ class JobRecord:
     """model artifact name -> model name: registered in the Model Registry as ``<experiment>.<name>``"""
     tags: Mapping[str, str] = field(default_factory=dict)
     """extra MLflow tags of the run (e.g. ``madpinn.restored``)"""
-    live: bool = False
-    """open the run in the store when the job starts, also inside a workflow (trainings: their curves
-    are seen while they run); else a workflow logs it when it ends (``TrackingSettings.deferred``)"""
 
 
 def write_json(path: str | Path, obj: Any) -> Path:
@@ -76,7 +72,7 @@ def job(cfg: Mapping, record: JobRecord, track: bool) -> Iterator[Any]:
     from madpinn.tracking import job_run
 
     with job_run(cfg, job_key=record.job_key, rule=record.rule, wildcards=dict(record.wildcards),
-                 params=dict(record.params), tags=dict(record.tags), track=track, live=record.live) as run:
+                 params=dict(record.params), tags=dict(record.tags), track=track) as run:
         yield run
 
 

@@ -17,9 +17,7 @@ def train_and_record(cfg: dict, training: "TrainingRun", curves: Sequence[str], 
                      track: bool = True) -> dict | None:
     """Run ``training`` inside ``record``'s live MLflow run (the ``curves`` keys of every curve row
     logged as they happen), then log its files, summary and actor; return the summary, or None
-    when its time limit paused it (the run is marked not completed). The run is live (its curves are
-    seen while it trains), also inside a workflow."""
-    record.live = True
+    when its time limit paused it (the run is marked not completed)."""
     with job(cfg, record, track) as run:
         result = training.run(live_curves(run, curves))
         if result is None:

@@ -79,8 +79,7 @@ def _train(args) -> int:
                        wildcards={"kind": kind, **({"variant": variant} if variant else {})},
                        params={"settings": {**vcfg, "seed": training_seed(cfg, kind)},
                                "config_hash": training_hash(cfg, kind),
-                               "schedule_hash": training_hash(cfg, kind, schedule_only=True)},
-                       live=True)   # its curves are seen while it trains, also inside a workflow
+                               "schedule_hash": training_hash(cfg, kind, schedule_only=True)})
     with job(cfg, record, not args.no_track) as run:
         return _train_job(cfg, kind, args, run, record)
 

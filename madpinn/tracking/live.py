@@ -242,13 +242,21 @@ class JobRun:
         purge_runs(c, self.settings, replaced)
 
 
+LIVE_RULES = "train_"
+"""rules whose runs open in the store when their jobs start, also inside a workflow: the trainings
+(``train_vhat``, ``train_defmarl``, …), whose curves are watched while they train"""
+
+
 def job_run(settings, job_key: str, rule: str, wildcards: Mapping | None = None, params: Mapping | None = None,
-            tags: Mapping | None = None, track: bool = True, live: bool = False) -> JobRun:
+            tags: Mapping | None = None, track: bool = True, live: bool | None = None) -> JobRun:
     """The run of one job (a context manager). ``settings``: :class:`TrackingSettings` (or the
     config mapping, parsed here); ``track=False`` (``--no-track``) logs nothing. Outside a workflow,
-    or with ``live`` (trainings: curves seen while they run), the run is opened in the store when the
+    or when ``live`` (default: a rule of :data:`LIVE_RULES`), the run is opened in the store when the
     job starts; inside one (``settings.deferred``) it is otherwise kept as a pending record and
-    logged when the workflow ends, with the same times, status, metrics and files."""
+    logged when the workflow ends, with the same times, status, metrics and files. (Decided here, in
+    the tracking glue, so that no job's provenance hash depends on it.)"""
+    if live is None:
+        live = rule.startswith(LIVE_RULES)
     s = _settings(settings)
     if not track and s.enabled:
         from dataclasses import replace

@@ -8,8 +8,10 @@ from snakemake_interface_executor_plugins.settings import ExecMode
 os.environ.update({SOURCE_ENV: "workflow"})   # MADPINN_TRACKING_SOURCE, set here (not required of the user)
 # Only the trainings open their runs in the store when they start (curves while they train); every
 # other job keeps its run as a pending record, logged when the workflow ends (onsuccess / onerror:
-# common.smk), by track_cells before it reads the cell runs, or else at the next start: a short job
-# is spared MLflow's import and store connection (≈ 2.7 s of CPU each). (TrackingSettings.deferred)
+# common.smk), by track_cells before it reads the cell runs (which it logs live itself), or else at
+# the next start: a short job is spared MLflow's import and store connection (≈ 2.7 s of CPU each).
+# Trainings: madpinn.tracking.live.LIVE_RULES. (TrackingSettings.deferred; all of it tracking glue,
+# outside every provenance hash)
 os.environ.update({DEFER_ENV: "1"})
 TRACKING_SETTINGS = TrackingSettings.from_config(config)
 
@@ -75,7 +77,8 @@ rule track_cells:
     log:
         f"{LOGS}/track_cells.log",
     shell:
-        "python -m madpinn track-cells --config {params.config:q} --cells {input.cells:q} --out {output:q} 2>&1 | tee {log:q}"
+        "(python -m madpinn.tracking.flush --config {params.config:q} && MADPINN_TRACKING_DEFER=0"
+        " python -m madpinn track-cells --config {params.config:q} --cells {input.cells:q} --out {output:q}) 2>&1 | tee {log:q}"
 
 
 register_targets(TRACKED_CELLS)
