@@ -77,7 +77,8 @@ rule track_cells:
     log:
         f"{LOGS}/track_cells.log",
     shell:
-        "(python -m madpinn.tracking.flush --config {params.config:q} && MADPINN_TRACKING_DEFER=0"
+        "(python -c 'import sys; from madpinn.tracking.flush import flush_config; flush_config(sys.argv[1:])'"
+        " {params.config:q} && MADPINN_TRACKING_DEFER=0"
         " python -m madpinn track-cells --config {params.config:q} --cells {input.cells:q} --out {output:q}) 2>&1 | tee {log:q}"
 
 
