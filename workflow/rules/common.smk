@@ -385,7 +385,9 @@ def start_tracking(settings, marker):
     with fh:
         follow_store(settings, marker)
         if settings.pending_dir.is_dir():
-            sys.stderr.write(f"madpinn: pending MLflow runs {flush_pending(settings)}\n")
+            counts = flush_pending(settings)   # routine since short jobs keep their runs (settings.deferred):
+            if counts["failed"] or counts["kept"]:   # said only when some stay pending
+                sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
 
 
 def log_kept_runs(settings):
