@@ -5,8 +5,8 @@ A pending file ``<results>/tracking/pending/<source>__<job>.json`` (model direct
 holds everything the job logged, with the original timestamps, and the store it was meant for. A
 short workflow job writes one by choice (``TrackingSettings.deferred``), which the workflow logs when
 it ends; a live run writes one when its store fails.
-:func:`flush_pending` — called at every workflow start with a reachable store (``start_tracking``
-in ``workflow/rules/common.smk``) — logs each one as the job's run into that store and removes the file. Exactly once: a replay replaces every
+:func:`flush_pending` — called at every workflow start with a reachable store and at its end
+(``log_pending_runs`` in ``workflow/rules/common.smk``) — logs each one as the job's run into that store and removes the file. Exactly once: a replay replaces every
 other run of the job (same key and source), so a replay interrupted before its file is removed
 is replaced by the next one; a pending record older than a run already in the store is dropped.
 """

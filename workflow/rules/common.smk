@@ -359,12 +359,12 @@ onstart:
 # where its outputs are, one line each (Snakemake skips these hooks when there was nothing to do).
 # A failed run logs them too: the jobs that finished, and the failed job's FAILED run.
 onsuccess:
-    log_kept_runs(TRACKING_SETTINGS)
+    log_pending_runs(TRACKING_SETTINGS)
     print_where_outputs(TRACKING_SETTINGS)
 
 
 onerror:
-    log_kept_runs(TRACKING_SETTINGS)
+    log_pending_runs(TRACKING_SETTINGS)
 
 
 # --- helpers of the rule files, kept here (`snakemake --lint` wants functions apart from rules) ---
@@ -375,7 +375,7 @@ def start_tracking(settings, marker):
     stops in `onstart`): the store marker follows a changed URI, and pending runs are logged once.
     The store itself is created by `onstart` (open_store), once the DAG is built: a refused target
     creates none."""
-    from madpinn.tracking import flush_pending, follow_store
+    from madpinn.tracking import follow_store
 
     if not settings.enabled:
         return
@@ -384,22 +384,20 @@ def start_tracking(settings, marker):
         return
     with fh:
         follow_store(settings, marker)
-        if settings.pending_dir.is_dir():
-            counts = flush_pending(settings)   # routine since short jobs keep their runs (settings.deferred):
-            if counts["failed"] or counts["kept"]:   # said only when some stay pending
-                sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
+        log_pending_runs(settings)
 
 
-def log_kept_runs(settings):
-    """At the end of a run (under its run lock): log the runs its jobs kept as pending records. A
-    store that fails here keeps them pending for the next start; never raises."""
+def log_pending_runs(settings):
+    """Under the run lock, at a start and at the end of a run: log the pending run records (kept by
+    the short jobs, settings.deferred, or after a store failure). Routine, so said only when some stay
+    pending; a store that fails here keeps them for the next start; never raises."""
     from madpinn.tracking import flush_pending
 
     if settings.enabled and settings.pending_dir.is_dir():
         try:
             counts = flush_pending(settings)
         except Exception as exc:  # noqa: BLE001 - the run's own outcome stands; the next start retries
-            sys.stderr.write(f"madpinn: the runs kept by this run's jobs stay pending ({exc})\n")
+            sys.stderr.write(f"madpinn: pending MLflow runs stay pending ({exc})\n")
             return
         if counts["failed"] or counts["kept"]:
             sys.stderr.write(f"madpinn: pending MLflow runs {counts}\n")
