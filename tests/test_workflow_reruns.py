@@ -23,7 +23,7 @@ from workflow_helpers import (NO_TRACKING, TINY, LocalSlurm, copy_repo, env_for,
 
 TRAININGS = {"train_vhat", "train_vs"}
 TABLES = {"table_safety_scaling", "table_ours_scaling", "table_neighbour_ablation", "table_update_ablation",
-          "table_conflict_circle"}   # the tiny DAG's (workflow_helpers.TINY: one conflict pattern)
+          "table_conflict_pairs", "table_conflict_lines", "table_conflict_circle", "table_conflict_crossing"}
 FIGURES = {"fig_cost_safety", "fig_trajectories", "fig_value_heatmap", "fig_vs_slices"}
 SPACED = {"paths": {"results": "my results", "figures": "my results/fig s"}}   # quoting in every shell line
 
@@ -78,7 +78,7 @@ def test_deployment_and_validation_settings_rerun_no_training(done):
     """With the trained V̂ and V_s in place: a deployment knob reruns the cells, never a training; a
     validation setting reruns its check alone; a training setting does retrain."""
     jobs = _dry(done, {"observation": {"carrot_margin": 0.35}})
-    assert not TRAININGS & set(jobs) and jobs.get("evaluate") == 6, jobs
+    assert not TRAININGS & set(jobs) and jobs.get("evaluate") == 9, jobs
     assert _dry(done, {"value_functions": {"vhat": {"validation": {"samples": 1024}}}}) == {"validate_vhat": 1, "all": 1}
     assert _dry(done, {"value_functions": {"vhat": {"validation": {"scenario": {"samples": 32}}}}}) == {
         "verify_vhat": 1, "all": 1}
@@ -119,9 +119,9 @@ def test_policy_code_change_reruns_that_methods_evaluations_only(done):
     assert {"table_safety_scaling", "table_neighbour_ablation", "table_update_ablation"} <= set(jobs), jobs
     assert "table_ours_scaling" not in jobs and "table_conflict_circle" not in jobs, jobs   # nominal-only tables
     jobs = _edit_and_dry(done, "policies/nominal.py")
-    assert jobs.get("evaluate") == 3 and not (TRAININGS & set(jobs)), jobs   # main, scaling, the circle cell
+    assert jobs.get("evaluate") == 6 and not (TRAININGS & set(jobs)), jobs   # main, scaling, 4 conflict cells
     jobs = _edit_and_dry(done, "policies/base.py")                             # shared by every method
-    assert jobs.get("evaluate") == 6 and TABLES <= set(jobs) and {"fig_cost_safety", "fig_trajectories"} <= set(jobs)
+    assert jobs.get("evaluate") == 9 and TABLES <= set(jobs) and {"fig_cost_safety", "fig_trajectories"} <= set(jobs)
     assert _dry(done) == {}  # reverted: nothing again
 
 
@@ -270,7 +270,7 @@ def test_the_dag_on_a_single_node_slurm_cluster_gives_the_same_tables(done, tmp_
                 and not p.relative_to(root).parts[0] in ("logs", "tracking")}
     assert outputs(local, "fig s") <= outputs(here, "paper_figures")
     tables = sorted((local / "fig s").glob("table_*.*"))
-    assert len(tables) >= 3 * len(TABLES)
+    assert len(tables) >= 3 * 8
     for t in tables:
         assert (here / "paper_figures" / t.name).read_bytes() == t.read_bytes(), t.name
 

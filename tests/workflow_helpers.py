@@ -28,10 +28,6 @@ TINY = {
         "ablation_neighbours": {"runs": ["madpinn-nearest"]},
         "ablation_update": {"runs": ["madpinn-k1"]},
         "conflict_circle": {"runs": ["nominal"]},
-        # one conflict pattern is enough for the tiny DAG (CI time): the other three patterns' cells,
-        # oracle bounds and tables run in the smoke DAG of tests/test_workflow.py
-        "conflict_pairs": {"in_all": False}, "conflict_lines": {"in_all": False},
-        "conflict_crossing": {"in_all": False},
         "large_arena_frontier": {"in_all": False},   # its own target (tests/test_frontier.py)
     },
 }
