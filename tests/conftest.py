@@ -71,7 +71,7 @@ def run_snakemake(workdir: Path, *args: str, configfiles=(SMOKE,), env: dict | N
     return proc
 
 
-# Longest files first, so that `pytest -n 2 --dist loadfile --no-loadscope-reorder` (README) starts
+# Longest files first, so that `pytest -n 3 --dist loadfile --no-loadscope-reorder` (README) starts
 # them at once instead of leaving one to run alone at the end (xdist's default reorder would sort the
 # files by their number of tests); order within a file is kept.
 # test_shipped_faults.py takes 76 s since V̂'s calibration is restored too (1 009 s before, 2026-12-05).

@@ -58,8 +58,11 @@ def _committed_copy(dest: Path) -> Path:
 def _snakemake(copy: Path, *args: str, popen: bool = False, cwd: Path | None = None, target=TABLE, profile=SHIPPED):
     cmd = snakemake_cmd("-j2", *([target] if target else []), *profile, *args)
     if popen:
+        # SIGINT at its default, as a terminal's shell starts a command (a suite started with `nohup … &`
+        # passes SIGINT ignored to every process, and the run would not see the Ctrl-C step's signal)
         return subprocess.Popen(cmd, cwd=cwd or copy, env=env_for(copy), stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, start_new_session=True)
+                                stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     return subprocess.run(cmd, cwd=cwd or copy, env=env_for(copy), capture_output=True, text=True, timeout=600)
 
 
