@@ -136,14 +136,34 @@ def test_docs_numbers_follow_config_and_cells():
     assert line in speeds, line
 
 
+def test_table_iis_claim_shows_where_its_readings_were_chosen_and_judges_only_the_final_ones(tmp_path):
+    """A readings page with ``chosen_on`` (the final readings on seed 0, chosen on validation seeds): the claim
+    judges the page's own readings; the validation page's summary is shown beside it and counts for nothing."""
+    from madpinn.evaluation.claims_page import to_markdown
+
+    report, _ = _claims_of(tmp_path, 0.40)
+    reading = lambda study, k: {"study": study, "run": "madpinn", "horizon_s": 6.0, "checks_passed": k, "checks": 9,   # noqa: E731
+                                "reproduces": k == 9, "pattern": "uniform", "failed": ""}
+    final = {"protocol": reading("scaling", 3), "judged": [reading("law_within_1m", 8), reading("scaling", 3)]}
+    shown = {**final, "chosen_on": {"verdict": "not reproduced under any reading tried", "closest": "law_within_1m · madpinn · T = 6 s",
+                                    "readings": {"law_within_1m · madpinn · T = 6 s": "9 of 9"}}}   # a pass there changes nothing
+    plain, beside = build_claims(report, readings=final), build_claims(report, readings=shown)
+    claim = lambda c: next(x for x in c["claims"] if x["id"] == "table2_readings")   # noqa: E731
+    assert claim(plain)["verdict"] == claim(beside)["verdict"] == DOES_NOT and claim(beside)["checks"] == claim(plain)["checks"]
+    assert "chosen_on" not in claim(plain) and claim(beside)["chosen_on"]["closest"] == "law_within_1m · madpinn · T = 6 s"
+    md = to_markdown(beside)
+    assert "These readings were chosen on validation seeds" in md and "Shown, not judged." in md
+    assert "These readings were chosen" not in to_markdown(plain)
+
+
 def test_the_protocols_claims_read_the_published_readings_verdict(tmp_path):
     """``claims.table_ii_verdict`` (config.yaml: the published page) reaches the claims job from any
     working directory; a named file that does not exist stops the plan in one line, before any job;
     an overlay that builds the readings page itself hands its own verdict instead."""
     from conftest import run_snakemake
 
-    published = REPO / "paper_figures" / "table_ii_readings" / "verdict.json"
-    assert load_config([REPO / "config.yaml"])["claims"]["table_ii_verdict"] == "paper_figures/table_ii_readings/verdict.json"
+    published = REPO / "paper_figures" / "table_ii_final" / "table_ii_readings" / "verdict.json"   # the final readings, seed 0
+    assert load_config([REPO / "config.yaml"])["claims"]["table_ii_verdict"] == "paper_figures/table_ii_final/table_ii_readings/verdict.json"
     proc = run_snakemake(tmp_path, "-n", "-j1", "claims_table", configfiles=())   # the protocol's config
     assert f"--table-ii-verdict {published}" in proc.stdout + proc.stderr
     missing = tmp_path / "missing.yaml"

@@ -31,8 +31,9 @@ def test_kept_readings_make_a_valid_seed_0_overlay_keyed_like_the_protocol(tmp_p
     script, laws = _script(), yaml.safe_load(LAWS.read_text())
     verdict = {"protocol": _reading("law_uniform", "madpinn"), "closest": _reading("grid_uniform", "madpinn-sensall", 5),
                "reproducing": [_reading("law_within_1m", "madpinn", 9), _reading("law_within_1m", "madpinn", 9)]}
-    overlay = script.overlay(verdict, laws)
+    overlay = script.overlay(verdict, laws, chosen_on="paper_figures/table_ii_readings/verdict.json")
     assert overlay["studies"]["grid_uniform"]["runs"] == ["madpinn-sensall"]       # the closest, once
+    assert overlay["table_ii_readings"]["chosen_on"] == "paper_figures/table_ii_readings/verdict.json"   # summarised by the page
     assert overlay["studies"]["law_within_1m"] == {"arena": "large", "pattern": "goals_within_1m", "agent_counts": [64, 128, 256],
                                                    "seeds": [0], "scenarios": 20, "in_all": False, "runs": ["madpinn"]}
     assert overlay["studies"]["baselines_large"]["seeds"] == [0]

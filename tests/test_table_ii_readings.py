@@ -207,8 +207,13 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
             p.parent.mkdir(parents=True, exist_ok=True)
             g.to_parquet(p)
             paths.append(str(p))
+    chosen = tmp_path / "validation_verdict.json"   # the page these readings were chosen on (validation seeds)
+    chosen.write_text(json.dumps({"verdict": "not reproduced under any reading tried",
+                                  "protocol": {"study": "law_uniform", "run": "madpinn", "horizon_s": 6.0, "checks_passed": 3, "checks": 9},
+                                  "closest": {"study": "law_within_1m", "run": "madpinn", "horizon_s": 6.0, "checks_passed": 7, "checks": 9},
+                                  "judged": [{"study": "law_within_1m", "run": "madpinn", "horizon_s": 6.0, "checks_passed": 7, "checks": 9}]}))
     cfg_file = tmp_path / "readings.yaml"
-    cfg_file.write_text("table_ii_readings: {studies: [law_uniform, law_within_1m]}\n")
+    cfg_file.write_text(f"table_ii_readings: {{studies: [law_uniform, law_within_1m], chosen_on: {chosen}}}\n")
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-m", "madpinn", "table-ii-readings", "--config", str(REPO / "config.yaml"),
                            str(REPO / "workflow" / "configs" / "shipped.yaml"), str(SCENARIO_LAWS), str(cfg_file),
@@ -221,6 +226,10 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     md = (out / "table_ii_readings.md").read_text()
     assert "holds only under readings the paper does not state" in md and "law_within_1m (goals_within_1m)" in md
     assert "## What each deployment choice moves, on the same scenarios" in md
+    # where the readings were chosen: summarised beside the verdict (its readings and the protocol's), judged nowhere
+    assert verdict["chosen_on"] == {"verdict": "not reproduced under any reading tried", "closest": "law_within_1m · madpinn · T = 6 s",
+                                    "readings": {"law_within_1m · madpinn · T = 6 s": "7 of 9", "law_uniform · madpinn · T = 6 s": "3 of 9"}}
+    assert "These readings were chosen on validation seeds" in md and "pooled over the reading's seeds (here: 100)" in md
     laws = pd.read_csv(out / "laws.csv")
     assert set(laws["run"]) == {"madpinn"}
     assert verdict["baselines"] == {"reading": "hard for every method tried", "reaching": []}

@@ -180,6 +180,9 @@ def _controller_readings(args) -> int:
 
 
 def _table_ii_readings(args) -> int:
+    import json
+
+    from madpinn.config.paths import in_repository
     from madpinn.evaluation.reproduction import paper_values
     from madpinn.evaluation.table_ii_page import load_frames, write_table_ii_readings
     from madpinn.evaluation.table_ii_readings import PaperRow, reading_rows
@@ -193,7 +196,9 @@ def _table_ii_readings(args) -> int:
     with job(cfg, record, not args.no_track) as run:
         anchor, large, baselines = load_frames(args.inputs, settings)
         rows = reading_rows(large)   # once: the page's tables and the figure
-        files = write_table_ii_readings(anchor, large, rows, baselines, settings, paper, args.out_dir)
+        chosen = cfg["table_ii_readings"]["chosen_on"]   # the page these readings were chosen on (an input of the rule)
+        chosen_on = json.loads(in_repository(chosen).read_text()) if chosen else None
+        files = write_table_ii_readings(anchor, large, rows, baselines, settings, paper, args.out_dir, chosen_on=chosen_on)
         files += plot_table_ii_readings(rows, paper, settings.labels, Path(args.out_dir) / "fig_table_ii_readings")
         files += plot_scenario_laws(anchor, large, settings, Path(args.out_dir) / "fig_scenario_laws")
         record.artifacts = files

@@ -136,7 +136,9 @@ def table2_readings_claim() -> Claim:
 
     return Claim("table2_readings", "Table II's row (safety, safe scenarios and cost at 64 / 128 / 256 agents), under "
                  "the readings the paper leaves open (start/goal law, deployment, horizon)", "Table II, tex 410-424; Results 2, tex 427",
-                 "per reading (paper_figures/table_ii_readings/verdict.json): every check of the scale fixed before the cells "
+                 "per reading of the readings page claims.table_ii_verdict names (the protocol's: the final readings on "
+                 "protocol seed 0, chosen on validation seeds, docs/findings/2026-12-01-table-ii-final-readings-plan.md): "
+                 "every check of the scale fixed before the cells "
                  "(docs/findings/2026-11-28-table-ii-readings-preregistered.md §3); the protocol's reading is the stated one",
                  readings_checks)
 
@@ -175,6 +177,8 @@ def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, 
                     "passed": sum(bool(c.passed) for c in checks), "checks_total": sum(c.passed is not None for c in checks),
                     "cells": sorted({x for ch in checks for x in ch.cells}),
                     "headline": _check_dict(top) if top else None, "checks": [_check_dict(c) for c in checks]})
+        if cl.id == "table2_readings" and inputs[cl.id].get("chosen_on"):   # where its readings were chosen: shown, not judged
+            out[-1]["chosen_on"] = inputs[cl.id]["chosen_on"]
     verdicts = {c["id"]: c["verdict"] for c in out}
     prov = report.get("provenance", {})
     return {"claims": out, "verdicts": verdicts,

@@ -24,6 +24,14 @@ def _readings(c: dict) -> str:
     return "; ".join(f"{r}: {v}" for r, v in c["readings"].items())
 
 
+def _chosen_on(c: dict) -> list[str]:
+    """Where the judged readings were chosen (validation seeds), beside the claim; it judges nothing."""
+    from madpinn.evaluation.table_ii_page import chosen_on_line
+
+    line = chosen_on_line(c)
+    return ["", line + " Shown, not judged."] if line else []
+
+
 def claims_section(claims: dict) -> list[str]:
     counts = claims["counts"]
     lines = ["Verdicts: " + ", ".join(f"{w}: {counts[w]}" for w in SCALE if counts.get(w)) + ".", "",
@@ -32,7 +40,8 @@ def claims_section(claims: dict) -> list[str]:
         lines.append(f"| {i} | {c['claim']} | {c['source']} | **{c['verdict']}** | {_readings(c)} | {_headline(c)} |")
     for i, c in enumerate(claims["claims"], 1):
         lines += ["", f"### {i}. {c['id']}: {c['verdict']}", "", f"*{c['claim']}* ({c['source']}).", "",
-                  f"Rule: {c['rule']}.", "", "| reading | expected | observed | paper | passed |", "|---|---|---|---|---|"]
+                  f"Rule: {c['rule']}.", *_chosen_on(c), "", "| reading | expected | observed | paper | passed |",
+                  "|---|---|---|---|---|"]
         for ch in c["checks"]:
             reading = ch["reading"] if ch["reading"] != STATED else "paper's"
             lines.append(f"| {reading} | {ch['expected']}{' (essential)' if ch['essential'] else ''} | {ch['observed']} "

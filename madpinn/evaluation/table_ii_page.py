@@ -111,12 +111,40 @@ def speed_display(large: pd.DataFrame, settings: ReadingsSettings) -> pd.DataFra
     return pd.DataFrame(out)
 
 
+def reading_name(r: dict) -> str:
+    return f"{r['study']} · {r['run']} · T = {r['horizon_s']:g} s"
+
+
+def chosen_on_summary(verdict: dict) -> dict:
+    """Of the readings page (validation seeds) a page's readings were chosen on: its verdict, the reading it
+    found closest, and each reading's checks passed (``"k of n"``: its judged readings and the protocol's,
+    most passed first)."""
+    readings = list(verdict.get("judged") or [])
+    proto = verdict.get("protocol")
+    if proto and reading_name(proto) not in {reading_name(r) for r in readings}:
+        readings.append(proto)
+    readings.sort(key=lambda r: -r["checks_passed"] / r["checks"])
+    closest = verdict.get("closest")
+    return {"verdict": verdict.get("verdict"), "closest": reading_name(closest) if closest else None,
+            "readings": {reading_name(r): f"{r['checks_passed']} of {r['checks']}" for r in readings}}
+
+
+def chosen_on_line(verdict: dict) -> str:
+    """The page's line on where its readings were chosen ("" when they were not chosen on a readings page)."""
+    ch = verdict.get("chosen_on")
+    if not ch:
+        return ""
+    shown = "; ".join(f"{r}: {k}" for r, k in ch["readings"].items())
+    return (f"These readings were chosen on validation seeds, where the readings page said \"{ch['verdict']}\" and found "
+            f"{ch['closest']} closest (checks passed per reading: {shown}).")
+
+
 def verdict_sentence(verdict: dict) -> str:
     """The verdict in one plain sentence, naming the readings it rests on."""
     v = verdict["verdict"]
     if not verdict.get("readings_judged"):
         return f"**{v}.**"
-    name = lambda r: f"{r['study']} · {r['run']} · T = {r['horizon_s']:g} s"   # noqa: E731
+    name = reading_name
     text = f"**Table II {v}.** The protocol's reading ({name(verdict['protocol'])}) passes {verdict['protocol']['checks_passed']} of {verdict['protocol']['checks']} checks."
     if verdict["reproducing"]:
         text += " Readings that reproduce it: " + "; ".join(f"{name(r)} (cost reading {r['cost_reading']})" for r in verdict["reproducing"]) + "."
@@ -144,10 +172,12 @@ def baselines_display(rows: pd.DataFrame, protocol: pd.DataFrame, paper: PaperRo
 
 
 def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.DataFrame, baselines: pd.DataFrame,
-                            settings: ReadingsSettings, paper: PaperRow, out_dir: str | Path) -> list[Path]:
+                            settings: ReadingsSettings, paper: PaperRow, out_dir: str | Path,
+                            chosen_on: dict | None = None) -> list[Path]:
     """From :func:`load_frames`' scenario rows and the readings' :func:`reading_rows` ``rows``, write ``table_ii_readings.csv`` (one row per reading
     and N), ``.md`` / ``.html`` (the verdict, the readings, the law rule, the speed bins),
-    ``verdict.json`` and ``laws.csv``; returns the paths."""
+    ``verdict.json`` and ``laws.csv``; returns the paths. ``chosen_on``: the ``verdict.json`` of the readings
+    page these readings were chosen on (``settings.chosen_on``), summarised beside the verdict."""
     from madpinn.evaluation.html import markdown_page
 
     judged, verdict = verdict_of(rows, paper, settings)
@@ -160,6 +190,9 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.
     base_rows = reading_rows(baselines) if len(baselines) else pd.DataFrame()
     if len(base_rows):
         verdict["baselines"] = baseline_reading(base_rows, paper)
+    if chosen_on:
+        verdict["chosen_on"] = chosen_on_summary(chosen_on)
+    seeds = " ".join(str(int(x)) for x in sorted(large["seed"].unique())) if "seed" in large else "–"
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     csv, laws, js, md = out / "table_ii_readings.csv", out / "laws.csv", out / "verdict.json", out / "table_ii_readings.md"
@@ -172,12 +205,12 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.
                             for n, c in sorted(paper.cells.items()))
     text = [
         "# Table II under the readings the paper leaves open (issue 60; not in the paper)", "",
-        verdict_sentence(verdict), "",
+        verdict_sentence(verdict), "", *([chosen_on_line(verdict), ""] if verdict.get("chosen_on") else []),
         f"Scale, fixed before the cells ran ({PLAN} §3): at each N safety ≥ the paper's − {100 * SCALE.safety_points:g} points,",
         f"safe scenarios ≥ the paper's − {100 * SCALE.safe_points:g} points, and cost within ±{100 * SCALE.cost_relative:g} % of the paper's at every N",
         "in one cost reading (∫ over [0, T], or ∫ ÷ T; collision-free agents). A reading is a large-arena study",
         "(its start/goal law), a run (the deployment) and a horizon T read from the same episodes. Scenarios are",
-        "pooled over the reading's seeds (validation seeds only); intervals are 95 % bootstraps over scenarios.", "",
+        f"pooled over the reading's seeds (here: {seeds}); intervals are 95 % bootstraps over scenarios.", "",
         f"Paper (Table II, safety % / safe scenarios % / cost): {paper_line}.", "",
         "## Readings", "",
         "Per N: safety % [95 % CI] / safe scenarios % / cost ∫ / cost ÷T; checks passed of 3 per N (✔: reproduces).", "",

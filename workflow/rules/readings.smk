@@ -78,11 +78,16 @@ if CONTROLLER_STUDIES:
 if config["table_ii_readings"]:
     TABLE_II_STUDIES = [*config["table_ii_readings"]["studies"], *config["table_ii_readings"]["baselines"],
                         config["table_ii_readings"]["anchor"]["study"]]
+    # the readings page (validation seeds) these readings were chosen on: an input, so a new one reruns this page
+    from madpinn.config.paths import in_repository
+
+    TABLE_II_CHOSEN_ON = [str(in_repository(config["table_ii_readings"]["chosen_on"]))] if config["table_ii_readings"]["chosen_on"] else []
 
     rule table_ii_readings:
         input:
             tracking=TRACKING,
             results=studies_results(TABLE_II_STUDIES),
+            chosen_on=TABLE_II_CHOSEN_ON,
         output:
             csv=kept(f"{FIGURES}/table_ii_readings/table_ii_readings.csv"),
             md=kept(f"{FIGURES}/table_ii_readings/table_ii_readings.md"),
