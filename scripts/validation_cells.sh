@@ -11,6 +11,8 @@
 # One job at a time (-j1: the other core is for a training); JOBS=2 for both cores. The protocol's own
 # cells the same way, kept in output_cache/ (its overlay: the shipped one):
 #   CACHE=output_cache COMMIT=1 scripts/validation_cells.sh workflow/configs/shipped.yaml 4 TARGET...
+# and Table II's final readings on seed 0, whose page is published apart:
+#   CACHE=output_cache COMMIT=1 FIGURES_TO=paper_figures/table_ii_final scripts/validation_cells.sh workflow/configs/table_ii_final.yaml 3 TARGET...
 set -u
 cd "$(dirname "$0")/.."
 [ $# -ge 3 ] || { echo "usage: $0 OVERLAY BATCH_SIZE TARGET..." >&2; exit 2; }
@@ -24,7 +26,9 @@ for ((i = 0; i < ${#targets[@]}; i += batch)); do
   echo "== batch $((i / batch + 1)): ${part[*]}"
   "$py" -m snakemake -j"${JOBS:-1}" --keep-going --configfile "${configs[@]}" --profile profiles/shipped -- "${part[@]}"
   rc=$?
-  "$py" -m madpinn publish --config "${configs[@]}" || exit $?
+  # FIGURES_TO: where the overlay's pages are published (paper_figures/table_ii_final for the final readings,
+  # whose page would otherwise replace the validation page of the same name in paper_figures/)
+  "$py" -m madpinn publish --config "${configs[@]}" ${FIGURES_TO:+--figures-to "$FIGURES_TO"} || exit $?
   cache=${CACHE:-validation_cache}   # where the overlay keeps its cells (its paths.output_cache)
   if [ "${COMMIT:-0}" = 1 ] && [ -n "$(git status --porcelain --ignored -- "$cache")" ]; then
     # a commit made beside this one (a training's checkpoint) may hold git's index lock for a moment: retry
