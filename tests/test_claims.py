@@ -146,7 +146,7 @@ def test_table_iis_claim_shows_where_its_readings_were_chosen_and_judges_only_th
                                 "reproduces": k == 9, "pattern": "uniform", "failed": ""}
     final = {"protocol": reading("scaling", 3), "judged": [reading("law_within_1m", 8), reading("scaling", 3)]}
     shown = {**final, "chosen_on": {"verdict": "not reproduced under any reading tried", "closest": "law_within_1m · madpinn · T = 6 s",
-                                    "readings": {"law_within_1m · madpinn · T = 6 s": "9 of 9"}}}   # a pass there changes nothing
+                                    "readings": [["law_within_1m · madpinn · T = 6 s", "9 of 9"]]}}   # a pass there changes nothing
     plain, beside = build_claims(report, readings=final), build_claims(report, readings=shown)
     claim = lambda c: next(x for x in c["claims"] if x["id"] == "table2_readings")   # noqa: E731
     assert claim(plain)["verdict"] == claim(beside)["verdict"] == DOES_NOT and claim(beside)["checks"] == claim(plain)["checks"]

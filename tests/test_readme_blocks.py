@@ -37,9 +37,9 @@ def test_a_changed_cell_changes_the_headline_and_the_rewrite_is_idempotent(tmp_p
 
     figures = tmp_path / "figures"
     figures.mkdir()
-    shutil.copy(FIGURES / "claims.json", figures / "claims.json")
-    (figures / "table_ii_readings").mkdir()
-    shutil.copy(FIGURES / "table_ii_readings" / "verdict.json", figures / "table_ii_readings" / "verdict.json")
+    for source in {s for sources, _ in BLOCKS.values() for s in sources}:   # every page a block reads
+        (figures / source).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(FIGURES / source, figures / source)
     (figures / "reproduction.json").write_text(json.dumps(changed))
     readme = tmp_path / "README.md"
     readme.write_text((REPO / "README.md").read_text())
@@ -63,9 +63,12 @@ def test_the_table_ii_block_follows_the_published_readings_verdict():
     from madpinn.evaluation.readme_blocks import table_ii_lines
     from madpinn.evaluation.table_ii_readings import VERDICTS
 
-    verdict = json.loads((FIGURES / "table_ii_readings" / "verdict.json").read_text())
+    verdict = json.loads((FIGURES / "table_ii_final" / "table_ii_readings" / "verdict.json").read_text())   # seed 0, final
     lines = table_ii_lines(verdict)
     assert f"**Table II {verdict['verdict']}.**" in lines[0] and verdict["baselines"]["reading"] in lines[1]
+    assert lines[0].startswith("- The final readings on protocol seed 0") and verdict["chosen_on"]["closest"] in lines[0]
+    validation = json.loads((FIGURES / "table_ii_readings" / "verdict.json").read_text())   # where they were chosen
+    assert table_ii_lines(validation)[0].startswith(f"- Over {validation['readings_judged']} readings")
     changed = copy.deepcopy(verdict)
     changed.update(verdict=VERDICTS[1],
                    reproducing=[{**verdict["closest"], "cost_reading": "÷T"}])

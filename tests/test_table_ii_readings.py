@@ -228,7 +228,7 @@ def test_the_command_writes_the_page_the_verdict_and_the_figure(tmp_path):
     assert "## What each deployment choice moves, on the same scenarios" in md
     # where the readings were chosen: summarised beside the verdict (its readings and the protocol's), judged nowhere
     assert verdict["chosen_on"] == {"verdict": "not reproduced under any reading tried", "closest": "law_within_1m · madpinn · T = 6 s",
-                                    "readings": {"law_within_1m · madpinn · T = 6 s": "7 of 9", "law_uniform · madpinn · T = 6 s": "3 of 9"}}
+                                    "readings": [["law_within_1m · madpinn · T = 6 s", "7 of 9"], ["law_uniform · madpinn · T = 6 s", "3 of 9"]]}
     assert "These readings were chosen on validation seeds" in md and "pooled over the reading's seeds (here: 100)" in md
     laws = pd.read_csv(out / "laws.csv")
     assert set(laws["run"]) == {"madpinn"}

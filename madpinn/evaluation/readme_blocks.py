@@ -118,11 +118,18 @@ def findings_lines(claims: dict, report: dict) -> list[str]:
 
 def table_ii_lines(verdict: dict) -> list[str]:
     """Table II over the readings the paper leaves open (README's ``table_ii`` block): the published
-    readings page's verdict (issue 60, validation seeds) in its own sentence, and the baselines' reading."""
+    readings page's verdict (issue 60: the final readings on protocol seed 0, or a validation page) in
+    its own sentence, where its readings were chosen, and the baselines' reading."""
     from madpinn.evaluation.table_ii_page import verdict_sentence
 
-    return [f"- Over {verdict['readings_judged']} readings of what the paper leaves open for the large arena "
-            f"(validation seeds): {verdict_sentence(verdict)}",
+    ch = verdict.get("chosen_on")
+    if ch:   # the final readings: kept from a validation page by the rule fixed before they ran
+        where = (f"The final readings on protocol seed 0, kept from {len(ch['readings'])} readings of what the paper leaves "
+                 f"open for the large arena, tried on validation seeds (there: {ch['verdict']}; closest "
+                 f"{ch['closest']}, {dict(ch['readings']).get(ch['closest'], '–')} checks)")
+    else:
+        where = f"Over {verdict['readings_judged']} readings of what the paper leaves open for the large arena (validation seeds)"
+    return [f"- {where}: {verdict_sentence(verdict)}",
             f"- The baselines in the large arena (not in the paper): {verdict['baselines']['reading']}."]
 
 
@@ -131,7 +138,7 @@ BLOCKS: dict[str, tuple[tuple[str, ...], Callable[..., list[str]]]] = {
     "headline": (("reproduction.json",), headline_lines),
     "claims": (("claims.json",), claims_lines),
     "findings": (("claims.json", "reproduction.json"), findings_lines),
-    "table_ii": (("table_ii_readings/verdict.json",), table_ii_lines),
+    "table_ii": (("table_ii_final/table_ii_readings/verdict.json",), table_ii_lines),   # issue 60: seed 0's final readings
 }
 
 

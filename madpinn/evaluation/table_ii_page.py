@@ -117,8 +117,8 @@ def reading_name(r: dict) -> str:
 
 def chosen_on_summary(verdict: dict) -> dict:
     """Of the readings page (validation seeds) a page's readings were chosen on: its verdict, the reading it
-    found closest, and each reading's checks passed (``"k of n"``: its judged readings and the protocol's,
-    most passed first)."""
+    found closest, and each reading's checks passed (``[name, "k of n"]`` pairs: its judged readings and the
+    protocol's, most passed first)."""
     readings = list(verdict.get("judged") or [])
     proto = verdict.get("protocol")
     if proto and reading_name(proto) not in {reading_name(r) for r in readings}:
@@ -126,7 +126,7 @@ def chosen_on_summary(verdict: dict) -> dict:
     readings.sort(key=lambda r: -r["checks_passed"] / r["checks"])
     closest = verdict.get("closest")
     return {"verdict": verdict.get("verdict"), "closest": reading_name(closest) if closest else None,
-            "readings": {reading_name(r): f"{r['checks_passed']} of {r['checks']}" for r in readings}}
+            "readings": [[reading_name(r), f"{r['checks_passed']} of {r['checks']}"] for r in readings]}   # a list: kept in order
 
 
 def chosen_on_line(verdict: dict) -> str:
@@ -134,7 +134,7 @@ def chosen_on_line(verdict: dict) -> str:
     ch = verdict.get("chosen_on")
     if not ch:
         return ""
-    shown = "; ".join(f"{r}: {k}" for r, k in ch["readings"].items())
+    shown = "; ".join(f"{r}: {k}" for r, k in ch["readings"])
     return (f"These readings were chosen on validation seeds, where the readings page said \"{ch['verdict']}\" and found "
             f"{ch['closest']} closest (checks passed per reading: {shown}).")
 
