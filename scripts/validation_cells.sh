@@ -2,7 +2,9 @@
 # Run the cells of a validation-seed overlay in batches and keep each batch: after every batch the
 # run's new cells are published into the overlay's committed cache (validation_cache/, see its
 # README) and, with COMMIT=1, committed, so a session stopped mid-queue loses at most the batch in
-# flight. A later run of the same command restores what was kept and computes the rest.
+# flight. A later run of the same command restores what was kept and computes the rest. Pages
+# (tables, figures) are published only with FIGURES_TO=<dir> (paper_figures for an overlay with its
+# own results directory), never by default.
 #
 #   scripts/validation_cells.sh OVERLAY BATCH_SIZE TARGET...
 #   COMMIT=1 scripts/validation_cells.sh workflow/configs/scenario_laws.yaml 3 \
@@ -26,9 +28,13 @@ for ((i = 0; i < ${#targets[@]}; i += batch)); do
   echo "== batch $((i / batch + 1)): ${part[*]}"
   "$py" -m snakemake -j"${JOBS:-1}" --keep-going --configfile "${configs[@]}" --profile profiles/shipped -- "${part[@]}"
   rc=$?
-  # FIGURES_TO: where the overlay's pages are published (paper_figures/table_ii_final for the final readings,
-  # whose page would otherwise replace the validation page of the same name in paper_figures/)
-  "$py" -m madpinn publish --config "${configs[@]}" ${FIGURES_TO:+--figures-to "$FIGURES_TO"} || exit $?
+  # the batch's cells go into the committed cache; the overlay's pages only where FIGURES_TO names (e.g.
+  # paper_figures/conformal's overlay: FIGURES_TO=paper_figures; the final readings: paper_figures/table_ii_final).
+  # Without it they go to a scratch directory: an overlay whose results are the protocol's (results/) would
+  # otherwise copy this machine's restore outputs (its own neighbour timing, figures) over paper_figures/.
+  scratch=$(mktemp -d)
+  "$py" -m madpinn publish --config "${configs[@]}" --figures-to "${FIGURES_TO:-$scratch}" || exit $?
+  rm -rf "$scratch"
   cache=${CACHE:-validation_cache}   # where the overlay keeps its cells (its paths.output_cache)
   if [ "${COMMIT:-0}" = 1 ] && [ -n "$(git status --porcelain --ignored -- "$cache")" ]; then
     # a commit made beside this one (a training's checkpoint) may hold git's index lock for a moment: retry
