@@ -188,3 +188,20 @@ def test_every_page_the_protocols_claims_read_is_committed():
     for path in named:
         proc = subprocess.run(["git", "ls-files", "--error-unmatch", path], cwd=REPO, capture_output=True, text=True)
         assert proc.returncode == 0, f"{path} is named by config.yaml claims: but not committed (git add -f it)"
+
+
+def test_rows_the_paper_lacks_are_listed_apart_and_judged_by_no_claim():
+    """Issue 62: the calibrated level's rows (and every other row of ours in a paper table) appear on the
+    claims page as rows "not in the paper", with their intervals; no paper row is among them."""
+    from madpinn.evaluation.claim_values import rows_not_in_paper
+    from madpinn.evaluation.claims_page import to_markdown
+    from madpinn.evaluation.reproduction import paper_values
+
+    report = json.loads((REPO / "paper_figures" / "reproduction.json").read_text())
+    rows = rows_not_in_paper(report)
+    paper_runs = {(t, r) for t, v in paper_values().items() for r in v["runs"]}
+    assert rows and not [r for r in rows if (r["table"], r["run"]) in paper_runs]
+    level = [r for r in rows if r["run"] == "madpinn-cpeps01" and r["table"] == "table_ours_scaling"]
+    assert {r["n"] for r in level} == {64, 128, 256} and all("[" in r["safety"] and "pp" in r["vs_ours"] for r in level)
+    md = to_markdown(build_claims(report))
+    assert "## Rows not in the paper (not claims)" in md and f"| {level[0]['label']} | 64 |" in md

@@ -71,3 +71,32 @@ def value_rows(rep: Mapping, seeds: int = 5) -> list[dict]:
                                 "ours": pp(ours) if pct else f"{ours[0]:.2f} [{ours[1]:.2f}, {ours[2]:.2f}]",
                                 "paper": shown, "reproduces": ours[1] <= paper[1] and paper[0] <= ours[2]})
     return out
+
+
+def rows_not_in_paper(rep: Mapping) -> list[dict]:
+    """Our rows of the paper's tables that the paper does not have (the calibrated level, the governors,
+    the sensitivity runs, the reference rows): one row per (paper table, row, N) with safety, safe
+    scenarios and cost ÷T [95 %] and the paired safety / cost difference from the table's Ours; judged
+    nowhere (no paper value to compare)."""
+    from madpinn.evaluation.claim_checks import dcost, diff, dpp
+    from madpinn.evaluation.reproduction import paper_table_numbers, paper_values
+
+    out, numbers = [], paper_table_numbers()
+    for table, t in paper_values().items():
+        for run, cells in rep.get(table, {}).items():
+            if run in t["runs"]:
+                continue
+            for n, c in cells.items():
+                if c.get("safety") is None:
+                    continue
+                show = {key: fig(c, key) for key, _ in KEYS}
+                d_safety, d_cost = diff(c, "safety"), diff(c, "cost_time_avg")
+                out.append({"table": table, "paper_table": f"Table {numbers.get(table, table)}", "run": run, "label": c["label"],
+                            "n": int(n),
+                            "safety": pp(show["safety"]) if show["safety"] else f"{100 * c['safety']:.1f} %",
+                            "safe_scenarios": pp(show["safe_scenarios"]) if show["safe_scenarios"] else
+                            (f"{100 * c['safe_scenarios']:.1f} %" if c.get("safe_scenarios") is not None else "–"),
+                            "cost": (f"{show['cost_time_avg'][0]:.2f} [{show['cost_time_avg'][1]:.2f}, {show['cost_time_avg'][2]:.2f}]"
+                                     if show["cost_time_avg"] else (f"{c['cost_time_avg']:.2f}" if c.get("cost_time_avg") is not None else "–")),
+                            "vs_ours": "–" if not d_safety else dpp(d_safety) + (f" / {dcost(d_cost)}" if d_cost else "")})
+    return out

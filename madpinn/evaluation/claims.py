@@ -157,7 +157,7 @@ def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, 
     measurement, the heatmap's reading and Table II's readings (``timing``, ``heatmap``, ``readings``: their
     JSON; None: that claim is left out); ``recipe``: the V̂ recipe's choice (``vhat_recipe.json``), stated in
     the provenance."""
-    from madpinn.evaluation.claim_values import value_rows
+    from madpinn.evaluation.claim_values import rows_not_in_paper, value_rows
     from madpinn.evaluation.paper_consistency import check_paper
 
     extra = {"neighbour_selection_time": (timing_claim, timing), "value_heatmap": (heatmap_claim, heatmap),
@@ -183,7 +183,7 @@ def build_claims(report: Mapping, claims=CLAIMS, timing: Mapping | None = None, 
     prov = report.get("provenance", {})
     return {"claims": out, "verdicts": verdicts,
             "counts": {w: sum(scale_of(v) == w for v in verdicts.values()) for w in SCALE},
-            "values": value_rows(report), "consistency": check_paper(),
+            "values": value_rows(report), "not_in_paper": rows_not_in_paper(report), "consistency": check_paper(),
             "provenance": {"config_hash": prov.get("config_hash"), "collisions": prov.get("collisions"),
                            "intervals": prov.get("intervals"), "vhat_recipe": recipe_provenance(recipe),
                            "rule": "per reading: every check passes: holds; k of n: partly (k of n); a failed essential "

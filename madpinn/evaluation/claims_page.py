@@ -61,6 +61,18 @@ def values_section(claims: dict) -> list[str]:
     return lines
 
 
+def not_in_paper_section(claims: dict) -> list[str]:
+    rows = claims.get("not_in_paper") or []
+    lines = ["Our rows of the paper's tables that the paper does not have (the calibrated safety level, the speed "
+             "governors, sensitivity runs, reference rows; each labelled \"not in paper\" where it is a deployment "
+             "of ours): shown beside the claims, judged by none. Safety and safe scenarios % [95 %], cost ÷T [95 %], "
+             "and the paired difference from the table's Ours (safety / cost ÷T).", "",
+             "| table | row | N | safety | safe scenarios | cost ÷T | − Ours |", "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['paper_table']} | {r['label']} | {r['n']} | {r['safety']} | {r['safe_scenarios']} | {r['cost']} "
+              f"| {r['vs_ours']} |" for r in rows]
+    return lines
+
+
 def consistency_section(claims: dict) -> list[str]:
     rows = claims["consistency"]
     bad = [r for r in rows if not r["holds"]]
@@ -91,5 +103,6 @@ def to_markdown(claims: dict) -> str:
              f"- intervals: {prov.get('intervals')}", f"- seed provenance: {prov.get('vhat_recipe')}", "",
              "## Claims", "", *claims_section(claims), "",
              "## Values per cell (not claims)", "", *values_section(claims), "",
+             "## Rows not in the paper (not claims)", "", *not_in_paper_section(claims), "",
              "## The paper's numbers against each other", "", *consistency_section(claims)]
     return "\n".join(lines) + "\n"
