@@ -10,10 +10,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from madpinn.evaluation.claim_checks import STATED, Check
-
-
-def reading_name(r: Mapping) -> str:
-    return f"{r['study']} · {r['run']} · T = {r['horizon_s']:g} s"
+from madpinn.evaluation.table_ii_page import reading_name
 
 
 def readings_checks(verdict: Mapping | None) -> list[Check]:

@@ -17,6 +17,11 @@ from madpinn.evaluation.claim_checks import fig, pp
 KEYS = (("safety", "safety"), ("safe_scenarios", "safe scenarios"), ("cost_time_avg", "cost ÷T"))
 
 
+def cost_ci(x: tuple[float, float, float]) -> str:
+    """A cost and its interval, ``"1.23 [1.20, 1.26]"``."""
+    return f"{x[0]:.2f} [{x[1]:.2f}, {x[2]:.2f}]"
+
+
 def _shared_std() -> dict[tuple[str, str, int], dict]:
     """(table, run, N) -> {figure: (std, seeds)} borrowed from the same cell in another table."""
     from madpinn.evaluation.paper_consistency import raw
@@ -68,7 +73,7 @@ def value_rows(rep: Mapping, seeds: int = 5) -> list[dict]:
                     shown = (f"{100 * p:.6g} %" if pct else f"{p:g}") + (
                         f" (t-interval {100 * paper[0]:.1f}, {100 * paper[1]:.1f})" if pct and paper[0] != paper[1] else "")
                     out.append({"table": table, "paper_table": f"Table {numbers.get(table, table)}", "run": run, "label": c["label"], "n": int(n), "figure": word,
-                                "ours": pp(ours) if pct else f"{ours[0]:.2f} [{ours[1]:.2f}, {ours[2]:.2f}]",
+                                "ours": pp(ours) if pct else cost_ci(ours),
                                 "paper": shown, "reproduces": ours[1] <= paper[1] and paper[0] <= ours[2]})
     return out
 
@@ -96,7 +101,7 @@ def rows_not_in_paper(rep: Mapping) -> list[dict]:
                             "safety": pp(show["safety"]) if show["safety"] else f"{100 * c['safety']:.1f} %",
                             "safe_scenarios": pp(show["safe_scenarios"]) if show["safe_scenarios"] else
                             (f"{100 * c['safe_scenarios']:.1f} %" if c.get("safe_scenarios") is not None else "–"),
-                            "cost": (f"{show['cost_time_avg'][0]:.2f} [{show['cost_time_avg'][1]:.2f}, {show['cost_time_avg'][2]:.2f}]"
-                                     if show["cost_time_avg"] else (f"{c['cost_time_avg']:.2f}" if c.get("cost_time_avg") is not None else "–")),
+                            "cost": cost_ci(show["cost_time_avg"]) if show["cost_time_avg"] else
+                            (f"{c['cost_time_avg']:.2f}" if c.get("cost_time_avg") is not None else "–"),
                             "vs_ours": "–" if not d_safety else dpp(d_safety) + (f" / {dcost(d_cost)}" if d_cost else "")})
     return out

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -111,7 +111,8 @@ def speed_display(large: pd.DataFrame, settings: ReadingsSettings) -> pd.DataFra
     return pd.DataFrame(out)
 
 
-def reading_name(r: dict) -> str:
+def reading_name(r: Mapping) -> str:
+    """A reading's name (its study, run and horizon), as the page, its verdict and the claims page write it."""
     return f"{r['study']} · {r['run']} · T = {r['horizon_s']:g} s"
 
 
@@ -144,13 +145,12 @@ def verdict_sentence(verdict: dict) -> str:
     v = verdict["verdict"]
     if not verdict.get("readings_judged"):
         return f"**{v}.**"
-    name = reading_name
-    text = f"**Table II {v}.** The protocol's reading ({name(verdict['protocol'])}) passes {verdict['protocol']['checks_passed']} of {verdict['protocol']['checks']} checks."
+    text = f"**Table II {v}.** The protocol's reading ({reading_name(verdict['protocol'])}) passes {verdict['protocol']['checks_passed']} of {verdict['protocol']['checks']} checks."
     if verdict["reproducing"]:
-        text += " Readings that reproduce it: " + "; ".join(f"{name(r)} (cost reading {r['cost_reading']})" for r in verdict["reproducing"]) + "."
+        text += " Readings that reproduce it: " + "; ".join(f"{reading_name(r)} (cost reading {r['cost_reading']})" for r in verdict["reproducing"]) + "."
     else:
         c = verdict["closest"]
-        text += f" The closest reading: {name(c)}, {c['checks_passed']} of {c['checks']} checks"
+        text += f" The closest reading: {reading_name(c)}, {c['checks_passed']} of {c['checks']} checks"
         text += f"; it fails {c['failed']}." if c.get("failed") else "."
     if not verdict["protocol_reproduces"] and verdict["protocol"].get("failed") and verdict.get("closest") != verdict["protocol"]:
         text += f" The protocol's reading fails {verdict['protocol']['failed']}."
@@ -177,7 +177,7 @@ def write_table_ii_readings(anchor: pd.DataFrame, large: pd.DataFrame, rows: pd.
     """From :func:`load_frames`' scenario rows and the readings' :func:`reading_rows` ``rows``, write ``table_ii_readings.csv`` (one row per reading
     and N), ``.md`` / ``.html`` (the verdict, the readings, the law rule, the speed bins),
     ``verdict.json`` and ``laws.csv``; returns the paths. ``chosen_on``: the ``verdict.json`` of the readings
-    page these readings were chosen on (``settings.chosen_on``), summarised beside the verdict."""
+    page these readings were chosen on (config ``table_ii_readings.chosen_on``), summarised beside the verdict."""
     from madpinn.evaluation.html import markdown_page
 
     judged, verdict = verdict_of(rows, paper, settings)
