@@ -251,3 +251,64 @@ def test_the_figure_command_gives_each_v_hat_variant_its_role():
     # a reseeded variant of another recipe is no replicate of this base
     assert budget_roles("madpinn", {"madpinn": None, "madpinn-s1": "s1"}, {"s1": {"from": "cs", "seed": 1}, "cs": {}},
                         {"madpinn": one, "madpinn-s1": one})["madpinn-s1"] == {"replicates": None, "recipe_of": "madpinn"}
+
+
+def test_the_deployed_recipes_seeds_and_other_recipes_take_their_roles_from_the_config():
+    """Issue 60 item 3: with the cs recipe as the base, the deployed recipe's training seeds (us1, us2:
+    ``{seed}`` without ``from``) replicate the run loading the base V̂, which is a recipe variant; a 4×
+    batch of the deployed recipe (bs16k, no ``from``) is another recipe, not a constant-rate budget of cs."""
+    from madpinn.config import load_config
+    from madpinn.figures.budget import budget_base, budget_roles, lineage
+
+    table = load_config([REPO / "config.yaml"])["value_functions"]["vhat_variants"]
+    assert lineage("b2x", table) == ["b2x", "cs", None] and lineage(None, table) == [None]
+    variants = {"madpinn": None, **{f"madpinn-{v}": v for v in ("cs", "s1", "b2x", "us1", "us2", "bs16k")}}
+    base = budget_base(variants, table)
+    one = (4096 * 60000, ANNEALED)
+    budgets = {run: one for run in variants} | {"madpinn-b2x": (4096 * 120000, CONSTANT), "madpinn-bs16k": (16384 * 60000, CONSTANT)}
+    roles = budget_roles(base, variants, table, budgets)
+    assert base == "madpinn-cs" and roles["madpinn-s1"]["replicates"] == "madpinn-cs"
+    assert roles["madpinn-us1"] == roles["madpinn-us2"] == {"replicates": "madpinn", "recipe_of": None}
+    assert roles["madpinn"] == roles["madpinn-bs16k"] == {"replicates": None, "recipe_of": "madpinn-cs"}
+    assert roles["madpinn-b2x"] == {"replicates": None, "recipe_of": None}
+
+
+def test_a_recipe_variant_has_its_own_training_seed_range_beside_the_base():
+    """Both recipes' bands at one budget: the base's range at its samples, the recipe variant's marker
+    and range just right of it; a recipe at other samples is a marker, in no trend and no tag."""
+    from madpinn.figures.budget import RECIPE_OFFSET, drawn_samples
+
+    one = 4096 * 60000
+    runs = [BudgetRun("madpinn-b05", "0.5x", one // 2, ANNEALED), BudgetRun("madpinn-cs", "cs", one, ANNEALED),
+            BudgetRun("madpinn-s1", "cs seed 1", one, ANNEALED, replicates="madpinn-cs"),
+            BudgetRun("madpinn", "uniform states", one, ANNEALED, recipe_of="madpinn-cs"),
+            BudgetRun("madpinn-us1", "uniform seed 1", one, ANNEALED, replicates="madpinn"),
+            BudgetRun("madpinn-us2", "uniform seed 2", one, ANNEALED, replicates="madpinn"),
+            BudgetRun("madpinn-bs16k", "4x batch", 4 * one, CONSTANT, recipe_of="madpinn-cs"),
+            BudgetRun("madpinn-b3x", "3x", 3 * one, CONSTANT), BudgetRun("madpinn-b9x", "9x", 9 * one, CONSTANT)]
+    safety = {("madpinn-b05", 64): 0.60, ("madpinn-cs", 64): 0.64, ("madpinn-s1", 64): 0.66, ("madpinn", 64): 0.61,
+              ("madpinn-us1", 64): 0.65, ("madpinn-us2", 64): 0.70, ("madpinn-bs16k", 64): 0.99,
+              ("madpinn-b3x", 64): 0.68, ("madpinn-b9x", 64): 0.70}
+    panels = [budget_panel("vhat_budget", "large", "uniform", [64])]
+    table = budget_table({"vhat_budget": _agg(safety)}, runs, panels).set_index("run")
+    assert table.at["madpinn", "seed_range_of"] == "madpinn"
+    assert (table.at["madpinn", "seed_range_lo"], table.at["madpinn", "seed_range_hi"], table.at["madpinn", "seeds"]) == pytest.approx((61.0, 70.0, 3))
+    assert table.at["madpinn-cs", "seed_range_hi"] == pytest.approx(66.0) and table.at["madpinn-cs", "seeds"] == 2
+    assert table.at["madpinn-us2", "schedule"] == "training seed of madpinn"
+    assert table.at["madpinn-bs16k", "schedule"] == "recipe variant of madpinn-cs"
+    assert table.at["madpinn-bs16k", "seed_range_of"] == "madpinn-cs"   # no replicates of its own: the base's band beside it
+    # order at one budget: the budget, its seeds, the recipe variant, its seeds
+    assert list(table.index[:6]) == ["madpinn-b05", "madpinn-cs", "madpinn-s1", "madpinn", "madpinn-us1", "madpinn-us2"]
+    # the constant-rate trend is the cs budgets' alone: bs16k's 99 % would make it reach the paper
+    without = budget_table({"vhat_budget": _agg({k: v for k, v in safety.items() if k[0] != "madpinn-bs16k"})},
+                           [r for r in runs if r.run != "madpinn-bs16k"], panels).set_index("run")
+    assert table.at["madpinn-b3x", "slope_per_decade"] == pytest.approx(without.at["madpinn-b3x", "slope_per_decade"])
+    x = drawn_samples(runs)
+    assert x["madpinn"] == pytest.approx(one * RECIPE_OFFSET) and x["madpinn-us1"] == x["madpinn"] and x["madpinn-s1"] == one
+    fig = draw_vhat_budget({"vhat_budget": _agg(safety)}, runs, panels)
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.child_axes[0].get_xticklabels()] == ["0.5×", "1×", "3×", "9×"]
+    ranges = [c for c in ax.collections if c.get_label() == "training-seed range" or c.get_alpha() == 0.3]
+    assert len(ranges) == 2   # one band per recipe
+    text = "\n".join(t.get_text() for t in fig.texts)
+    assert "training-seed range at 1×: 64.0–66.0 % (2 seeds)" in text and "61.0–70.0 % (3 seeds)" in text

@@ -94,22 +94,38 @@ def budget_base(variants: Mapping[str, str | None], table: Mapping[str, Mapping]
     return next((run for run, variant in variants.items() if variant is None), None)
 
 
+def lineage(variant: str | None, table: Mapping[str, Mapping]) -> list[str | None]:
+    """``variant`` and the variants it derives from through ``from``, ending at None (the base V̂)."""
+    chain = [variant]
+    while chain[-1] is not None and len(chain) <= len(table) + 1:
+        chain.append(table[chain[-1]].get(FROM))
+    return chain
+
+
 def budget_roles(base: str | None, variants: Mapping[str, str | None], table: Mapping[str, Mapping],
                  budgets: Mapping[str, tuple[int, str]]) -> dict[str, dict[str, str | None]]:
     """Per run (``variants``: run -> its V̂ variant, None for the base V̂; ``table``:
     ``value_functions.vhat_variants``; ``budgets``: run -> its V̂'s (samples, schedule)), the
-    :class:`BudgetRun` roles: ``replicates`` the base when the variant only reseeds the base's recipe
-    (its own entry is a ``seed`` and the base's variant as its ``from``), ``recipe_of`` the base when
-    it keeps the base's samples and schedule and changes the recipe (e.g. uniform states); both None
-    for a budget and for the base itself."""
+    :class:`BudgetRun` roles. ``replicates`` names the run whose recipe a variant only reseeds (its
+    own entry is a ``seed`` and, optionally, a ``from``: the run loading that ``from`` variant, or the
+    base V̂ without one) when that run is among ``variants``: the reference recipe's replicates and
+    those of a recipe variant alike (issue 60 item 3: the cs recipe's seeds and the deployed recipe's).
+    ``recipe_of`` names ``base`` for a run that is not one of its budgets: one whose :func:`lineage`
+    lacks the base's variant (another recipe at any samples, e.g. the base V̂ with uniform states or a
+    4× batch of it, when the base is ``cs``), or one that has it but keeps the base's samples and
+    schedule (e.g. ``nocs``). Both
+    None for a budget (the base and the variants derived from it at other samples or schedules)."""
     reference = variants.get(base) if base is not None else None
+    by_variant = {variant: run for run, variant in variants.items()}
     out = {}
     for run, variant in variants.items():
         entry = table[variant] if variant is not None else None
-        reseeded = (entry is not None and base is not None and run != base and entry.get(FROM) == reference
-                    and set(entry) - {FROM} == {"seed"})
-        recipe = base is not None and run != base and not reseeded and budgets[run] == budgets[base]
-        out[run] = {"replicates": base if reseeded else None, "recipe_of": base if recipe else None}
+        origin = entry.get(FROM) if entry is not None else None
+        reseeded = entry is not None and set(entry) - {FROM} == {"seed"} and by_variant.get(origin, run) != run
+        derived = run == base or reference in lineage(variant, table)
+        recipe = (base is not None and run != base and not reseeded
+                  and (not derived or budgets[run] == budgets[base]))
+        out[run] = {"replicates": by_variant[origin] if reseeded else None, "recipe_of": base if recipe else None}
     return out
 
 
@@ -193,6 +209,21 @@ def infeasible_by_cell(result_paths: Iterable[str | Path]) -> dict[tuple[str, st
     return {(str(st), str(run), int(n)): float(v) for (st, run, n), v in shares.items()}
 
 
+def range_columns(ranges: Mapping[str, tuple[float, float, int]], run: str) -> dict:
+    """The CSV columns of ``run``'s training-seed range (:func:`seed_ranges`): lowest and highest
+    safety (%), the seeds, and whose range it is (NaN, 1 and empty where ``run`` has none)."""
+    lo, hi, k = ranges.get(run, (math.nan, math.nan, 1))
+    return {"seed_range_lo": lo, "seed_range_hi": hi, "seeds": k, "seed_range_of": run if run in ranges else ""}
+
+
+def role_rank(b: BudgetRun, by_run: Mapping[str, BudgetRun]) -> int:
+    """Order of runs at one budget: the budget (0), its training seeds (1), a recipe variant (2), the
+    recipe variant's training seeds (3)."""
+    if b.replicates is not None:
+        return 3 if by_run[b.replicates].recipe_of is not None else 1
+    return 2 if b.recipe_of is not None else 0
+
+
 def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel],
                  infeasible: Mapping[tuple[str, str, int], float] | None = None) -> pd.DataFrame:
     """Per (study, N, run): samples, schedule, safety (%) with its interval (95 % bootstrap over
@@ -201,7 +232,8 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
     (points per decade; NaN with one budget or no paper value) and the samples at which it reaches the
     paper's safety (NaN: never, or no paper value); the V̂'s verification ε where given. A replicate's
     rows read ``training seed of <base>``, a recipe variant's ``recipe variant of <base>`` (with its
-    base's training-seed range); neither enters a trend."""
+    own training-seed range where it has replicates, else its base's; ``seed_range_of`` names whose);
+    neither enters a trend."""
     infeasible = infeasible or {}
     by_run = {r.run: r for r in runs}
     rows = []
@@ -226,9 +258,7 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
                                    "infeasible": infeasible.get((panel.study, r["run"], int(n)), math.nan), "paper_safety": target,
                                    "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
                                    "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan,
-                                   "seed_range_lo": ranges.get(b.recipe_of, (math.nan,) * 3)[0],
-                                   "seed_range_hi": ranges.get(b.recipe_of, (math.nan,) * 3)[1],
-                                   "seeds": ranges.get(b.recipe_of, (math.nan, math.nan, 1))[2]})
+                                   **range_columns(ranges, r["run"] if r["run"] in ranges else b.recipe_of)})
             for sched, pts in schedule_points(group, by_run).items():
                 xs, ys = [p[0] for p in pts], [100 * r["safety_rate_mean"] for _, r in pts]
                 _, slope, needed = (trend(xs, ys, target) if math.isfinite(target) and len(set(xs)) > 1
@@ -243,11 +273,8 @@ def budget_table(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], 
                                    "samples_to_paper": needed if needed is not None else math.nan,
                                    "eps_uniform": verification_epsilon(v, "uniform") if v else math.nan,
                                    "eps_conflict": verification_epsilon(v, "conflict") if v else math.nan,
-                                   "seed_range_lo": ranges.get(r["run"], (math.nan,) * 3)[0],
-                                   "seed_range_hi": ranges.get(r["run"], (math.nan,) * 3)[1],
-                                   "seeds": ranges.get(r["run"], (math.nan, math.nan, 1))[2]})
-            rows += sorted(rows_n, key=lambda row: (row["samples"], row["schedule"].startswith(("training seed", "recipe variant")),
-                                                    row["schedule"].startswith("recipe variant")))
+                                   **range_columns(ranges, r["run"])})
+            rows += sorted(rows_n, key=lambda row: (row["samples"], role_rank(by_run[row["run"]], by_run)))
     return pd.DataFrame(rows)
 
 
@@ -272,10 +299,34 @@ def plot_vhat_budget(result_paths: Iterable[str | Path], runs: Sequence[BudgetRu
 
 
 def budget_tags(runs: Sequence[BudgetRun]) -> dict[str, str]:
-    """Short tag per run: its samples as a multiple of the base run's (the run without a variant, e.g.
-    ``madpinn``; else the smallest budget), e.g. ``"0.5×"``, ``"3×"``."""
-    base = next((r.samples for r in runs if "-" not in r.run), min(r.samples for r in runs))
-    return {r.run: f"{r.samples / base:.3g}×" for r in runs}
+    """Short tag per budget of ``runs``: its samples as a multiple of the base run's (the run the
+    recipe variants and replicates refer to; else the run without a variant, e.g. ``madpinn``; else the
+    smallest budget), e.g. ``"0.5×"``, ``"3×"``."""
+    by_run = {r.run: r for r in runs}
+    refs = [r.recipe_of or r.replicates for r in runs if (r.recipe_of or r.replicates) in by_run]
+    base_run = next((by_run[ref] for ref in refs if by_run[ref].budget),
+                    next((r for r in runs if "-" not in r.run and r.budget), None))
+    budgets = [r for r in runs if r.budget]
+    base = base_run.samples if base_run is not None else min(r.samples for r in budgets)
+    return {r.run: f"{r.samples / base:.3g}×" for r in budgets}
+
+
+RECIPE_OFFSET = 1.12
+"""x factor between a recipe variant's marker and its samples (per variant at the same samples), so that
+it and its training-seed range stand beside the budget drawn there"""
+
+
+def drawn_samples(runs: Sequence[BudgetRun]) -> dict[str, float]:
+    """Where each run is drawn on the samples axis: a budget at its samples, the k-th recipe variant at
+    the same samples at ``samples · RECIPE_OFFSET**k`` (k from 1), a replicate where its run is."""
+    x, seen = {}, {}
+    for r in runs:
+        if r.recipe_of is not None:
+            seen[r.samples] = seen.get(r.samples, 0) + 1
+            x[r.run] = r.samples * RECIPE_OFFSET ** seen[r.samples]
+        elif r.replicates is None:
+            x[r.run] = float(r.samples)
+    return {**x, **{r.run: x.get(r.replicates, float(r.samples)) for r in runs if r.replicates is not None}}
 
 
 def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRun], panels: Sequence[BudgetPanel]) -> plt.Figure:
@@ -285,8 +336,9 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     style.setup()
     by_run = {r.run: r for r in runs}
     budgets = [r for r in runs if r.budget]
-    tags = budget_tags(budgets)
+    tags = budget_tags(runs)
     recipes = {r.run: list(RECIPE_MARKERS)[i % len(RECIPE_MARKERS)] for i, r in enumerate(r for r in runs if r.recipe_of is not None)}
+    x_of = drawn_samples(runs)
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4), sharex=True, sharey=True, squeeze=False)
@@ -316,11 +368,12 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                              + (f"trend +{b:.1f} pts/decade, reaches it at {needed:.2g} samples" if needed is not None
                                 else "no rising trend"))
             for base, (lo, hi, k) in seed_ranges(agg[agg["n_agents"] == n], by_run).items():
-                ax.vlines(by_run[base].samples, lo, hi, color=c, lw=7, alpha=0.3, zorder=0, label=SEED_RANGE_LABEL)
-                notes.append(f"{panel.title}, {n} agents: training-seed range at {tags[base]}: {lo:.1f}–{hi:.1f} % "
-                             f"({k} seeds); a budget step smaller than it reads as no effect")
+                ax.vlines(x_of[base], lo, hi, color=c, lw=7, alpha=0.3, zorder=0, label=SEED_RANGE_LABEL)
+                where = tags[base] if base in tags else f"the {RECIPE_MARKERS[recipes[base]]} ({by_run[base].label})"
+                notes.append(f"{panel.title}, {n} agents: training-seed range at {where}: {lo:.1f}–{hi:.1f} % "
+                             f"({k} seeds); a difference smaller than it reads as no effect")
             for _, r in agg[(agg["n_agents"] == n) & agg["run"].isin(list(recipes))].iterrows():
-                ax.errorbar([by_run[r["run"]].samples], [100 * r["safety_rate_mean"]],
+                ax.errorbar([x_of[r["run"]]], [100 * r["safety_rate_mean"]],
                             yerr=np.array([_interval(r, "safety_rate", 100.0)]).T, fmt=recipes[r["run"]], color=c,
                             capsize=2.5, ms=6, mfc="white", mew=1.5, zorder=3)
         ax.axvline(PAPER_SAMPLES, color="0.4", lw=0.8)
@@ -344,8 +397,11 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
-    replicas = [f"{r.label} (training seed of {tags[r.replicates]})" for r in runs if r.replicates is not None]
-    replicas += [f"{r.label} ({RECIPE_MARKERS[recipes[r.run]]}: the recipe of {tags[r.recipe_of]} changed at its budget)"
+    replicas = [f"{r.label} (training seed of {tags.get(r.replicates) or 'the ' + RECIPE_MARKERS[recipes[r.replicates]]})"
+                for r in runs if r.replicates is not None]
+    replicas += [f"{r.label} ({RECIPE_MARKERS[recipes[r.run]]}, drawn just right of its samples: "
+                 + (f"the recipe of {tags[r.recipe_of]} changed at its budget)" if (r.samples, r.schedule) == (by_run[r.recipe_of].samples, by_run[r.recipe_of].schedule)
+                    else f"another recipe than {tags[r.recipe_of]}'s, at its own samples; no budget)")
                  for r in runs if r.recipe_of is not None]
     if replicas:
         legend += "; " + ", ".join(replicas)
