@@ -19,6 +19,7 @@ instead of conflict sampling; a labelled marker at its samples, its own CSV rows
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -311,6 +312,8 @@ def budget_tags(runs: Sequence[BudgetRun]) -> dict[str, str]:
     return {r.run: f"{r.samples / base:.3g}×" for r in budgets}
 
 
+NOTE_CHARS_PER_INCH = 17
+"""characters of the 7.5 pt notes under the panels per inch of figure width (their wrap width)"""
 RECIPE_OFFSET = 1.12
 """x factor between a recipe variant's marker and its samples (per variant at the same samples), so that
 it and its training-seed range stand beside the budget drawn there"""
@@ -341,7 +344,7 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     x_of = drawn_samples(runs)
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.4), sharex=True, sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 6.4), sharex=True, sharey=True, squeeze=False)
     x_lo, x_hi = min(r.samples for r in runs) / 1.6, PAPER_SAMPLES * 1.6
     xs_line = np.logspace(math.log10(x_lo), math.log10(x_hi), 50)
     notes = []
@@ -393,7 +396,7 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                        mfc=SCHEDULE_STYLE[s]["mfc"] or "0.3", label=s) for s in schedules] + [
             plt.Line2D([], [], color="0.3", marker=m, ls="none", mfc="white", label=by_run[run].label)
             for run, m in recipes.items() if run in set(agg["run"])]
-        ax.legend(handles=handles, loc="best", fontsize=7.5, frameon=True)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=1, fontsize=7.5, frameon=False)
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
@@ -405,6 +408,10 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                  for r in runs if r.recipe_of is not None]
     if replicas:
         legend += "; " + ", ".join(replicas)
-    fig.text(0.01, -0.02, "\n".join([f"Top axis: {legend}", *notes]), fontsize=7.5, va="top")
-    fig.tight_layout()
+    width = int(NOTE_CHARS_PER_INCH * fig.get_figwidth())   # wrapped to the figure's width
+    lines = [part for line in [f"Top axis: {legend}", *notes] for part in textwrap.wrap(line, width, subsequent_indent="   ")]
+    fig.tight_layout()   # the legends under the panels are inside the layout; the notes go below them
+    renderer = fig.canvas.get_renderer()
+    bottom = min(ax.get_legend().get_window_extent(renderer).y0 for ax in axes[0]) / fig.bbox.height
+    fig.text(0.01, bottom - 0.02, "\n".join(lines), fontsize=7.5, va="top")
     return fig
