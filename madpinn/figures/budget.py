@@ -111,10 +111,11 @@ def budget_roles(base: str | None, variants: Mapping[str, str | None], table: Ma
     own entry is a ``seed`` and, optionally, a ``from``: the run loading that ``from`` variant, or the
     base V̂ without one) when that run is among ``variants``: the reference recipe's replicates and
     those of a recipe variant alike (issue 60 item 3: the cs recipe's seeds and the deployed recipe's).
-    ``recipe_of`` names ``base`` for a run that is not one of its budgets: one whose :func:`lineage`
+    ``recipe_of`` is set for a run that is not one of ``base``'s budgets: one whose :func:`lineage`
     lacks the base's variant (another recipe at any samples, e.g. the base V̂ with uniform states or a
     4× batch of it, when the base is ``cs``), or one that has it but keeps the base's samples and
-    schedule (e.g. ``nocs``). Both
+    schedule (e.g. ``nocs``); it names the nearest run of the variant's lineage (the 4× batch: the run
+    loading the base V̂, whose band it is compared with), else ``base``. Both
     None for a budget (the base and the variants derived from it at other samples or schedules)."""
     reference = variants.get(base) if base is not None else None
     by_variant = {variant: run for run, variant in variants.items()}
@@ -126,7 +127,8 @@ def budget_roles(base: str | None, variants: Mapping[str, str | None], table: Ma
         derived = run == base or reference in lineage(variant, table)
         recipe = (base is not None and run != base and not reseeded
                   and (not derived or budgets[run] == budgets[base]))
-        out[run] = {"replicates": by_variant[origin] if reseeded else None, "recipe_of": base if recipe else None}
+        nearest = next((by_variant[v] for v in lineage(variant, table)[1:] if v in by_variant and by_variant[v] != run), base)
+        out[run] = {"replicates": by_variant[origin] if reseeded else None, "recipe_of": nearest if recipe else None}
     return out
 
 
@@ -400,11 +402,13 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
-    replicas = [f"{r.label} (training seed of {tags.get(r.replicates) or 'the ' + RECIPE_MARKERS[recipes[r.replicates]]})"
-                for r in runs if r.replicates is not None]
+    def name(run: str) -> str:   # a budget by its tag, a recipe variant by its marker
+        return tags[run] if run in tags else f"the {RECIPE_MARKERS[recipes[run]]}"
+
+    replicas = [f"{r.label} (training seed of {name(r.replicates)})" for r in runs if r.replicates is not None]
     replicas += [f"{r.label} ({RECIPE_MARKERS[recipes[r.run]]}, drawn just right of its samples: "
-                 + (f"the recipe of {tags[r.recipe_of]} changed at its budget)" if (r.samples, r.schedule) == (by_run[r.recipe_of].samples, by_run[r.recipe_of].schedule)
-                    else f"another recipe than {tags[r.recipe_of]}'s, at its own samples; no budget)")
+                 + (f"the recipe of {name(r.recipe_of)} changed at its budget)" if (r.samples, r.schedule) == (by_run[r.recipe_of].samples, by_run[r.recipe_of].schedule)
+                    else f"the recipe of {name(r.recipe_of)} at other samples; no budget)")
                  for r in runs if r.recipe_of is not None]
     if replicas:
         legend += "; " + ", ".join(replicas)
