@@ -204,3 +204,35 @@ def test_the_overlay_plans_the_page_and_hands_it_to_the_claims(tmp_path):
     proc = run_snakemake(tmp_path, "-n", "-j1", "vhat_recipe", configfiles=(OVERLAY, bad), check=False)
     assert proc.returncode != 0 and "'vhat_recipe.quorum': 4 exceeds the 3 deciding cells" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_the_adopted_recipes_band_is_reported_beside_and_decides_nothing(settings, cfg, tmp_path):
+    """Issue 60 item 3: the deployed V̂ (−C since the choice) and its training-seed replicates span a
+    second band per cell, written on the page, in the choice and in the claims page's provenance line;
+    the verdicts are those without it."""
+    from madpinn.evaluation.recipe_page import write_recipe_page
+
+    assert settings.adopted_band == ("madpinn", "madpinn-us1", "madpinn-us2")
+    frame = cells([0.96] * 3, [0.90] * 3, reported=True)   # −C at 90 % everywhere: needed by the rule
+    where = DECIDING + [("vhat_budget", n) for n in (64, 128, 256)]
+    seeds = pd.concat([cell(st, run, n, v) for st, n in where for run, v in (("madpinn-us1", 0.92), ("madpinn-us2", 0.95))],
+                      ignore_index=True)
+    _, alone = choose(cell_safety(frame), settings)
+    table, choice = choose(cell_safety(pd.concat([frame, seeds], ignore_index=True)), settings)
+    assert choice["components"] == alone["components"]   # the band decides nothing
+    band = choice["adopted_band"]
+    assert band["runs"] == list(settings.adopted_band) and len(band["cells"]) == 6
+    first = band["cells"][0]
+    assert (first["lo"], first["hi"], first["models"]) == (pytest.approx(90.0), pytest.approx(95.0), 3)
+    assert first["mean"] == pytest.approx((90 + 92 + 95) / 3)
+    assert alone["adopted_band"]["cells"][0]["models"] == 1   # only the deployed run's cells: a one-model band, said so
+    line = choice_sentence(choice)
+    assert "Since: the adopted recipe's training band over madpinn, madpinn-us1, madpinn-us2, deciding nothing" in line
+    assert "vhat_budget N=256 90.0–95.0 % (3 models)" in line
+    paths = _write_cells(pd.concat([frame, seeds], ignore_index=True), tmp_path)
+    md = write_recipe_page(paths, settings, tmp_path / "page")[1].read_text()
+    assert "## The adopted recipe's training band" in md and "| 90.0–95.0 (92.3; 3 models) |" in md and "| 95.0–97.0 |" in md
+    # a run the config does not know is refused before any job
+    bad = deep_merge(cfg, {"vhat_recipe": {"adopted_band": ["madpinn-nosuch"]}})
+    with pytest.raises(ConfigError, match="'vhat_recipe.adopted_band': unknown run 'madpinn-nosuch'"):
+        RecipeSettings.from_config(bad)

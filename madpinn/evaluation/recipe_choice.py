@@ -76,6 +76,32 @@ def judge_cells(safety: pd.DataFrame, settings: RecipeSettings) -> pd.DataFrame:
     return table
 
 
+def adopted_band(safety: pd.DataFrame, settings: RecipeSettings) -> dict | None:
+    """The adopted recipe's training band per configured cell (deciding nothing; issue 60 item 3):
+    ``{"runs": [...], "cells": [{study, n_agents, role, lo, hi, mean, models, safety: {run: %}}]}`` over
+    the runs of ``settings.adopted_band`` with cells there (a cell with none is left out); None when
+    the section names no such runs."""
+    if not settings.adopted_band:
+        return None
+    runs = list(settings.adopted_band)
+    wide = safety.pivot_table(index=["study", "n_agents"], columns="run", values="safety", aggfunc="first").reindex(columns=runs)
+    table = _cells(settings).join(wide, on=["study", "n_agents"])
+    cells = []
+    for r in table.to_dict("records"):
+        values = {run: float(r[run]) for run in runs if pd.notna(r[run])}
+        if values:
+            v = list(values.values())
+            cells.append({"study": r["study"], "n_agents": int(r["n_agents"]), "role": r["role"], "lo": min(v), "hi": max(v),
+                          "mean": sum(v) / len(v), "models": len(v), "safety": values})
+    return {"runs": runs, "cells": cells}
+
+
+def adopted_band_text(band: dict) -> str:
+    """``the adopted recipe's training band (madpinn, …): vhat_budget N=64 60.9–68.4 % (3 models), …``."""
+    cells = "; ".join(f"{c['study']} N={c['n_agents']} {c['lo']:.1f}–{c['hi']:.1f} % ({c['models']} models)" for c in band["cells"])
+    return f"the adopted recipe's training band over {', '.join(band['runs'])}, deciding nothing: {cells}"
+
+
 def component_verdict(below: int, above: int, quorum: int) -> str:
     """The rule on one component's counts over the deciding cells."""
     if below >= quorum and above == 0:
@@ -103,7 +129,7 @@ def _require(table: pd.DataFrame, settings: RecipeSettings) -> list[str]:
 def choose(safety: pd.DataFrame, settings: RecipeSettings) -> tuple[pd.DataFrame, dict]:
     """The judged cells (:func:`judge_cells`) and the choice: ``{"components": {X: {run, verdict,
     action, below, above}}, "provisional", "missing_replicates", "band_runs", "deciding", "reported",
-    "seeds", "margin_points", "quorum", "rule"}``. Protocol seeds (< 100) and cells of studies outside
+    "seeds", "margin_points", "quorum", "rule", "adopted_band"}`` (the last: :func:`adopted_band`). Protocol seeds (< 100) and cells of studies outside
     the section are refused."""
     protocol = sorted({int(s) for seeds in safety["seeds"] for s in str(seeds).split() if int(s) < 100})
     if protocol:
@@ -126,7 +152,8 @@ def choose(safety: pd.DataFrame, settings: RecipeSettings) -> tuple[pd.DataFrame
     return table, {"components": components, "provisional": bool(missing), "missing_replicates": missing,
                    "band_runs": [settings.base, *[r for r in settings.replicates if r not in missing]],
                    "deciding": cells(deciding), "reported": cells(table[table["role"] == "reported"]), "seeds": seeds,
-                   "margin_points": settings.margin_points, "quorum": settings.quorum, "rule": PLAN}
+                   "margin_points": settings.margin_points, "quorum": settings.quorum, "rule": PLAN,
+                   "adopted_band": adopted_band(safety, settings)}
 
 
 def cells_text(cells: list[dict]) -> str:
@@ -148,5 +175,6 @@ def choice_sentence(choice: dict) -> str:
     if choice["provisional"]:
         text += (f" (provisional: {', '.join(choice['missing_replicates'])} without cells, a degenerate band; "
                  "re-read when they exist)")
-    return text + f". First chosen on protocol seeds 0 and 1 ({FIRST_CHOICE})"
+    text += f". First chosen on protocol seeds 0 and 1 ({FIRST_CHOICE})"
+    return text + (f". Since: {adopted_band_text(choice['adopted_band'])}" if choice.get("adopted_band") else "")
 

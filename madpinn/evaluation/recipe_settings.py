@@ -34,6 +34,9 @@ class RecipeSettings:
     """study -> its seeds (validation seeds, ≥ 100)"""
     labels: Mapping[str, str]
     """run -> display label"""
+    adopted_band: tuple[str, ...] = ()
+    """runs spanning the adopted recipe's training band (the deployed V̂ and its training-seed
+    replicates, issue 60 item 3): reported per cell beside the base's band, deciding nothing"""
 
     @classmethod
     def from_config(cls, cfg: Mapping) -> "RecipeSettings":
@@ -45,12 +48,12 @@ class RecipeSettings:
             raise ConfigError("invalid configuration:\n" + "\n".join(lines))
         sec, studies = cfg["vhat_recipe"], cfg["studies"]
         cells = lambda part: tuple((str(st), int(n)) for st, counts in sec[part].items() for n in counts)   # noqa: E731
-        runs = (sec["base"], *sec["replicates"], *sec["components"].values())
+        runs = tuple(dict.fromkeys((sec["base"], *sec["replicates"], *sec["components"].values(), *sec["adopted_band"])))
         return cls(base=str(sec["base"]), replicates=tuple(sec["replicates"]), components=dict(sec["components"]),
                    deciding=cells("deciding"), reported=cells("reported"), margin_points=float(sec["margin_points"]),
                    quorum=int(sec["quorum"]),
                    seeds={st: tuple(int(s) for s in studies[st]["seeds"]) for st in (*sec["deciding"], *sec["reported"])},
-                   labels={r: str(method_config(cfg, r)[1]["label"]) for r in runs})
+                   labels={r: str(method_config(cfg, r)[1]["label"]) for r in runs}, adopted_band=tuple(sec["adopted_band"]))
 
     @property
     def band_runs(self) -> tuple[str, ...]:
@@ -74,6 +77,10 @@ def recipe_errors(cfg: Mapping[str, Any]) -> list[str]:
             method, _, variant = run.partition("-")
             if method not in methods or (variant and variant not in methods[method]["variants"]):
                 lines.append(f"  - 'vhat_recipe.{key}': unknown run '{run}'")
+    for run in sec["adopted_band"]:   # may repeat a run of the rule (the deployed −C): checked apart from `every`
+        method, _, variant = run.partition("-")
+        if method not in methods or (variant and variant not in methods[method]["variants"]):
+            lines.append(f"  - 'vhat_recipe.adopted_band': unknown run '{run}'")
     if len(set(every)) < len(every):
         lines.append(f"  - 'vhat_recipe': the base, replicates and components must be distinct runs, got {every}")
     for part in ("deciding", "reported"):
