@@ -34,7 +34,7 @@ class RecipeSettings:
     """study -> its seeds (validation seeds, ≥ 100)"""
     labels: Mapping[str, str]
     """run -> display label"""
-    adopted_band: tuple[str, ...] = ()
+    adopted_band: tuple[str, ...]
     """runs spanning the adopted recipe's training band (the deployed V̂ and its training-seed
     replicates, issue 60 item 3): reported per cell beside the base's band, deciding nothing"""
 
