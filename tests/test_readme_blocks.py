@@ -75,3 +75,9 @@ def test_the_table_ii_block_follows_the_published_readings_verdict():
     text = table_ii_lines(changed)[0]
     assert f"**Table II {VERDICTS[1]}.**" in text and "Readings that reproduce it" in text
     assert verdict["closest"]["study"] in text and "The closest reading" not in text
+    # the deployed V̂'s training-seed band comes from the recipe page's reported cells, in their order
+    recipe = json.loads((FIGURES / "vhat_recipe" / "vhat_recipe.json").read_text())
+    cells = [c for c in recipe["adopted_band"]["cells"] if c["role"] == "reported"]
+    band = table_ii_lines(verdict, recipe)[1]
+    assert band.startswith(lines[1]) and " / ".join(f"{c['lo']:.1f}–{c['hi']:.1f}" for c in cells) in band
+    assert table_ii_lines(verdict, {**recipe, "adopted_band": None})[1] == lines[1]   # no band: the line as before

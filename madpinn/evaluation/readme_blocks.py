@@ -116,10 +116,25 @@ def findings_lines(claims: dict, report: dict) -> list[str]:
     return lines
 
 
-def table_ii_lines(verdict: dict) -> list[str]:
+def seed_band_sentence(recipe: dict) -> str:
+    """The deployed V̂'s training-seed band in the recipe page's reported cells (issue 60 item 3;
+    ``vhat_recipe.json``'s ``adopted_band``), e.g. ``The deployed V̂'s 3 training seeds (validation
+    seed 100): 60.9–68.4 / … % at 64 / … agents.``; empty when the page has none."""
+    band = recipe.get("adopted_band")
+    cells = [c for c in (band or {}).get("cells", []) if c["role"] == "reported"]
+    if not cells:
+        return ""
+    seeds = ", ".join(map(str, recipe["seeds"]))
+    return (f" The deployed V̂'s {max(c['models'] for c in cells)} training seeds (validation seed {seeds}): "
+            + " / ".join(f"{c['lo']:.1f}–{c['hi']:.1f}" for c in cells) + " % safety at "
+            + " / ".join(str(c["n_agents"]) for c in cells) + " agents.")
+
+
+def table_ii_lines(verdict: dict, recipe: dict | None = None) -> list[str]:
     """Table II over the readings the paper leaves open (README's ``table_ii`` block): the published
     readings page's verdict (issue 60: the final readings on protocol seed 0, or a validation page) in
-    its own sentence, where its readings were chosen, and the baselines' reading."""
+    its own sentence, where its readings were chosen, the baselines' reading and, from the recipe page
+    (``recipe``), the deployed V̂'s training-seed band."""
     from madpinn.evaluation.table_ii_page import verdict_sentence
 
     ch = verdict.get("chosen_on")
@@ -130,7 +145,8 @@ def table_ii_lines(verdict: dict) -> list[str]:
     else:
         where = f"Over {verdict['readings_judged']} readings of what the paper leaves open for the large arena (validation seeds)"
     return [f"- {where}: {verdict_sentence(verdict)}",
-            f"- The baselines in the large arena (not in the paper): {verdict['baselines']['reading']}."]
+            f"- The baselines in the large arena (not in the paper): {verdict['baselines']['reading']}."
+            + (seed_band_sentence(recipe) if recipe else "")]
 
 
 # block name -> (files under paper_figures/, renderer of their parsed JSON, in that order)
@@ -138,7 +154,7 @@ BLOCKS: dict[str, tuple[tuple[str, ...], Callable[..., list[str]]]] = {
     "headline": (("reproduction.json",), headline_lines),
     "claims": (("claims.json",), claims_lines),
     "findings": (("claims.json", "reproduction.json"), findings_lines),
-    "table_ii": (("table_ii_final/table_ii_readings/verdict.json",), table_ii_lines),   # issue 60: seed 0's final readings
+    "table_ii": (("table_ii_final/table_ii_readings/verdict.json", "vhat_recipe/vhat_recipe.json"), table_ii_lines),   # issue 60: seed 0's final readings, the seed band
 }
 
 
