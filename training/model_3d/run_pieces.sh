@@ -9,8 +9,10 @@
 #   NICE=0 training/model_3d/run_pieces.sh            # V̂ then V_s
 #   training/model_3d/run_pieces.sh vs                 # one of them
 #   PIECE_S=300 THREADS=1 EXTRA_CONFIG=more.yaml ...  # piece length (s), torch threads, one more config overlay
-# When a model is finished (training/<name>_3d/<kind>.pt), ship it as models/<kind>_3d.pt (python -m madpinn
-# ship-models) and add <kind>_3d to workflow/configs/shipped.yaml's names: the workflow then installs it.
+# When a model is finished (training/<kind>_3d/<kind>.pt), ship it as models/<kind>_3d.pt
+# (python -m madpinn ship-models --model <kind>_3d=training/<kind>_3d/<kind>.pt --config config.yaml
+# workflow/configs/agent_models.yaml) and add <kind>_3d to the overlay's shipped_models.names (not
+# shipped.yaml's: the 3-D variants exist in that overlay only); the workflow then installs it.
 set -u
 cd "$(dirname "$0")/../.."
 common=(--config config.yaml workflow/configs/agent_models.yaml ${EXTRA_CONFIG:-} --variant 3d
