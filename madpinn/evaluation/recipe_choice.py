@@ -58,15 +58,19 @@ def _cells(settings: RecipeSettings) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["study", "n_agents", "role"])
 
 
+def _cell_safety_table(safety: pd.DataFrame, settings: RecipeSettings, runs: list[str]) -> pd.DataFrame:
+    """One row per configured cell (:func:`_cells`) with a column per run of ``runs``: its safety (%),
+    NaN where its cell is absent."""
+    wide = safety.pivot_table(index=["study", "n_agents"], columns="run", values="safety", aggfunc="first")
+    return _cells(settings).join(wide.reindex(columns=runs), on=["study", "n_agents"])
+
+
 def judge_cells(safety: pd.DataFrame, settings: RecipeSettings) -> pd.DataFrame:
     """One row per configured cell (deciding first, then reported): the band over the base and the
     replicates present (``band_lo``, ``band_hi``, ``band_runs``), each model's safety (column = run;
     NaN where its cell is absent) and per component X: ``below_X`` / ``above_X`` (−X beyond the band by
     ≥ the margin; False where −X or the band is absent)."""
-    wide = safety.pivot_table(index=["study", "n_agents"], columns="run", values="safety", aggfunc="first")
-    runs = [*settings.band_runs, *settings.components.values()]
-    wide = wide.reindex(columns=runs)
-    table = _cells(settings).join(wide, on=["study", "n_agents"])
+    table = _cell_safety_table(safety, settings, [*settings.band_runs, *settings.components.values()])
     band = table[list(settings.band_runs)]
     table["band_lo"], table["band_hi"] = band.min(axis=1), band.max(axis=1)
     table["band_runs"] = band.notna().apply(lambda r: " ".join(r.index[r.to_numpy(dtype=bool)]), axis=1)
@@ -84,8 +88,7 @@ def adopted_band(safety: pd.DataFrame, settings: RecipeSettings) -> dict | None:
     if not settings.adopted_band:
         return None
     runs = list(settings.adopted_band)
-    wide = safety.pivot_table(index=["study", "n_agents"], columns="run", values="safety", aggfunc="first").reindex(columns=runs)
-    table = _cells(settings).join(wide, on=["study", "n_agents"])
+    table = _cell_safety_table(safety, settings, runs)
     cells = []
     for r in table.to_dict("records"):
         values = {run: float(r[run]) for run in runs if pd.notna(r[run])}

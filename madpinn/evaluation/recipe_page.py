@@ -56,14 +56,15 @@ def cells_display(table: pd.DataFrame, role: str, settings: RecipeSettings) -> p
 def adopted_band_section(band: dict, table: pd.DataFrame, settings: RecipeSettings) -> list[str]:
     """Markdown lines: per cell the adopted recipe's training band beside the base recipe's (issue 60
     item 3; added after the choice, decides nothing)."""
-    base = table.set_index(["study", "n_agents"])
-    rows = [{"cell": f"{c['study']} N={c['n_agents']}",
-             "adopted band % (mean)": f"{c['lo']:.1f}–{c['hi']:.1f} ({c['mean']:.1f}; {c['models']} models)",
-             **{settings.labels[run] if run != band["runs"][0] else f"{run} (deployed)": (f"{c['safety'][run]:.1f}" if run in c["safety"] else "–")
-                for run in band["runs"]},
-             "base band %": "–" if pd.isna(base.at[(c["study"], c["n_agents"]), "band_lo"])
-             else f"{base.at[(c['study'], c['n_agents']), 'band_lo']:.1f}–{base.at[(c['study'], c['n_agents']), 'band_hi']:.1f}"}
-            for c in band["cells"]]
+    base = table.set_index(["study", "n_agents"])[["band_lo", "band_hi"]]
+    rows = []
+    for c in band["cells"]:
+        lo, hi = base.loc[(c["study"], c["n_agents"])]
+        rows.append({"cell": f"{c['study']} N={c['n_agents']}",
+                     "adopted band % (mean)": f"{c['lo']:.1f}–{c['hi']:.1f} ({c['mean']:.1f}; {c['models']} models)",
+                     **{settings.labels[run] if run != band["runs"][0] else f"{run} (deployed)":
+                        (f"{c['safety'][run]:.1f}" if run in c["safety"] else "–") for run in band["runs"]},
+                     "base band %": "–" if pd.isna(lo) else f"{lo:.1f}–{hi:.1f}"})
     return ["## The adopted recipe's training band (issue 60 item 3; added after the choice, decides nothing)", "",
             f"Safety % of {', '.join(band['runs'])}: the V̂ the protocol deploys and its training-seed replicates, "
             f"beside the band over {', '.join(settings.band_runs)} (the base recipe's).", "",

@@ -71,16 +71,12 @@ def recipe_errors(cfg: Mapping[str, Any]) -> list[str]:
     lines, studies, methods = [], cfg["studies"], cfg["methods"]
     runs = {"base": [sec["base"]], "replicates": sec["replicates"],
             **{f"components.{x}": [r] for x, r in sec["components"].items()}}
-    every = [r for rs in runs.values() for r in rs]
-    for key, names in runs.items():
+    every = [r for rs in runs.values() for r in rs]   # the rule's runs, distinct; adopted_band may repeat one (the deployed −C)
+    for key, names in {**runs, "adopted_band": sec["adopted_band"]}.items():
         for run in names:
             method, _, variant = run.partition("-")
             if method not in methods or (variant and variant not in methods[method]["variants"]):
                 lines.append(f"  - 'vhat_recipe.{key}': unknown run '{run}'")
-    for run in sec["adopted_band"]:   # may repeat a run of the rule (the deployed −C): checked apart from `every`
-        method, _, variant = run.partition("-")
-        if method not in methods or (variant and variant not in methods[method]["variants"]):
-            lines.append(f"  - 'vhat_recipe.adopted_band': unknown run '{run}'")
     if len(set(every)) < len(every):
         lines.append(f"  - 'vhat_recipe': the base, replicates and components must be distinct runs, got {every}")
     for part in ("deciding", "reported"):

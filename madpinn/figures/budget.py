@@ -124,10 +124,11 @@ def budget_roles(base: str | None, variants: Mapping[str, str | None], table: Ma
         entry = table[variant] if variant is not None else None
         origin = entry.get(FROM) if entry is not None else None
         reseeded = entry is not None and set(entry) - {FROM} == {"seed"} and by_variant.get(origin, run) != run
-        derived = run == base or reference in lineage(variant, table)
+        chain = lineage(variant, table)
+        derived = run == base or reference in chain
         recipe = (base is not None and run != base and not reseeded
                   and (not derived or budgets[run] == budgets[base]))
-        nearest = next((by_variant[v] for v in lineage(variant, table)[1:] if v in by_variant and by_variant[v] != run), base)
+        nearest = next((by_variant[v] for v in chain[1:] if v in by_variant and by_variant[v] != run), base)
         out[run] = {"replicates": by_variant[origin] if reseeded else None, "recipe_of": nearest if recipe else None}
     return out
 
@@ -344,6 +345,10 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     tags = budget_tags(runs)
     recipes = {r.run: list(RECIPE_MARKERS)[i % len(RECIPE_MARKERS)] for i, r in enumerate(r for r in runs if r.recipe_of is not None)}
     x_of = drawn_samples(runs)
+
+    def name(run: str) -> str:   # a budget by its tag, a recipe variant by its marker
+        return tags[run] if run in tags else f"the {RECIPE_MARKERS[recipes[run]]}"
+
     counts = sorted({int(n) for p in panels for n in frames[p.study]["n_agents"].unique()})
     colours = style.palette([str(n) for n in counts])
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 6.4), sharex=True, sharey=True, squeeze=False)
@@ -374,7 +379,7 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
                                 else "no rising trend"))
             for base, (lo, hi, k) in seed_ranges(agg[agg["n_agents"] == n], by_run).items():
                 ax.vlines(x_of[base], lo, hi, color=c, lw=7, alpha=0.3, zorder=0, label=SEED_RANGE_LABEL)
-                where = tags[base] if base in tags else f"the {RECIPE_MARKERS[recipes[base]]} ({by_run[base].label})"
+                where = name(base) + ("" if base in tags else f" ({by_run[base].label})")
                 notes.append(f"{panel.title}, {n} agents: training-seed range at {where}: {lo:.1f}–{hi:.1f} % "
                              f"({k} seeds); a difference smaller than it reads as no effect")
             for _, r in agg[(agg["n_agents"] == n) & agg["run"].isin(list(recipes))].iterrows():
@@ -402,9 +407,6 @@ def draw_vhat_budget(frames: Mapping[str, pd.DataFrame], runs: Sequence[BudgetRu
     axes[0][0].set_ylabel("safety rate (%)")
     axes[0][0].set_ylim(top=101)
     legend = "; ".join(f"{tags[r.run]} = {r.label}" for r in sorted(budgets, key=lambda r: r.samples))
-    def name(run: str) -> str:   # a budget by its tag, a recipe variant by its marker
-        return tags[run] if run in tags else f"the {RECIPE_MARKERS[recipes[run]]}"
-
     replicas = [f"{r.label} (training seed of {name(r.replicates)})" for r in runs if r.replicates is not None]
     replicas += [f"{r.label} ({RECIPE_MARKERS[recipes[r.run]]}, drawn just right of its samples: "
                  + (f"the recipe of {name(r.recipe_of)} changed at its budget)" if (r.samples, r.schedule) == (by_run[r.recipe_of].samples, by_run[r.recipe_of].schedule)
