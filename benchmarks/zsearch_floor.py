@@ -30,7 +30,9 @@ issue 48); this makes the floor lower, so it stays a bound.
 under ``results/eval``, or ``*_summary.json`` in ``output_cache/``): agent-steps, share of
 infeasible agent-steps, and the search
 actually run (cells whose V̂ rows per agent-step are not the cold bisection's, i.e. warm starts, are
-left out: :func:`ran_cold_bisection`). A cell's job time is its process CPU time where recorded
+left out: :func:`ran_cold_bisection`). The floor is this CPU's: a cell whose summary names another
+CPU (``cpu_model``, cells since issue 65's re-key) is left out of every sum and counted apart
+(``--any-cpu`` keeps it); a cell that names none is kept and counted. A cell's job time is its process CPU time where recorded
 (:func:`protocol_time.cell_seconds`; the floor is process CPU time too), else its wall time.
 For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
 and its share. The last lines are ``cold_bisection_cells_core_h`` (the measured time of those
@@ -50,6 +52,7 @@ from pathlib import Path
 
 import torch
 
+from madpinn.machine import cpu_model
 from madpinn.value_functions import load_vhat
 from madpinn.value_functions.z_search import bisection_steps
 from protocol_time import cell_seconds, cell_summaries   # benchmarks/protocol_time.py
@@ -143,13 +146,21 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--z-tolerance", type=float, default=1e-3, help="methods.madpinn.z_tolerance (config.yaml: 1e-3)")
     ap.add_argument("--skip", nargs="*", default=list(DEFAULT_SKIP), help="studies left out of the protocol's sums")
+    ap.add_argument("--any-cpu", action="store_true", help="keep cells computed on another CPU model (their ratio mixes machines)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     steps = bisection_steps(args.z_tolerance)
     vhat = load_vhat(args.vhat)
     cells = [c for c in cell_summaries(args.cells) if c["study"] not in args.skip]
+    here = cpu_model()
+    elsewhere = [c for c in cells if c.get("cpu_model", here) != here]
+    unnamed = sum("cpu_model" not in c for c in cells)
+    print(f"this CPU: {here}; cells on another CPU: {len(elsewhere)}"
+          f"{' (kept: --any-cpu)' if args.any_cpu else ' (left out)'}; cells naming no CPU (before issue 65's re-key): {unnamed}")
+    if not args.any_cpu:
+        cells = [c for c in cells if c.get("cpu_model", here) == here]
     if not cells:
-        raise SystemExit(f"no evaluation cell summaries under {args.cells}")
+        raise SystemExit(f"no evaluation cell summaries under {args.cells} (on this CPU)")
 
     @lru_cache(maxsize=None)
     def costs(batch: int) -> tuple[float, float]:

@@ -47,6 +47,21 @@ def cpu_flags() -> set[str]:
         return set()
 
 
+def cpu_model() -> str:
+    """The CPU's model name (Linux: :data:`CPU_INFO`'s ``model name``; else ``platform.processor()``),
+    recorded in each cell's summary: a cell's time compares with a floor measured on the same CPU only."""
+    try:
+        with open(CPU_INFO) as f:
+            name = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), "")
+    except OSError:
+        name = ""
+    if not name:
+        import platform
+
+        name = platform.processor() or platform.machine()
+    return name or "unknown"
+
+
 def pinned_job_environment() -> dict[str, str]:
     """What follows the machine and not the job, pinned for every workflow job (issue 66 item 2; the
     workflow sets each only where the user has not). Thread pools: one thread in BLAS and OpenMP

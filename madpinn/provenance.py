@@ -9,8 +9,9 @@ nothing else.
 what that function and the module's code run at import use: the module's own definitions by name,
 every ``import`` (function-level (lazy) ones included, ``if TYPE_CHECKING:`` blocks left out) and
 every package module named by a string constant (``importlib.import_module``, a package's PEP 562
-``_HOMES``). ``from m import name`` reaches ``name`` and what it uses in turn; ``import m`` (or a
-module named by a string) reaches all of ``m``. The hash covers, per module reached, its code run
+``_HOMES``), and every module of a package whose ``__init__`` imports them all
+(``import_submodules(__name__)``, :mod:`madpinn.submodules`: the agent models). ``from m import name``
+reaches ``name`` and what it uses in turn; ``import m`` (or a module named by a string) reaches all of ``m``. The hash covers, per module reached, its code run
 at import and the definitions reached, byte for byte, with the package data it names: a superset
 of what runs, never less, and an edit to a definition no job reaches reruns nothing.
 
@@ -133,6 +134,8 @@ def _scan(nodes: Iterable[ast.AST], module: str) -> tuple[set[str], set[str], se
                     raise ValueError(f"{module}: relative import (line {node.lineno}); the package imports absolutely")
                 names = [node.module if a.name == "*" else f"{node.module}.{a.name}"
                          if module_path(f"{node.module}.{a.name}") else f"{node.module}:{a.name}" for a in node.names]
+            elif isinstance(node, ast.Call) and _is_discovery(node):
+                names = package_modules(module)
             elif isinstance(node, ast.Constant) and isinstance(node.value, str):
                 names = [node.value] if module_path(node.value) else []   # a module's whole name, not "madpinn: …" text
                 strings.add(node.value)
@@ -144,6 +147,30 @@ def _scan(nodes: Iterable[ast.AST], module: str) -> tuple[set[str], set[str], se
                     parts = m.split(".")
                     out |= {name} | {".".join(parts[:i]) + ":" for i in range(1, len(parts))}
     return out, used, strings
+
+
+DISCOVERY = "import_submodules"
+"""the call (:func:`madpinn.submodules.import_submodules`) by which a package imports all its modules"""
+
+
+def _is_discovery(node: ast.Call) -> bool:
+    """``import_submodules(__name__)`` (or ``<module>.import_submodules(__name__)``)."""
+    name = getattr(node.func, "id", None) or getattr(node.func, "attr", None)
+    if name != DISCOVERY:
+        return False
+    if len(node.args) != 1 or getattr(node.args[0], "id", None) != "__name__":
+        raise ValueError(f"{DISCOVERY} is followed only as {DISCOVERY}(__name__) in a package's __init__ (line {node.lineno})")
+    return True
+
+
+def package_modules(package: str) -> list[str]:
+    """The modules and sub-packages of package ``package`` (dotted names)."""
+    path = module_path(package)
+    if path is None or path.name != "__init__.py":
+        raise ValueError(f"{package}: {DISCOVERY}(__name__) outside a package's __init__")
+    return sorted(f"{package}.{p.stem if p.suffix else p.name}" for p in path.parent.iterdir()
+                  if p.name != "__init__.py" and module_path(f"{package}.{p.stem if p.suffix else p.name}")
+                  and (p.suffix == ".py" or p.is_dir()))
 
 
 def imports(entry: str) -> set[str]:

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-IGNORE = {"elapsed_s", "sim_wall_s", "policy_s", "policy_us_per_agent_step", "wall_s", "job_config_hash",
+IGNORE = {"elapsed_s", "cpu_s", "cpu_model", "sim_wall_s", "policy_s", "policy_us_per_agent_step", "wall_s", "job_config_hash",
           "config_hash", "git_commit", "clip", "traj", "detail"}
 TIMING_COLS = {"wall_s", "elapsed_s", "policy_s", "sim_wall_s", "policy_us_per_agent_step", "time_s"}
 

@@ -23,12 +23,12 @@ MODEL_3D = {"agents": {"model": "double_integrator_3d"}}
 
 def smoke_config_3d() -> dict:
     """The smoke configuration with the 3-D agent model for every study: each keeps the runs whose
-    methods fly it (``madpinn.config.MODEL_METHODS``; the config check refuses the others)."""
+    methods fly it (the schema's ``x-flown-by``, ``madpinn.config.model_methods``; the config check refuses the others)."""
     import yaml
 
-    from madpinn.config import MODEL_METHODS
+    from madpinn.config import model_methods
 
-    flying = MODEL_METHODS[MODEL_3D["agents"]["model"]]
+    flying = model_methods()[MODEL_3D["agents"]["model"]]
     planar = load_config([REPO / "config.yaml", SMOKE])
     runs = {name: {"runs": [r for r in st["runs"] if r.partition("-")[0] in flying] or ["nominal"]}
             for name, st in planar["studies"].items()}

@@ -16,7 +16,8 @@ from conftest import REPO, SMOKE
 from madpinn.config import hashed_agents, load_config, subtree_hash
 from madpinn.config.hashing import PAPER_AGENT_MODEL
 from madpinn.config.schema import node_at
-from madpinn.dynamics import PAPER_MODEL, DoubleIntegrator, DoubleIntegrator3D
+from madpinn.dynamics import PAPER_MODEL, DoubleIntegrator
+from madpinn.dynamics.double_integrator_3d import DoubleIntegrator3D
 from madpinn.evaluation.cell import CellSettings, run_cell
 from madpinn.observation import ObservationSettings, split_observation
 from madpinn.policies.nominal import NominalPD

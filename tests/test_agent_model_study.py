@@ -16,9 +16,10 @@ import torch
 import yaml
 
 from conftest import REPO, SMOKE
-from madpinn.config import (MODEL_METHODS, ConfigError, RunSettings, deep_merge, hashed_method, job_config, load_config,
+from madpinn.config import (ConfigError, RunSettings, deep_merge, hashed_method, job_config, load_config,
                             validate_config, with_vf_variant)
-from madpinn.dynamics import DoubleIntegrator, DoubleIntegrator3D
+from madpinn.dynamics import DoubleIntegrator
+from madpinn.dynamics.double_integrator_3d import DoubleIntegrator3D
 from madpinn.evaluation.agent_models import TITLE, agent_models_table, recorded_passes
 from madpinn.evaluation.cell import CellSettings, run_cell, write_cell
 from madpinn.provenance import model_training_hash, registry
@@ -107,7 +108,7 @@ def test_a_3d_study_cell_flies_the_3d_dynamics(tmp_path):
 
 
 def test_the_methods_that_fly_a_model_are_the_policies_that_accept_it():
-    """MODEL_METHODS names the policies that fly the 3-D model; the rest refuse it when built or run
+    """The schema's x-flown-by names the policies that fly the 3-D model; the rest refuse it when built or run
     (MPPI here; the MARL baselines' features: tests/test_agent_model_3d.py)."""
     from madpinn.policies import PolicyContext, make_policy, policy_settings
     from madpinn.observation import ObservationSettings
@@ -117,6 +118,9 @@ def test_the_methods_that_fly_a_model_are_the_policies_that_accept_it():
     from madpinn.config.schema import node_at
     from madpinn.dynamics import MODELS, PAPER_MODEL
 
+    from madpinn.config import model_methods
+
+    MODEL_METHODS = model_methods()
     assert set(MODEL_METHODS) == set(node_at("agents.model")["enum"]) - {PAPER_MODEL} == set(MODELS) - {PAPER_MODEL}
     assert set(MODEL_METHODS["double_integrator_3d"]) < set(registry("madpinn.policies.base"))
     assert set(registry("madpinn.policies.base")) - set(MODEL_METHODS["double_integrator_3d"]) == {"mppi", "safemarl", "defmarl"}
@@ -135,7 +139,7 @@ def test_the_methods_that_fly_a_model_are_the_policies_that_accept_it():
 @pytest.mark.parametrize("extra,message", [
     ({"studies": {"model_3d": {"runs": ["madpinn-3d", "mppi"]}}},
      r"'studies.model_3d.runs': run 'mppi' cannot fly the study's agent model double_integrator_3d \(the methods that do: madpinn, nominal; "
-     r"madpinn.config.models.MODEL_METHODS\)"),
+     r"the schema's agent_model x-flown-by\)"),
     ({"studies": {"model_3d": {"runs": ["madpinn"]}}},
      r"run 'madpinn' loads a V̂ trained for double_integrator, but the study flies double_integrator_3d"),
     ({"methods": {"madpinn": {"variants": {"3d": {"vs": None}}}}},

@@ -30,7 +30,7 @@ def test_earlier_horizons_are_read_from_the_same_episodes_and_change_nothing_els
     assert not any("_at_" in k for k in plain.summary)
 
 
-def test_every_cell_records_encounter_speeds_and_cpu_time():
+def test_every_cell_records_encounter_speeds_cpu_time_and_its_cpu():
     cell = _cell([])
     speeds = np.concatenate(cell.frame["agent_encounter_speed"].to_list())
     finite = speeds[np.isfinite(speeds)]
@@ -38,3 +38,6 @@ def test_every_cell_records_encounter_speeds_and_cpu_time():
     assert (finite <= 2 * np.sqrt(2) * 4.0 + 1e-6).all()   # two agents at v_max = 4 m/s per axis
     assert np.isfinite(cell.summary["encounter_speed_mean"])
     assert cell.summary["cpu_s"] > 0.0
+    from madpinn.machine import cpu_model
+
+    assert cell.summary["cpu_model"] == cpu_model() and cpu_model() != ""   # the CPU behind cpu_s (benchmarks/zsearch_floor.py)

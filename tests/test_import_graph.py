@@ -20,7 +20,8 @@ KNOWN: list[set[str]] = []
 
 
 LAYERS = [
-    {"madpinn", "atomic", "checksum", "device", "machine", "hints", "output_cache", "run_log", "separation", "scenario_errors"},   # leaves
+    {"madpinn", "atomic", "checksum", "device", "machine", "hints", "output_cache", "run_log", "separation", "scenario_errors",
+     "submodules"},   # leaves
     {"conflicts", "encounters"},     # a scenario layout's conflicts: its pattern, its straight-line encounters
     {"scenarios"},
     {"config"},                      # reads scenarios to check agent counts

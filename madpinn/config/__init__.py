@@ -24,7 +24,7 @@ from madpinn.config.errors import ConfigError, ConfigFileError, TargetError, Wor
 from madpinn.config.hashing import config_hash, hashed_agents, hashed_key, lookup_key, subtree_hash
 from madpinn.config.loading import load_config, load_yaml
 from madpinn.config.merge import deep_merge
-from madpinn.config.models import MODEL_METHODS, describe_model, model_identity, study_agents
+from madpinn.config.models import describe_model, model_methods, model_identity, study_agents
 from madpinn.config.paths import OUTPUT_PATH_KEYS, REPO_ROOT, unwritable_reason, write_if_changed
 from madpinn.config.runs import (DEPLOYMENT_ONLY_KEYS, FAN_OUT_KEYS, TRAINING_ONLY_KEYS, RunSettings, hashed_method,
                                  job_config, method_config, run_agents, run_observation, run_vhat, run_vs, study_backend,
@@ -40,5 +40,5 @@ __all__ = [
     "write_if_changed", "DEPLOYMENT_ONLY_KEYS", "FAN_OUT_KEYS", "TRAINING_ONLY_KEYS", "RunSettings", "job_config", "method_config",
     "run_agents", "run_observation", "run_vhat", "run_vs", "hashed_method", "study_backend", "study_pattern", "study_sim", "SCHEMA_PATH",
     "FILLED", "backend_names", "fill_defaults", "validate_config", "VF_VARIANTS", "split_vf_model", "vf_model_name", "with_vf_variant",
-    "MODEL_METHODS", "describe_model", "model_identity", "study_agents",
+    "model_methods", "describe_model", "model_identity", "study_agents",
 ]

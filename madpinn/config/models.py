@@ -9,12 +9,20 @@ from typing import Any, Mapping
 
 from madpinn.config.hashing import AGENT_MODEL_KEYS, PAPER_AGENT_MODEL
 from madpinn.config.merge import deep_merge
+from madpinn.config.schema import node_at
 
-MODEL_METHODS = {"double_integrator_3d": ("madpinn", "nominal")}
-"""agent model -> the methods whose policies fly it; the paper's planar model: every method, another
-model not listed here: none. The others refuse it in one line when they are built: MPPI plans
-planar rollouts, the MARL baselines (SafeMARL, DEF-MARL) read planar features
-(``tests/test_agent_model_study.py`` ties this table to the policies and to the schema's models)"""
+FLOWN_BY = "x-flown-by"
+"""schema keyword of ``$defs.agent_model``: agent model -> the methods whose policies fly it (the
+paper's planar model: every method, another model not listed there: none). The others refuse it in
+one line when they are built: MPPI plans planar rollouts, the MARL baselines (SafeMARL, DEF-MARL)
+read planar features (``tests/test_agent_model_study.py`` ties it to the policies and to
+:data:`madpinn.dynamics.MODELS`)"""
+
+
+def model_methods() -> dict[str, tuple[str, ...]]:
+    """Agent model other than the paper's -> the methods that fly it, from the schema's
+    ``$defs.agent_model`` through ``agents.model`` (the one place a model's name and its methods are written)."""
+    return {m: tuple(runs) for m, runs in node_at("agents.model").get(FLOWN_BY, {}).items()}
 
 
 def with_model(agents: Mapping[str, Any], overlay: Mapping[str, Any] | None) -> dict:
@@ -45,5 +53,5 @@ def describe_model(agents: Mapping[str, Any]) -> str:
 
 def methods_flying(model: str) -> tuple[str, ...] | None:
     """The methods that fly ``model`` (None: every method, the paper's planar model; a model
-    :data:`MODEL_METHODS` does not list: none)."""
-    return None if model == PAPER_AGENT_MODEL else MODEL_METHODS.get(model, ())
+    :func:`model_methods` does not list: none)."""
+    return None if model == PAPER_AGENT_MODEL else model_methods().get(model, ())

@@ -148,7 +148,7 @@ def _variant_errors(cfg: Mapping[str, Any]) -> list[str]:
 
 def _model_errors(cfg: Mapping[str, Any]) -> list[str]:
     """Each study's agent model (``agents``, with the study's own ``agents`` merged over it) is flown by
-    every run's method (:data:`madpinn.config.models.MODEL_METHODS`), and each MAD-PINN run loads a V̂
+    every run's method (the schema's ``$defs.agent_model.x-flown-by``, :func:`madpinn.config.models.model_methods`), and each MAD-PINN run loads a V̂
     and a V_s trained for it (the base ones: ``agents``; a variant: its own ``agents`` merged over it)."""
     from madpinn.config.vf_variants import with_vf_variant
 
@@ -162,7 +162,7 @@ def _model_errors(cfg: Mapping[str, Any]) -> list[str]:
                 continue   # reported by _cross_field_errors
             if flying is not None and method not in flying:
                 lines.append(f"  - 'studies.{name}.runs': run '{run}' cannot fly the study's agent model {agents['model']} "
-                             f"(the methods that do: {', '.join(flying) or 'none'}; madpinn.config.models.MODEL_METHODS)")
+                             f"(the methods that do: {', '.join(flying) or 'none'}; the schema's agent_model x-flown-by)")
                 continue
             if method != "madpinn":
                 continue

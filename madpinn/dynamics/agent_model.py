@@ -13,8 +13,10 @@ gives agent ``i`` its own bound and broadcasts over states ``[..., N, state_dim]
 
 Adding a model: one module in this package with a frozen dataclass implementing this class
 (``name``, ``position_dim``, ``drift``, ``control_matrix``, ``step``, ``clip_state``, ``place``),
-listed in :data:`madpinn.dynamics.MODELS`, and its name in the schema's ``agents.model``;
-docs/reference/architecture.md counts the touch points.
+and its name in the schema's ``$defs.agent_model`` (with the methods that fly it). Nothing lists
+it: a class that states its own ``name`` registers itself when it is defined
+(:meth:`AgentModel.__init_subclass__`), and the package imports every one of its modules
+(:data:`madpinn.dynamics.MODELS`); docs/reference/architecture.md counts the touch points.
 """
 
 from __future__ import annotations
@@ -39,6 +41,23 @@ def pair_threshold(radius: Bound, like: torch.Tensor) -> float | torch.Tensor:
     return 0.5 * (r[:, None] + r[None, :])
 
 
+_REGISTERED: dict[str, type["AgentModel"]] = {}
+"""agent models by name, each added when its class is defined (:meth:`AgentModel.__init_subclass__`)"""
+
+
+def model_class(name: str) -> type["AgentModel"]:
+    """The agent model named ``name`` (a clear error for an unknown one)."""
+    if name not in _REGISTERED:
+        raise ValueError(f"unknown agent model {name!r}; known: {sorted(_REGISTERED)}")
+    return _REGISTERED[name]
+
+
+def registered_models() -> dict[str, type["AgentModel"]]:
+    """Every agent model defined so far, by name (:data:`madpinn.dynamics.MODELS` once the
+    package has imported its modules)."""
+    return dict(sorted(_REGISTERED.items()))
+
+
 class AgentModel(BoxControlSystem):
     """One agent's dynamics, vectorised over any leading batch shape (scenarios, agents).
 
@@ -59,6 +78,15 @@ class AgentModel(BoxControlSystem):
 
     u_max: Bound
     v_max: Bound
+
+    def __init_subclass__(cls, **kwargs):
+        """A subclass that states its own ``name`` is a model of its own: registered under it
+        (two classes of one name are refused)."""
+        super().__init_subclass__(**kwargs)
+        if "name" in vars(cls):
+            if cls.name in _REGISTERED and _REGISTERED[cls.name] is not cls:
+                raise ValueError(f"two agent models are named {cls.name!r}: {_REGISTERED[cls.name].__module__} and {cls.__module__}")
+            _REGISTERED[cls.name] = cls
 
     # ---- layout ---------------------------------------------------------------------------
     @classmethod

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import torch
 
-from madpinn.dynamics import AgentModel, model_class
+from madpinn.dynamics.agent_model import AgentModel, model_class
 from madpinn.dynamics.double_integrator import hold_step
 from madpinn.dynamics.system import BoxControlSystem
 

@@ -5,7 +5,7 @@ The studies of ``agent_models.studies`` share their scenarios (arena, pattern, a
 validation seeds, scenario count: checked at config time); each flies its own agent model
 (``studies.<s>.agents``, :func:`madpinn.config.study_agents`). A non-planar model places the
 planar starts and goals at one altitude, the middle of its band
-(:meth:`madpinn.dynamics.DoubleIntegrator3D.place`), so the two models see the same scenarios in
+(:meth:`madpinn.dynamics.double_integrator_3d.DoubleIntegrator3D.place`), so the two models see the same scenarios in
 the plane and differ only in the freedom to climb and descend. One row per (backend, study, run,
 N): safety (d ≤ r, in the model's space), safe scenarios and the time-averaged cost over the
 collision-free agents (the paper's figures; 95 % intervals as every table's,
@@ -28,7 +28,7 @@ import pandas as pd
 
 from madpinn.config import describe_model, study_agents, study_backend
 from madpinn.config.hashing import PAPER_AGENT_MODEL
-from madpinn.dynamics import DoubleIntegrator3D
+from madpinn.dynamics.double_integrator_3d import DoubleIntegrator3D
 from madpinn.evaluation.intervals import paired_differences, seed_figures
 from madpinn.evaluation.tables import label_of, load_results, per_seed, to_markdown
 

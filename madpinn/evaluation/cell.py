@@ -24,6 +24,7 @@ from madpinn.evaluation.metrics import scenario_metrics, seed_summary
 from madpinn.observation import ObservationSettings
 from madpinn.policies import PolicyContext, make_policy, policy_settings
 from madpinn.encounters import straight_line_encounters
+from madpinn.machine import cpu_model
 from madpinn.scenarios import Arena, generate_scenarios, horizon_steps
 from madpinn.settings import AgentSettings
 from madpinn.simulation.settings import SimSettings
@@ -227,6 +228,7 @@ def run_cell(
         "policy_us_per_agent_step": 1e6 * timing["policy_s"] / max(1, total * n_agents * (n_steps // period)),
         "job_config_hash": cs.job_config_hash,
         "device": str(device),
+        "cpu_model": cpu_model(),   # the machine behind elapsed_s / cpu_s (benchmarks compare them on the same CPU only)
     }
     if policy_stats:   # only collected from policies with summarise_stats
         summary["policy_stats"] = policy.summarise_stats(policy_stats)
