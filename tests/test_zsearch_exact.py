@@ -209,6 +209,10 @@ def test_buffered_network_paths_are_bitwise_the_allocating_ones():
             for v in (vs, banded):
                 buffered = v.value(pairs, 0.0, reuse_buffers=True)
                 assert torch.equal(_bits(buffered), _bits(v.value(pairs, 0.0)))
+                (bv, bg), (av, ag) = v.value_and_grad(pairs, 0.0, reuse_buffers=True), v.value_and_grad(pairs, 0.0)
+                assert torch.equal(_bits(bv), _bits(av)) and torch.equal(_bits(bg), _bits(ag))   # the CBVF filter's rows
+                v.value_and_grad(pairs.flip(0), 0.0, reuse_buffers=True)
+                assert torch.equal(_bits(bg), _bits(ag))   # not overwritten by the next call
             kept = grad.clone()
             vhat.net.input_grad_reusing_buffers(torch.rand(B, vhat.net.in_features, generator=g))
             assert torch.equal(grad, kept)

@@ -9,6 +9,7 @@ import yaml
 
 from madpinn.config.errors import ConfigError, ConfigFileError
 from madpinn.config.merge import deep_merge
+from madpinn.config.yaml_text import parse_yaml
 from madpinn.config.validation import validate_config
 
 
@@ -17,7 +18,7 @@ def load_yaml(path: str | Path) -> dict:
     if not path.is_file():
         raise ConfigFileError(f"config file not found: {path}")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = parse_yaml(path.read_text())
     except yaml.YAMLError as exc:
         raise ConfigError(f"config file {_yaml_error_text(path, exc)}") from exc
     if data is None:

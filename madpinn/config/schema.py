@@ -14,9 +14,8 @@ import copy
 from functools import lru_cache
 from typing import Any, Mapping
 
-import yaml
-
 from madpinn.config.paths import REPO_ROOT
+from madpinn.config.yaml_text import parse_yaml
 
 
 SCHEMA_PATH = REPO_ROOT / "workflow" / "schemas" / "config.schema.yaml"
@@ -32,7 +31,7 @@ def _schema() -> dict:
 
 @lru_cache(maxsize=2)
 def _parsed(mtime_ns: int, size: int) -> dict:
-    return yaml.safe_load(SCHEMA_PATH.read_text())
+    return parse_yaml(SCHEMA_PATH.read_text())
 
 
 def _declared_keys(schema: Mapping[str, Any], root: Mapping[str, Any]) -> set[str]:

@@ -95,13 +95,13 @@ class CBVFFilter:
             dist = agent.position(x_rel).norm(dim=-1).masked_fill(~real, float("inf"))
             real = real & (dist.amin(-1, keepdim=True) <= self.coordination_range)
         C = idx.shape[-1]
-        v_all = self.vs.value(x_rel.reshape(-1, n), t=0.0).reshape(S, N, C)
+        v_all = self.vs.value(x_rel.reshape(-1, n), t=0.0, reuse_buffers=True).reshape(S, N, C)   # bitwise as without
         v_all = v_all.masked_fill(~real, float("inf"))
         k = min(self.critical, C)
         _, order = torch.topk(v_all, k, dim=-1, largest=False)  # [S, N, k]
         active = torch.gather(real, 2, order)
         x_k = torch.gather(x_rel, 2, order.unsqueeze(-1).expand(S, N, k, n))
-        V, dV = self.vs.value_and_grad(x_k.reshape(-1, n), t=0.0)
+        V, dV = self.vs.value_and_grad(x_k.reshape(-1, n), t=0.0, reuse_buffers=True)
         V = V.reshape(S, N, k).to(state.dtype)
         dV = dV.reshape(S, N, k, n).to(state.dtype)
         a = agent.velocity(dV)                                       # Bᵀ∇V_s: u_i enters v_i

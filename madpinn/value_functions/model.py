@@ -64,10 +64,11 @@ class PINNValueFunction:
             return self.problem.system.terminal_value(s[:, :-1], s[:, -1])
         return self.problem.system.target(s)
 
-    def state_value_and_grads(self, s: torch.Tensor, t=0.0):
-        """``(V [B], ∂_t V [B], ∇_s V [B, S])``; works under ``torch.no_grad()``."""
+    def state_value_and_grads(self, s: torch.Tensor, t=0.0, reuse_buffers: bool = False):
+        """``(V [B], ∂_t V [B], ∇_s V [B, S])``; works under ``torch.no_grad()``. ``reuse_buffers``:
+        the network's intermediates in reused workspace buffers (bitwise the same values)."""
         s, t = self._prepare(s, t)
-        n, gn = self.net.value_and_input_grad(self.problem.normalise(s, t))
+        n, gn = self.net.value_and_input_grad(self.problem.normalise(s, t), reuse=reuse_buffers)
         b, gb = self.problem.boundary_and_grad(s)
         return assemble(self.problem, s, t, n, gn, b, gb, self.output_scale)
 
@@ -191,9 +192,9 @@ class PairValue(PINNValueFunction):
         lo, _ = self.system.free_drift_and_grad(x, self.horizon - as_time(t, x.shape[0], x))
         return torch.minimum(torch.maximum(v, lo), self.system.target(x))
 
-    def value_and_grad(self, x_rel: torch.Tensor, t=0.0):
-        """``(V_s [B], ∂V_s/∂x [B, 4])``."""
-        v, _, g = self.state_value_and_grads(x_rel, t)
+    def value_and_grad(self, x_rel: torch.Tensor, t=0.0, reuse_buffers: bool = False):
+        """``(V_s [B], ∂V_s/∂x [B, 2d])``; ``reuse_buffers``: as in :meth:`value`."""
+        v, _, g = self.state_value_and_grads(x_rel, t, reuse_buffers)
         if not self.band:
             return v, g
         x = x_rel.to(v.dtype)

@@ -103,10 +103,11 @@ class Siren(nn.Module):
             g = torch.mm(dp, scaled[layer][0], out=out(("g", layer)) if layer else None)   # ∂N/∂h_{l−1}
         return n, g
 
-    def value_and_input_grad(self, x: torch.Tensor):
-        """``N [B]`` and ``∇_x N [B, d_in]`` without autograd (exact)."""
+    def value_and_input_grad(self, x: torch.Tensor, reuse: bool = False):
+        """``N [B]`` and ``∇_x N [B, d_in]`` without autograd (exact); ``reuse``: the ``[B, hidden]``
+        intermediates in reused workspace buffers (bitwise the same; both returned tensors fresh)."""
         with torch.no_grad():
-            return self._sweeps(x.detach(), reuse=False)
+            return self._sweeps(x.detach(), reuse=reuse)
 
     def input_grad_reusing_buffers(self, x: torch.Tensor) -> torch.Tensor:
         """``∇_x N [B, d_in]``, bitwise :meth:`value_and_input_grad`'s, its ``[B, hidden]``
