@@ -42,13 +42,13 @@ class BrakingBarrier:
         self.r, self.decel = r, decel
         self.system = pair_system()
 
-    def value(self, x, t=0.0):
+    def value(self, x, t=0.0, reuse_buffers=False):   # reuse_buffers: the learned V_s's workspace option (no network here)
         p, v = x[..., :2], x[..., 2:]
         d = p.norm(dim=-1).clamp_min(1e-9)
         closing = (-(p * v).sum(-1) / d).clamp_min(0.0)
         return d - self.r - closing**2 / (2 * self.decel)
 
-    def value_and_grad(self, x, t=0.0):
+    def value_and_grad(self, x, t=0.0, reuse_buffers=False):
         with torch.enable_grad():
             x = x.detach().requires_grad_(True)
             V = self.value(x)
