@@ -39,6 +39,14 @@ and its share. The last lines are ``cold_bisection_cells_core_h`` (the measured 
 MAD-PINN cells and its ratio to their floor), ``cold_bisection_floor_core_h: X`` (the floor summed
 over the protocol's cells; studies named by ``--skip`` are left out), ``protocol_cells_core_h: Y``
 (the measured time of the same protocol's cells, every method) and ``protocol_time_over_floor: Y/X``.
+
+The extension rows with a CBVF filter after MAD-PINN's control (``madpinn-filtered``, not in the
+paper) also evaluate V_s rows no identical-answer filter can skip: per agent-step a value row for
+each of its ``candidates`` slots and a value-and-gradient row for each of its ``critical_neighbours``
+(``methods.madpinn…safety_filter`` of ``--config``), at the V_s network's bare speed (``--vs``).
+``network_floor_core_h`` adds them to the floor, and ``protocol_time_over_network_floor`` is the
+protocol's time over that floor (MAD-PINN's own V_s neighbour scoring, whose row count varies with
+the crowd, is in neither floor).
 """
 
 from __future__ import annotations
@@ -52,8 +60,9 @@ from pathlib import Path
 
 import torch
 
+from madpinn.config import deep_merge, load_config
 from madpinn.machine import cpu_model
-from madpinn.value_functions import load_vhat
+from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
 from protocol_time import cell_seconds, cell_summaries   # benchmarks/protocol_time.py
 from zsearch_reference import reference_cold_search   # benchmarks/zsearch_reference.py
@@ -126,6 +135,20 @@ def certifiable_rows(vhat, obs: torch.Tensor, grid) -> float:
     return float(count.mean())
 
 
+def filter_rows(cfg: dict, run: str) -> tuple[int, int]:
+    """``(value rows, value-and-gradient rows)`` of V_s per agent-step that run ``run``'s CBVF filter
+    after MAD-PINN's control evaluates (its ``candidates`` and ``critical_neighbours``); (0, 0)
+    without one."""
+    method, _, variant = run.partition("-")
+    if method != "madpinn":
+        return 0, 0
+    settings = cfg["methods"]["madpinn"]
+    if variant:
+        settings = deep_merge(settings, settings.get("variants", {}).get(variant, {}))
+    sf = settings.get("safety_filter")
+    return (int(sf["candidates"]), int(sf["critical_neighbours"])) if sf else (0, 0)
+
+
 def floor_us_per_agent_step(value_us: float, grad_us: float, steps: int, infeasible: float) -> float:
     """µs per agent-step of the rows no identical-answer search can skip (module docstring)."""
     return value_us * (1.0 + steps * (1.0 - infeasible)) + grad_us
@@ -143,6 +166,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=Path, required=True, help="results/eval or output_cache")
     ap.add_argument("--vhat", default="models/vhat.pt")
+    ap.add_argument("--vs", default="models/vs.pt", help="V_s for the CBVF filter's rows")
+    ap.add_argument("--config", nargs="+", default=["config.yaml"], help="the cells' configuration (the filter's row counts)")
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--z-tolerance", type=float, default=1e-3, help="methods.madpinn.z_tolerance (config.yaml: 1e-3)")
     ap.add_argument("--skip", nargs="*", default=list(DEFAULT_SKIP), help="studies left out of the protocol's sums")
@@ -150,7 +175,8 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(1)
     steps = bisection_steps(args.z_tolerance)
-    vhat = load_vhat(args.vhat)
+    vhat, vs = load_vhat(args.vhat), load_vs(args.vs)
+    cfg = load_config(args.config)
     cells = [c for c in cell_summaries(args.cells) if c["study"] not in args.skip]
     here = cpu_model()
     elsewhere = [c for c in cells if c.get("cpu_model", here) != here]
@@ -168,8 +194,14 @@ def main() -> None:
         print(f"batch {batch:5d}: value row {v:.3f} us, value-and-gradient row {g:.3f} us (process CPU, 1 thread)", flush=True)
         return v, g
 
-    groups: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0])
-    total_h = floor_h = 0.0
+    @lru_cache(maxsize=None)
+    def vs_costs(batch: int) -> tuple[float, float]:
+        v, g = row_costs_us(vs, batch, args.repeats)
+        print(f"batch {batch:5d}: V_s value row {v:.3f} us, value-and-gradient row {g:.3f} us (process CPU, 1 thread)", flush=True)
+        return v, g
+
+    groups: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0, 0.0])
+    total_h = floor_h = net_floor_h = 0.0
     left_out = 0
     for c in cells:
         total_h += cell_seconds(c) / 3600.0
@@ -183,21 +215,27 @@ def main() -> None:
         v, g = costs(batch)
         agent_steps = int(c["n_agents"]) * int(c["n_scenarios"]) * int(c["n_steps"])
         f = 1e-6 * agent_steps * floor_us_per_agent_step(v, g, steps, float(stats["infeasible_fraction"])) / 3600.0
+        values, grads = filter_rows(cfg, c["run"])
+        fv = 1e-6 * agent_steps * (values * vs_costs(batch * values)[0] + grads * vs_costs(batch * grads)[1]) / 3600.0 if values else 0.0
         key = f"{c['study']}/{c['run']}"
         groups[key][0] += 1
         groups[key][1] += cell_seconds(c) / 3600.0
         groups[key][2] += f
+        groups[key][3] += f + fv
         floor_h += f
-    print(f"\n{'cells (cold bisection)':42s} {'n':>4s} {'job h':>7s} {'floor h':>8s} {'floor share':>11s}")
-    for key, (n, h, f) in sorted(groups.items(), key=lambda kv: -kv[1][1]):
-        print(f"{key:42s} {n:4d} {h:7.3f} {f:8.3f} {f / h:11.2f}")
+        net_floor_h += f + fv
+    print(f"\n{'cells (cold bisection)':42s} {'n':>4s} {'job h':>7s} {'floor h':>8s} {'floor share':>11s} {'+ filter rows':>13s}")
+    for key, (n, h, f, nf) in sorted(groups.items(), key=lambda kv: -kv[1][1]):
+        print(f"{key:42s} {n:4d} {h:7.3f} {f:8.3f} {f / h:11.2f} {nf / h:13.2f}")
     if left_out:
         print(f"({left_out} MAD-PINN cells with another search left out)")
-    cold_h = sum(h for _, h, _ in groups.values())
+    cold_h = sum(h for _, h, _, _ in groups.values())
     print(f"cold_bisection_cells_core_h: {cold_h:.3f} ({cold_h / max(floor_h, 1e-12):.2f} x their floor)")
     print(f"cold_bisection_floor_core_h: {floor_h:.3f}")
     print(f"protocol_cells_core_h: {total_h:.3f}")
     print(f"protocol_time_over_floor: {total_h / max(floor_h, 1e-12):.2f}")
+    print(f"network_floor_core_h: {net_floor_h:.3f} (the floor + the CBVF filter's V_s rows)")
+    print(f"protocol_time_over_network_floor: {total_h / max(net_floor_h, 1e-12):.2f}")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ from policy_models import tiny_models
 sys.path.insert(0, str(REPO / "benchmarks"))
 from lockstep import run_in_lockstep  # noqa: E402
 from protocol_time import cell_summaries  # noqa: E402
-from zsearch_floor import certifiable_rows, floor_us_per_agent_step, ran_cold_bisection  # noqa: E402
+from zsearch_floor import certifiable_rows, filter_rows, floor_us_per_agent_step, ran_cold_bisection  # noqa: E402
 
 
 def test_floor_counts_the_rows_of_the_deployed_cold_search():
@@ -83,6 +83,25 @@ def test_cell_summaries_take_both_layouts_and_stop_on_an_unreadable_one(tmp_path
     (tmp_path / "n4_seed2.json").write_text("{truncated")
     with pytest.raises(SystemExit, match="n4_seed2.json"):
         cell_summaries(tmp_path)
+
+
+def test_the_network_floor_counts_the_cbvf_filters_rows_of_the_filtered_runs_only():
+    from madpinn.config import load_config
+
+    cfg = load_config([REPO / "config.yaml"])
+    sf = cfg["methods"]["madpinn"]["variants"]["filtered"]["safety_filter"]
+    assert filter_rows(cfg, "madpinn-filtered") == (sf["candidates"], sf["critical_neighbours"]) == (4, 2)
+    assert {filter_rows(cfg, r) for r in ("madpinn", "madpinn-lookahead", "madpinn-cs", "mppi", "safemarl", "nominal")} == {(0, 0)}
+
+
+def test_the_floor_leaves_out_cells_computed_on_another_cpu(tmp_path):
+    """A cell's CPU time compares with a floor measured on its own CPU only (issue 65)."""
+    (tmp_path / "a_summary.json").write_text(json.dumps({**_cell(), "cpu_model": "Another CPU (not this one)"}))
+    out = subprocess.run([sys.executable, str(REPO / "benchmarks" / "zsearch_floor.py"), "--cells", str(tmp_path), "--repeats", "1"],
+                         cwd=REPO, capture_output=True, text=True, timeout=300,
+                         env={"PYTHONPATH": f"{REPO}:{REPO / 'benchmarks'}", "PATH": "/usr/bin:/bin"})
+    assert out.returncode != 0 and "cells on another CPU: 1 (left out)" in out.stdout
+    assert "no evaluation cell summaries" in out.stderr and "(on this CPU)" in out.stderr
 
 
 def _frame(scenarios, safety, cost, seed=100, final=0.1):
