@@ -3,7 +3,7 @@
 seed) in ``--cache`` (the output cache keeps the entries of earlier runs, e.g. computed on another
 CPU or before a source-hash change that left the method's code as it was).
 
-    python scripts/cell_drift.py --results results/eval/mujoco --cache output_cache [--runs mppi safemarl ...]
+    python scripts/cell_drift.py --results results/eval/mujoco --cache output_cache [--runs mppi safemarl ...] [--studies scaling ...]
 
 Prints, per run: cells compared, cells bit-identical in their metrics, and the largest and mean
 absolute change of safety rate (points), safe scenarios (points) and time-averaged cost. A cell
@@ -18,6 +18,8 @@ import json
 from collections import defaultdict
 from pathlib import Path
 
+from madpinn.machine import cpu_model
+
 METRICS = ("safety_rate", "safe_scenarios", "cost_time_avg")
 
 
@@ -30,6 +32,9 @@ def main() -> int:
     ap.add_argument("--results", default="results/eval/mujoco")
     ap.add_argument("--cache", default="output_cache")
     ap.add_argument("--runs", nargs="*", default=None, help="only these runs (default: all)")
+    ap.add_argument("--studies", nargs="*", default=None, help="only these studies (default: all)")
+    ap.add_argument("--this-cpu", action="store_true",
+                    help="only cells whose summary names this machine's CPU (computed here since cells record it)")
     args = ap.parse_args()
     earlier = defaultdict(list)
     for f in Path(args.cache).glob("*_summary.json"):
@@ -37,9 +42,13 @@ def main() -> int:
     rows = defaultdict(lambda: {"cells": 0, "identical": 0, **{m: [] for m in METRICS}})
     for f in sorted(Path(args.results).glob("*/*/n*_seed*.json")):
         now = json.loads(f.read_text())
-        if args.runs and now["run"] not in args.runs:
+        if (args.runs and now["run"] not in args.runs) or (args.studies and now["study"] not in args.studies):
             continue
-        others = [json.loads(o.read_text()) for o in earlier.get(key(now), []) if o != f.resolve()]
+        if args.this_cpu and now.get("cpu_model") != cpu_model():
+            continue
+        # not the cell's own entry: the same file, or its copy under the same cache key (a cell published
+        # from results/output_cache/ into output_cache/ keeps its file name, <key>_summary.json)
+        others = [json.loads(o.read_text()) for o in earlier.get(key(now), []) if o.name != f.resolve().name]
         if not others:
             continue
         r = rows[now["run"]]
