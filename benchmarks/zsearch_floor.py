@@ -60,7 +60,7 @@ from pathlib import Path
 
 import torch
 
-from madpinn.config import deep_merge, load_config
+from madpinn.config import load_config, method_config
 from madpinn.machine import cpu_model
 from madpinn.value_functions import load_vhat, load_vs
 from madpinn.value_functions.z_search import bisection_steps
@@ -139,13 +139,8 @@ def filter_rows(cfg: dict, run: str) -> tuple[int, int]:
     """``(value rows, value-and-gradient rows)`` of V_s per agent-step that run ``run``'s CBVF filter
     after MAD-PINN's control evaluates (its ``candidates`` and ``critical_neighbours``); (0, 0)
     without one."""
-    method, _, variant = run.partition("-")
-    if method != "madpinn":
-        return 0, 0
-    settings = cfg["methods"]["madpinn"]
-    if variant:
-        settings = deep_merge(settings, settings.get("variants", {}).get(variant, {}))
-    sf = settings.get("safety_filter")
+    method, settings = method_config(cfg, run)
+    sf = settings.get("safety_filter") if method == "madpinn" else None
     return (int(sf["candidates"]), int(sf["critical_neighbours"])) if sf else (0, 0)
 
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import pkgutil
 from functools import lru_cache
 from pathlib import Path
 from typing import Iterable, Mapping
@@ -168,9 +169,8 @@ def package_modules(package: str) -> list[str]:
     path = module_path(package)
     if path is None or path.name != "__init__.py":
         raise ValueError(f"{package}: {DISCOVERY}(__name__) outside a package's __init__")
-    return sorted(f"{package}.{p.stem if p.suffix else p.name}" for p in path.parent.iterdir()
-                  if p.name != "__init__.py" and module_path(f"{package}.{p.stem if p.suffix else p.name}")
-                  and (p.suffix == ".py" or p.is_dir()))
+    # found as import_submodules finds them (pkgutil, nothing imported), kept where this package reads source
+    return sorted(m for m in (f"{package}.{info.name}" for info in pkgutil.iter_modules([str(path.parent)])) if module_path(m))
 
 
 def imports(entry: str) -> set[str]:
