@@ -32,7 +32,8 @@ infeasible agent-steps, and the search
 actually run (cells whose V̂ rows per agent-step are not the cold bisection's, i.e. warm starts, are
 left out: :func:`ran_cold_bisection`). The floor is this CPU's: a cell whose summary names another
 CPU (``cpu_model``, cells since issue 65's re-key) is left out of every sum and counted apart
-(``--any-cpu`` keeps it); a cell that names none is kept and counted. A cell's job time is its process CPU time where recorded
+(``--any-cpu`` keeps it); a cell that names none is kept and counted (``--named-only`` leaves it out:
+``--cells output_cache`` in the middle of a rerun then reads the rerun's cells of this CPU alone). A cell's job time is its process CPU time where recorded
 (:func:`protocol_time.cell_seconds`; the floor is process CPU time too), else its wall time.
 For every MAD-PINN group it prints the cells, the measured job time (h), the floor (h)
 and its share. The last lines are ``cold_bisection_cells_core_h`` (the measured time of those
@@ -167,6 +168,8 @@ def main() -> None:
     ap.add_argument("--z-tolerance", type=float, default=1e-3, help="methods.madpinn.z_tolerance (config.yaml: 1e-3)")
     ap.add_argument("--skip", nargs="*", default=list(DEFAULT_SKIP), help="studies left out of the protocol's sums")
     ap.add_argument("--any-cpu", action="store_true", help="keep cells computed on another CPU model (their ratio mixes machines)")
+    ap.add_argument("--named-only", action="store_true",
+                    help="leave out cells naming no CPU (computed before issue 65's re-key), e.g. --cells output_cache mid-rerun")
     args = ap.parse_args()
     torch.set_num_threads(1)
     steps = bisection_steps(args.z_tolerance)
@@ -180,6 +183,8 @@ def main() -> None:
           f"{' (kept: --any-cpu)' if args.any_cpu else ' (left out)'}; cells naming no CPU (before issue 65's re-key): {unnamed}")
     if not args.any_cpu:
         cells = [c for c in cells if c.get("cpu_model", here) == here]
+    if args.named_only:
+        cells = [c for c in cells if "cpu_model" in c]
     if not cells:
         raise SystemExit(f"no evaluation cell summaries under {args.cells} (on this CPU)")
 
