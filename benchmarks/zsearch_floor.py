@@ -180,7 +180,8 @@ def main() -> None:
     elsewhere = [c for c in cells if c.get("cpu_model", here) != here]
     unnamed = sum("cpu_model" not in c for c in cells)
     print(f"this CPU: {here}; cells on another CPU: {len(elsewhere)}"
-          f"{' (kept: --any-cpu)' if args.any_cpu else ' (left out)'}; cells naming no CPU (before issue 65's re-key): {unnamed}")
+          f"{' (kept: --any-cpu)' if args.any_cpu else ' (left out)'}; cells naming no CPU (before issue 65's re-key): {unnamed}"
+          f"{' (left out: --named-only)' if args.named_only else ' (kept)'}")
     if not args.any_cpu:
         cells = [c for c in cells if c.get("cpu_model", here) == here]
     if args.named_only:
