@@ -97,8 +97,21 @@ def draw_points(ax, points: Sequence[Point], size_pt: float, off_scale: Sequence
             ax.plot([x0, x], [y, y], "-", color=p.colour, lw=0.8, zorder=2, label="_moved")
             ax.plot(x0, y, ".", color=p.colour, ms=4, zorder=3, label="_true")
         ax.plot(x, y, p.marker, ms=size_pt, mfc="white", mew=1.6, color=p.colour, label=p.label, zorder=4 + i)
-        if off[i]:
-            right = ax.transData.transform((x, y))[0] < 0.5 * (box.x0 + box.x1)
-            ax.annotate(f"{p.y:.2f} ↑", (x, y), xytext=(0.9 * size_pt if right else -0.9 * size_pt, 0),
-                        textcoords="offset points", ha="left" if right else "right", va="center",
-                        fontsize=8, color=p.colour, zorder=60)
+    _label_off_scale(ax, points, [placed[i] for i in range(len(points))], off, size_pt)
+
+
+def _label_off_scale(ax, points, placed, off, size_pt: float) -> None:
+    """Each off-scale point's y value and an upward arrow, in its colour, beside the outermost
+    off-scale marker (right of it in the axes' left half, else left), one line per point stacked
+    downwards, so that labels of markers side by side on the top edge never cover each other."""
+    idx = [i for i, o in enumerate(off) if o]
+    if not idx:
+        return
+    box = ax.get_window_extent()
+    px = {i: ax.transData.transform(placed[i])[0] for i in idx}
+    right = sum(px.values()) / len(idx) < 0.5 * (box.x0 + box.x1)
+    anchor = (max if right else min)(idx, key=px.get)
+    for k, i in enumerate(sorted(idx, key=px.get, reverse=not right)):
+        ax.annotate(f"{points[i].y:.2f} ↑", placed[anchor], xytext=(0.9 * size_pt if right else -0.9 * size_pt, -9.0 * k),
+                    textcoords="offset points", ha="left" if right else "right", va="center",
+                    fontsize=8, color=points[i].colour, zorder=60)
