@@ -15,6 +15,14 @@ stop() {
   if [[ -f $conf ]] && head -1 "$conf" | grep -qF "$marker" && [[ -f $state/slurmctld.pid ]]; then
     scancel --partition=local 2>/dev/null || true      # this cluster's jobs only (the config is ours)
     for _ in $(seq 30); do [[ -z $(squeue -h -t R,CG,PD 2>/dev/null) ]] && break; sleep 1; done
+    # a job step that ignored the cancel's SIGTERM can outlive its job here (proctrack/linuxproc,
+    # e.g. a snakemake job step waiting on its killed job): kill what this cluster started, by the
+    # cluster name Slurm put in its jobs' environment
+    for env in /proc/[0-9]*/environ; do
+      if tr '\0' '\n' < "$env" 2>/dev/null | grep -qx "SLURM_CLUSTER_NAME=local"; then
+        pid=${env#/proc/}; kill -9 "${pid%/environ}" 2>/dev/null || true
+      fi
+    done
   fi
   local pids=()
   for d in slurmd slurmctld munged; do

@@ -189,6 +189,19 @@ SLURM_TARGETS = ("table_safety_scaling", "fig_cost_safety")
 SUBMITTED = re.compile(r"^Job \d+ has been submitted with SLURM jobid (\d+) \(log: (.+)\)\.$", re.M)
 
 
+def _processes_naming(path: Path) -> list[str]:
+    """Command lines of the live processes that name ``path`` (a job step that outlived its job)."""
+    found = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        try:
+            text = cmdline.read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:      # gone meanwhile
+            continue
+        if str(path) in text:
+            found.append(text[:300])
+    return found
+
+
 def _running_rules(db: Path) -> set[str]:
     """Rules of the jobs whose MLflow run is open (RUNNING) in the SQLite store ``db``, read-only."""
     try:
@@ -291,6 +304,7 @@ def test_the_dag_on_a_single_node_slurm_cluster_gives_the_same_tables(done, tmp_
     assert Counter(r.data.tags["madpinn.rule"] for r in runs)["evaluate"] == planned["evaluate"]
     assert rule in {r.data.tags["madpinn.rule"] for r in runs}
 
-    # the daemons are gone, and no system file is left behind
+    # the daemons and every process of the run's jobs are gone, and no system file is left behind
     assert not [p for p in slurm.pids if Path(f"/proc/{p}").exists()]
+    assert not _processes_naming(copy)
     assert LocalSlurm.system_files() == system_before
