@@ -175,3 +175,22 @@ def test_lockstep_reports_a_failed_episode_without_hanging():
 
     with pytest.raises(RuntimeError, match="failed"):
         run_in_lockstep([failing, fine])
+
+
+def test_floor_rounds_give_a_strict_and_a_typical_host_floor(tmp_path):
+    """``--rounds K`` measures every row cost K times: the strict floor takes each cost's minimum
+    over the rounds, the typical-host floor its median, so the typical-host ratio is never above the
+    strict one (median ≥ min); the filtered run adds its V_s rows to the network floors only."""
+    (tmp_path / "a_summary.json").write_text(json.dumps(_cell()))
+    (tmp_path / "b_summary.json").write_text(json.dumps(_cell(run="madpinn-filtered")))
+    (tmp_path / "c_summary.json").write_text(json.dumps(_cell(run="nominal", rows=None)))
+    out = subprocess.run([sys.executable, str(REPO / "benchmarks" / "zsearch_floor.py"), "--cells", str(tmp_path),
+                          "--repeats", "1", "--rounds", "3"],
+                         cwd=REPO, capture_output=True, text=True, timeout=300, check=True,
+                         env={"PYTHONPATH": f"{REPO}:{REPO / 'benchmarks'}", "PATH": "/usr/bin:/bin"}).stdout
+    read = {k: float(v.split()[0]) for k, v in (line.split(": ", 1) for line in out.splitlines()
+                                               if line.startswith(("protocol_", "cold_bisection_floor", "network_floor")))}
+    assert read["protocol_time_over_floor_typical_host"] <= read["protocol_time_over_floor"]
+    assert read["protocol_time_over_network_floor_typical_host"] <= read["protocol_time_over_network_floor"]
+    assert read["protocol_time_over_network_floor"] < read["protocol_time_over_floor"]   # the filter's V_s rows
+    assert "(3 rounds)" in out and out.count("round 1: batch") == 3             # V̂ at 12 rows, V_s at 48 and 24
