@@ -194,3 +194,21 @@ def test_floor_rounds_give_a_strict_and_a_typical_host_floor(tmp_path):
     assert read["protocol_time_over_network_floor_typical_host"] <= read["protocol_time_over_network_floor"]
     assert read["protocol_time_over_network_floor"] < read["protocol_time_over_floor"]   # the filter's V_s rows
     assert "(3 rounds)" in out and out.count("round 1: batch") == 3             # V̂ at 12 rows, V_s at 48 and 24
+
+
+def test_paired_floor_runs_the_cell_between_two_floor_measurements(tmp_path):
+    """benchmarks/zsearch_floor_paired.py: a real (tiny) MAD-PINN cell through the job function, its
+    floor from its own row counts at row costs timed around it; the cell's CPU time holds far more
+    than its V̂ rows (MuJoCo, the neighbour scoring), so its ratio is above 1; a protocol seed is refused."""
+    script = str(REPO / "benchmarks" / "zsearch_floor_paired.py")
+    env = {"PYTHONPATH": f"{REPO}:{REPO / 'benchmarks'}", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, script, "--cell", "main/madpinn/3/100", "--scenarios", "1", "--repeats", "1",
+                          "--out", str(tmp_path / "paired.jsonl")],
+                         cwd=REPO, capture_output=True, text=True, timeout=600, env=env, check=True).stdout
+    (line,) = [json.loads(x) for x in (tmp_path / "paired.jsonl").read_text().splitlines()]
+    assert line["cell"] == "main/madpinn/3/100" and line["batch"] == 3 and line["ratio"] > 1.0
+    assert line["cpu_s"] > line["floor_s"] > 0 and len(line["value_row_us"]) == 2
+    assert "paired_cells_time_over_floor: " in out
+    bad = subprocess.run([sys.executable, script, "--cell", "main/madpinn/3/0"], cwd=REPO, capture_output=True,
+                         text=True, timeout=300, env=env)
+    assert bad.returncode != 0 and "validation seeds only" in bad.stderr
