@@ -42,6 +42,13 @@ def cell_spec(text: str) -> tuple[str, str, int, int]:
         raise argparse.ArgumentTypeError(f"a cell is study/run/N/seed, got '{text}'") from exc
 
 
+def append_jsonl(path: Path, lines: list[dict]) -> None:
+    """Append ``lines`` to ``path`` as JSON lines (its folder made if missing)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as fh:
+        fh.writelines(json.dumps(x) + "\n" for x in lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cell", type=cell_spec, action="append", required=True, help="study/run/N/seed (seed ≥ 100)")
@@ -77,9 +84,7 @@ def main() -> None:
             lines.append(line)
             print(json.dumps(line), flush=True)
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        with open(args.out, "a") as fh:
-            fh.writelines(json.dumps(x) + "\n" for x in lines)
+        append_jsonl(args.out, lines)
 
 
 if __name__ == "__main__":

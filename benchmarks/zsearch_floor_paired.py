@@ -26,7 +26,7 @@ from pathlib import Path
 
 import torch
 
-from gpu_cells import SHIPPED, cell_spec   # benchmarks/gpu_cells.py
+from gpu_cells import SHIPPED, append_jsonl, cell_spec   # benchmarks/gpu_cells.py
 from madpinn.commands.evaluate import evaluate
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.value_functions import load_vhat
@@ -76,9 +76,7 @@ def main() -> None:
     print(f"paired_cells_core_h: {cpu_total / 3600:.4f}")
     print(f"paired_cells_time_over_floor: {cpu_total / floor_total:.2f}")
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        with open(args.out, "a") as fh:
-            fh.writelines(json.dumps(x) + "\n" for x in lines)
+        append_jsonl(args.out, lines)
 
 
 if __name__ == "__main__":
