@@ -42,6 +42,13 @@ def cell_spec(text: str) -> tuple[str, str, int, int]:
         raise argparse.ArgumentTypeError(f"a cell is study/run/N/seed, got '{text}'") from exc
 
 
+def require_validation_seeds(cells) -> None:
+    """Stop, before any cell runs, when a ``cell_spec`` names a protocol seed (< 100)."""
+    for _study, _run, _n, seed in cells:
+        if seed < 100:
+            raise SystemExit(f"validation seeds only (≥ 100), got {seed}")
+
+
 def append_jsonl(path: Path, lines: list[dict]) -> None:
     """Append ``lines`` to ``path`` as JSON lines (its folder made if missing)."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -56,12 +63,11 @@ def main() -> None:
     ap.add_argument("--scenarios", type=int, default=None, help="scenarios per cell (default: the study's)")
     ap.add_argument("--out", type=Path, default=None, help="also append the JSON lines here")
     args = ap.parse_args()
+    require_validation_seeds(args.cell)
     cfg = load_config([REPO_ROOT / "config.yaml"])
     models = {k: REPO_ROOT / v for k, v in SHIPPED.items()}
     lines = []
     for study, run, n, seed in args.cell:
-        if seed < 100:
-            raise SystemExit(f"validation seeds only (≥ 100), got {seed}")
         if args.scenarios:
             cfg["studies"][study]["scenarios"] = args.scenarios
         figures = {}

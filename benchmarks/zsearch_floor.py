@@ -160,6 +160,14 @@ def floor_us_per_agent_step(value_us: float, grad_us: float, steps: int, infeasi
     return value_us * (1.0 + steps * (1.0 - infeasible)) + grad_us
 
 
+def cell_floor_s(cell: dict, value_us: float, grad_us: float, steps: int) -> float:
+    """Seconds of V̂ rows no identical-answer search can skip in cell summary ``cell`` (its agents ×
+    scenarios × steps, its ``policy_stats`` infeasible share), at these row costs."""
+    agent_steps = int(cell["n_agents"]) * int(cell["n_scenarios"]) * int(cell["n_steps"])
+    infeasible = float(cell["policy_stats"]["infeasible_fraction"])
+    return 1e-6 * agent_steps * floor_us_per_agent_step(value_us, grad_us, steps, infeasible)
+
+
 def ran_cold_bisection(stats: dict, steps: int) -> bool:
     """Whether a cell's ``policy_stats`` are the cold bisection's: no warm-start hit and V̂ rows per
     agent-step between the floor's count ``2 + steps·(1 − infeasible share)`` (the search skips
@@ -220,7 +228,7 @@ def main() -> None:
         for count in (values, grads):
             if count:
                 needed.setdefault(("vs", batch * count), [])
-        kept.append((c, (batch, values, grads, stats)))
+        kept.append((c, (batch, values, grads)))
     nets = {"vhat": vhat, "vs": vs}
     for r in range(max(1, args.rounds)):
         for (net, batch), got in sorted(needed.items()):
@@ -244,10 +252,9 @@ def main() -> None:
             total_h += cell_seconds(c) / 3600.0
             if row is None:
                 continue
-            batch, values, grads, stats = row
-            v, g = cost[("vhat", batch)]
+            batch, values, grads = row
+            f = cell_floor_s(c, *cost[("vhat", batch)], steps) / 3600.0
             agent_steps = int(c["n_agents"]) * int(c["n_scenarios"]) * int(c["n_steps"])
-            f = 1e-6 * agent_steps * floor_us_per_agent_step(v, g, steps, float(stats["infeasible_fraction"])) / 3600.0
             fv = 1e-6 * agent_steps * sum(count * cost[("vs", batch * count)][kind]
                                           for kind, count in enumerate((values, grads)) if count) / 3600.0
             key = f"{c['study']}/{c['run']}"

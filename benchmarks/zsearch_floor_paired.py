@@ -10,7 +10,7 @@ per cent between minutes and by more between days, so that ratio mixes the code'
 host's drift. Here both come from the same minutes: for each named cell (the workflow's job function,
 :func:`madpinn.commands.evaluate.evaluate`, one thread, the shipped models, no tracking, validation
 seeds ≥ 100) the V̂ row costs at the cell's batch are measured (best of ``--repeats``) right before
-and right after the cell, and its floor (:func:`zsearch_floor.floor_us_per_agent_step` on the cell's
+and right after the cell, and its floor (:func:`zsearch_floor.cell_floor_s` on the cell's
 own ``policy_stats``) uses their mean. A cell that did not run the cold bisection is refused.
 
 Prints one JSON line per cell (``cpu_s``, ``floor_s``, ``ratio``, ``drift``: the row cost after over
@@ -26,12 +26,12 @@ from pathlib import Path
 
 import torch
 
-from gpu_cells import SHIPPED, append_jsonl, cell_spec   # benchmarks/gpu_cells.py
+from gpu_cells import SHIPPED, append_jsonl, cell_spec, require_validation_seeds   # benchmarks/gpu_cells.py
 from madpinn.commands.evaluate import evaluate
 from madpinn.config import REPO_ROOT, load_config
 from madpinn.value_functions import load_vhat
 from madpinn.value_functions.z_search import bisection_steps
-from zsearch_floor import floor_us_per_agent_step, ran_cold_bisection, row_costs_us   # benchmarks/zsearch_floor.py
+from zsearch_floor import cell_floor_s, ran_cold_bisection, row_costs_us   # benchmarks/zsearch_floor.py
 
 
 def main() -> None:
@@ -42,9 +42,7 @@ def main() -> None:
     ap.add_argument("--z-tolerance", type=float, default=1e-3, help="methods.madpinn.z_tolerance (config.yaml: 1e-3)")
     ap.add_argument("--out", type=Path, default=None, help="also append the JSON lines here")
     args = ap.parse_args()
-    for study, run, n, seed in args.cell:
-        if seed < 100:
-            raise SystemExit(f"validation seeds only (≥ 100), got {seed}")
+    require_validation_seeds(args.cell)
     torch.set_num_threads(1)
     cfg = load_config([REPO_ROOT / "config.yaml"])
     models = {k: REPO_ROOT / v for k, v in SHIPPED.items()}
@@ -63,9 +61,7 @@ def main() -> None:
         stats = s.get("policy_stats") or {}
         if stats.get("vhat_evals_per_agent_step") is None or not ran_cold_bisection(stats, steps):
             raise SystemExit(f"{study}/{run}/{n}/{seed} did not run the cold bisection: no floor to compare with")
-        value_us, grad_us = (before[0] + after[0]) / 2, (before[1] + after[1]) / 2
-        agent_steps = int(s["n_agents"]) * int(s["n_scenarios"]) * int(s["n_steps"])
-        floor_s = 1e-6 * agent_steps * floor_us_per_agent_step(value_us, grad_us, steps, float(stats["infeasible_fraction"]))
+        floor_s = cell_floor_s(s, (before[0] + after[0]) / 2, (before[1] + after[1]) / 2, steps)
         cpu_total += s["cpu_s"]
         floor_total += floor_s
         line = {"cell": f"{study}/{run}/{n}/{seed}", "batch": batch, "cpu_s": round(s["cpu_s"], 2),

@@ -236,7 +236,8 @@ def _cancel_one_job_mid_run(proc, db: Path) -> tuple[str, str]:
 def test_the_dag_on_a_single_node_slurm_cluster_gives_the_same_tables(done, tmp_path):
     """``scripts/local_slurm.sh`` starts munged, slurmctld and slurmd (Debian's packages); the tiny
     DAG of :data:`SLURM_TARGETS` (both trainings, MAD-PINN and nominal cells, an oracle bound, a
-    table, a figure: every kind of job the profile submits, each as its own sbatch job) runs through
+    table, a figure, each its own sbatch job; the validation, report and claims jobs of ``all`` run
+    through Slurm in no test: they run locally in the tiny DAG fixture) runs through
     ``profiles/slurm`` (job states from ``squeue``: no slurmdbd), every job an sbatch job with its
     Slurm log; one job is cancelled (``scancel``) mid-run and retried (the profile's ``retries: 1``).
     Then: every output is one the local run of ``all`` wrote, its table equals the local one byte for
